@@ -1,0 +1,93 @@
+"""The plugin contract: ``Robot``, ``Cost`` and ``Estimator``.
+
+Shapes are part of the contract. ``...`` is any batch of leading dimensions (swarm particles,
+independent runs, several costs); ``N`` is the number of samples, ``n`` the number of joints, ``P``
+the number of physical parameters and ``B`` the number of base parameters.
+
+A plugin's hyperparameters are the keyword arguments of its constructor, stored unchanged, so a
+config section maps one-to-one onto a constructor call.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING, ClassVar
+
+if TYPE_CHECKING:
+    from torch import Tensor
+
+    from idkit.estimate import Estimate
+    from idkit.problem import Problem
+
+
+class Robot(ABC):
+    """Inverse dynamics of one robot, batched over parameter sets.
+
+    Subclasses set ``joint_names`` and ``param_names`` and implement ``bounds`` and
+    ``inverse_dynamics``. Robots whose dynamics are linear in (a recombination of) their
+    parameters also implement ``regressor``, ``base_params`` and ``params_from_base`` and list
+    ``base_param_names``; the least-squares family needs them.
+    """
+
+    joint_names: tuple[str, ...]
+    param_names: tuple[str, ...]
+    base_param_names: tuple[str, ...] = ()
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+    @abstractmethod
+    def bounds(self) -> tuple[Tensor, Tensor]:
+        """Search box ``(lower[P], upper[P])`` of the physical parameters, float64 on the CPU."""
+
+    def nominal_params(self) -> Tensor | None:
+        """Known parameters ``[P]`` (simulation truth or a-priori CAD values), or ``None``."""
+        return None
+
+    @abstractmethod
+    def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
+        """Joint torques ``tau[..., N, n]`` for parameters ``params[..., P]`` and states ``[N, n]``."""
+
+    @property
+    def has_regressor(self) -> bool:
+        """Whether the linear-in-parameters part (``regressor`` and friends) is implemented."""
+        return type(self).regressor is not Robot.regressor
+
+    def regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
+        """Observation matrix ``Y[N, n, B]`` with ``tau = Y @ base_params(params)``."""
+        raise NotImplementedError(f"{type(self).__name__} has no linear regressor")
+
+    def base_params(self, params: Tensor) -> Tensor:
+        """Base parameters ``alpha[..., B]`` of physical parameters ``params[..., P]``."""
+        raise NotImplementedError(f"{type(self).__name__} has no base parameters")
+
+    def params_from_base(self, alpha: Tensor) -> Tensor:
+        """Physical parameters ``[..., P]`` consistent with base parameters ``alpha[..., B]``."""
+        raise NotImplementedError(f"{type(self).__name__} cannot map base to physical parameters")
+
+
+class Cost(ABC):
+    """A scalar cost of the torque error matrix, batched over leading dimensions.
+
+    ``error = measured - predicted`` in the paper's joints × samples layout (eq. 6). ``measured``
+    is passed so that relative costs (eq. 27) can divide by it.
+    """
+
+    relative: ClassVar[bool] = False
+
+    @abstractmethod
+    def __call__(self, error: Tensor, measured: Tensor) -> Tensor:
+        """Cost ``value[...]`` of ``error[..., n, N]`` given ``measured[n, N]``."""
+
+
+class Estimator(ABC):
+    """Identifies a robot's parameters from one ``Problem``."""
+
+    @abstractmethod
+    def fit(self, problem: Problem) -> Estimate:
+        """Estimate the physical parameters (and base parameters where defined)."""
