@@ -32,6 +32,10 @@ class Robot(ABC):
     joint_names: tuple[str, ...]
     param_names: tuple[str, ...]
     base_param_names: tuple[str, ...] = ()
+    #: Where search-based estimators (PSO, Adam) look by default: the physical parameters within
+    #: ``bounds()`` (the paper's way), or the base parameters within ``base_bounds()`` (robots
+    #: with many unidentifiable physical parameters, e.g. a URDF arm).
+    search_space: ClassVar[str] = "physical"
 
     @property
     def n_joints(self) -> int:
@@ -44,6 +48,10 @@ class Robot(ABC):
     @abstractmethod
     def bounds(self) -> tuple[Tensor, Tensor]:
         """Search box ``(lower[P], upper[P])`` of the physical parameters, float64 on the CPU."""
+
+    def base_bounds(self) -> tuple[Tensor, Tensor]:
+        """Search box ``(lower[B], upper[B])`` of the base parameters (robots searched in base space)."""
+        raise NotImplementedError(f"{type(self).__name__} has no base-parameter search box")
 
     def nominal_params(self) -> Tensor | None:
         """Known parameters ``[P]`` (simulation truth or a-priori CAD values), or ``None``."""

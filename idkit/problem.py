@@ -117,6 +117,18 @@ class Problem:
         """The samples on the problem's device and dtype."""
         return self.samples.to(device=self.device, dtype=self.torch_dtype)
 
+    def error(self, params: Tensor) -> Tensor:
+        """Torque error ``E[..., n, N] = measured - predicted`` (eqs. 5-6) for ``params[..., P]``."""
+        s = self.tensors()
+        predicted = self.robot.inverse_dynamics(params, s.q, s.qd, s.qdd)
+        return (s.tau - predicted).transpose(-1, -2)
+
+    def evaluate(self, params: Tensor) -> Tensor:
+        """The problem's cost ``[...]`` at physical parameters ``params[..., P]``."""
+        if self.cost is None:
+            raise ValueError("this problem has no cost to evaluate (Problem.cost is None)")
+        return self.cost(self.error(params), self.tensors().measured_matrix())
+
     def generator(self) -> torch.Generator:
         """A fresh generator seeded from ``seed``, on the problem's device."""
         return torch.Generator(device=self.device).manual_seed(int(self.seed))

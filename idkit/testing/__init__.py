@@ -1,0 +1,1 @@
+"""idkit.testing."""
