@@ -61,6 +61,17 @@ class Robot(ABC):
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Joint torques ``tau[..., N, n]`` for parameters ``params[..., P]`` and states ``[N, n]``."""
 
+    def excitation(self, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """Joint trajectory ``(q, qd, qdd)``, each ``[N, n]``, at times ``t[N]`` for simulation.
+
+        The default is a deterministic finite Fourier series per joint with exact derivatives
+        (``idkit.data.trajectory.fourier_excitation``), so any robot plugin can be simulated;
+        robots with a planned trajectory or tight joint limits override it.
+        """
+        from idkit.data.trajectory import fourier_excitation
+
+        return fourier_excitation(t, self.n_joints)
+
     @property
     def has_regressor(self) -> bool:
         """Whether the linear-in-parameters part (``regressor`` and friends) is implemented."""

@@ -67,6 +67,12 @@ class CylindricalRobot(Robot):
         tau3 = m3 * d3_dd - m3 * r * th_d.square()
         return torch.stack((tau1, tau2.expand_as(tau1), tau3), dim=-1)
 
+    def excitation(self, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """The paper's PSO-planned trajectory, eq. (39): ``(q, qd, qdd)``, each ``[N, 3]``."""
+        from idkit.data.trajectory import paper_trajectory
+
+        return paper_trajectory(t)
+
     def regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Eq. (23): ``Y[N, 3, 4]`` with ``tau = Y @ alpha``."""
         d3 = q[:, 2]
