@@ -1,0 +1,37 @@
+"""Packaging: the explicit package list covers idkit/, and the wheel ships the Hydra configs."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tomllib
+import zipfile
+
+import pytest
+from conftest import REPO
+
+
+def test_package_list_covers_every_subpackage():
+    listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    on_disk = {
+        ".".join(p.parent.relative_to(REPO).parts) for p in (REPO / "idkit").rglob("__init__.py")
+    } | {"idkit.conf"}
+    assert on_disk == listed
+
+
+@pytest.mark.slow
+def test_wheel_ships_configs_and_assets(tmp_path):
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(tmp_path), str(REPO)],
+        check=True,
+    )
+    names = zipfile.ZipFile(next(tmp_path.glob("robot_idkit-*.whl"))).namelist()
+    yaml_on_disk = {f"idkit/conf/{p.relative_to(REPO / 'conf')}" for p in (REPO / "conf").rglob("*.yaml")}
+    assert yaml_on_disk and yaml_on_disk <= set(names)
+    assert "idkit/py.typed" in names
+
+
+def test_help_does_not_import_torch():
+    code = "import sys, idkit.cli; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False", "importing the CLI must not import torch"
