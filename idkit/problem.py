@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import torch
@@ -88,11 +89,13 @@ class Samples:
         return self.tau.T
 
 
-@dataclass
+@dataclass(frozen=True)
 class Problem:
     """Everything an estimator needs: robot, samples, cost, seed and where to compute.
 
     ``cost`` may be ``None`` for estimators that fix their own criterion (the least-squares family).
+    Frozen, so that the samples moved to ``device``/``dtype`` can be cached; derive variants with
+    ``dataclasses.replace``.
     """
 
     robot: Robot
@@ -114,7 +117,11 @@ class Problem:
         return resolve_dtype(self.dtype)
 
     def tensors(self) -> Samples:
-        """The samples on the problem's device and dtype."""
+        """The samples on the problem's device and dtype (converted once, then cached)."""
+        return self._tensors
+
+    @cached_property
+    def _tensors(self) -> Samples:
         return self.samples.to(device=self.device, dtype=self.torch_dtype)
 
     def error(self, params: Tensor) -> Tensor:
