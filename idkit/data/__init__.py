@@ -1,0 +1,28 @@
+"""Samples for identification: the paper's trajectory, simulated noise scenarios, user data files."""
+
+from idkit.data.scenarios import (
+    SCENARIOS,
+    SampleBatch,
+    Scenario,
+    UnknownScenarioError,
+    clean_samples,
+    get_scenario,
+    simulate,
+    simulate_batch,
+)
+from idkit.data.trajectory import check_bounds, fourier_excitation, paper_trajectory, sample_times
+
+__all__ = [
+    "SCENARIOS",
+    "SampleBatch",
+    "Scenario",
+    "UnknownScenarioError",
+    "check_bounds",
+    "clean_samples",
+    "fourier_excitation",
+    "get_scenario",
+    "paper_trajectory",
+    "sample_times",
+    "simulate",
+    "simulate_batch",
+]

@@ -44,19 +44,20 @@ PAPER_BOUNDS: dict[str, tuple[float, float]] = {
 PAPER_JOINTS = ("theta1", "d2", "d3")
 
 
-def sample_times(n_samples: int, t_end: float = 10.0, t_start: float = 0.0) -> Tensor:
-    """``n_samples`` equally spaced times ``t[N]`` (float64) over ``t_start <= t <= t_end``.
+def sample_times(n_samples: int, t_end: float = 10.0) -> Tensor:
+    """Sampling instants ``t[N] = t_end · (1, 2, …, N) / N`` (float64) within ``0 < t <= t_end``.
 
-    Both ends are included (``torch.linspace``), so N samples span the paper's whole window
-    ``0 <= t <= 10`` (eq. 39) with spacing ``(t_end - t_start) / (N - 1)``. Note that every
-    sine-sum trajectory has ``qdd(0) = 0`` exactly, so the first sample's accelerations are zero
-    and multiplicative noise leaves them zero. ``n_samples = 1`` gives ``[t_start]``.
+    A uniform sampling period ``t_end / N`` ending at ``t_end`` (10 samples of eq. (39) → t = 1,
+    2, …, 10 s; 20 samples → t = 0.5, 1, …, 10 s), as a logger clocked at ``N / t_end`` Hz
+    records. ``t = 0`` is left out on purpose: every sine-sum trajectory has ``qdd(0) = 0``
+    exactly, and a zero component cannot carry multiplicative noise (an "outlier" drawn there
+    would vanish). The paper does not state its sampling instants.
     """
     if n_samples < 1:
         raise ValueError(f"sample_times: n_samples must be >= 1, got {n_samples}")
-    if not t_end > t_start:
-        raise ValueError(f"sample_times: need t_end > t_start, got t_start={t_start}, t_end={t_end}")
-    return torch.linspace(t_start, t_end, n_samples, dtype=torch.float64)
+    if not t_end > 0:
+        raise ValueError(f"sample_times: t_end must be > 0, got {t_end}")
+    return t_end * torch.arange(1, n_samples + 1, dtype=torch.float64) / n_samples
 
 
 def sine_sum(
@@ -190,8 +191,8 @@ def check_bounds(
     """Every excursion of a trajectory outside a box such as eq. (38), none hidden or clipped.
 
     Args:
-        t: times ``[N]`` (use a dense grid, e.g. ``sample_times(10001)``: the report resolves
-            crossing times to the grid spacing).
+        t: times ``[N]``, ascending (use a dense grid, e.g. ``torch.linspace(0, 10, 10001)``:
+            the report resolves crossing times to the grid spacing).
         q, qd, qdd: ``[N, n]``.
         bounds: ``"<joint>"``, ``"<joint>_d"``, ``"<joint>_dd"`` -> ``(lower, upper)``; variables
             without an entry are not checked.
@@ -240,5 +241,5 @@ def format_violations(violations: list[BoundViolation]) -> str:
 
 def paper_bounds_report(n_points: int = 10001, t_end: float = 10.0) -> list[BoundViolation]:
     """Where eq. (39) leaves eq. (38) on a dense grid of ``n_points`` over ``0 <= t <= t_end``."""
-    t = sample_times(n_points, t_end)
+    t = torch.linspace(0.0, t_end, n_points, dtype=torch.float64)
     return check_bounds(t, *paper_trajectory(t))

@@ -1,0 +1,274 @@
+"""Simulated measurement scenarios reproducing the paper's Tables II–V.
+
+A scenario samples ``robot.excitation`` (eq. (39) for the cylindrical robot) at
+``sample_times(n_samples, t_end)``, computes the true torques from the *clean* states with
+``robot.inverse_dynamics(params or robot.nominal_params(), ...)`` — so state noise never leaks
+into the torques — and then corrupts the four arrays.
+
+Noise model. The paper says "a random error of up to X %" without naming a distribution. We read
+it as a multiplicative, uniform, independent error on every sample component::
+
+    noisy = clean · (1 + u),   u ~ U(−X, X)
+
+Relative ("%") errors are multiplicative by definition, "up to" gives a hard bound, and uniform is
+the maximum-entropy law with only that bound known. Consequences: an exactly zero component stays
+zero, and the error scales with the signal (small torques get small absolute errors).
+
+Outliers (Table V): ``n_outliers`` of the ``N · 4 · n`` sample components (q, qd, qdd, tau of every
+joint of every sample: 10 × 12 = 120 for the paper) are chosen uniformly without replacement and
+get ``u ~ U(−outlier_noise, outlier_noise)`` instead of the base level. "Up to 70 %" allows a
+drawn outlier to be small; ``SampleBatch.outliers`` records which components were chosen.
+
+Randomness: one CPU ``torch.Generator`` seeded with ``seed`` draws ``U(0, 1)`` numbers
+``[T, 2, M]`` (``M = 4·N·n``): per trial, M for the errors and M whose ranking chooses the
+outliers. Same seed → identical samples, and trial ``i`` depends only on ``(seed, i)``: trial 0
+of ``simulate_batch(trials=T, seed=s)`` is ``simulate(seed=s)`` for any ``T``. The draw does not
+depend on the noise levels, so scenarios with the same ``N`` and seed share their random numbers
+(common random numbers: differences between scenarios are not seed luck).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import asdict, dataclass, fields, replace
+from types import MappingProxyType
+from typing import Any
+
+import torch
+from torch import Tensor
+
+from idkit.data.trajectory import sample_times
+from idkit.interfaces import Robot
+from idkit.problem import SAMPLE_ARRAYS, Samples
+
+
+class UnknownScenarioError(LookupError):
+    """A scenario name that is not in ``SCENARIOS``; the message lists the available ones."""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """How many samples to take and how to corrupt them (levels are fractions: 0.2 = 20 %).
+
+    Attributes:
+        name: label, e.g. ``"outliers"``.
+        n_samples: number of samples ``N`` over ``0 < t <= t_end``.
+        state_noise: level ``X`` of the multiplicative error on ``q``, ``qd``, ``qdd``.
+        torque_noise: level ``X`` of the multiplicative error on ``tau``.
+        n_outliers: how many of the ``N · 4 · n`` components get ``outlier_noise`` instead.
+        outlier_noise: level of the error on those components.
+        t_end: length of the excitation window in seconds.
+        description: one line for tables and logs.
+    """
+
+    name: str = "custom"
+    n_samples: int = 10
+    state_noise: float = 0.0
+    torque_noise: float = 0.0
+    n_outliers: int = 0
+    outlier_noise: float = 0.0
+    t_end: float = 10.0
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        where = f"scenario {self.name!r}"
+        for key, least in (("n_samples", 1), ("n_outliers", 0)):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ValueError(f"{where}: {key} must be an integer >= {least}, got {value!r}")
+        for key in ("state_noise", "torque_noise", "outlier_noise", "t_end"):
+            value = getattr(self, key)
+            number = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if not number or not math.isfinite(value) or value < 0:
+                raise ValueError(f"{where}: {key} must be a finite number >= 0, got {value!r}")
+        if self.t_end == 0:
+            raise ValueError(f"{where}: t_end must be > 0")
+
+    def replace(self, **overrides: Any) -> Scenario:
+        """A copy with some fields changed (unknown names are an error listing the valid ones)."""
+        valid = [f.name for f in fields(self)]
+        unknown = sorted(set(overrides) - set(valid))
+        if unknown:
+            raise TypeError(f"scenario: unknown field(s) {unknown}; valid fields: {', '.join(valid)}")
+        return replace(self, **overrides)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict (JSON/Hydra-friendly); ``Scenario(**s.as_dict()) == s``."""
+        return asdict(self)
+
+
+SCENARIOS: Mapping[str, Scenario] = MappingProxyType(
+    {
+        s.name: s
+        for s in (
+            Scenario("clean", 10, description="no error"),
+            Scenario("state_noise", 10, state_noise=0.2, description="Table II: up to 20 % on q, qd, qdd"),
+            Scenario("torque_noise", 10, torque_noise=0.2, description="Table III: up to 20 % on tau"),
+            Scenario("all_noise", 20, 0.2, 0.2, description="Table IV: up to 20 % on everything"),
+            Scenario(
+                "outliers",
+                10,
+                state_noise=0.05,
+                torque_noise=0.05,
+                n_outliers=10,
+                outlier_noise=0.7,
+                description="Table V: up to 70 % on 10 of 120 components, up to 5 % on the rest",
+            ),
+        )
+    }
+)
+
+
+def get_scenario(scenario: str | Scenario | Mapping[str, Any], **overrides: Any) -> Scenario:
+    """Resolve a scenario by name, instance or mapping, then apply ``overrides``.
+
+    A mapping (e.g. a Hydra config node) whose ``name`` is a preset starts from that preset and
+    overrides the fields it lists; any other mapping builds ``Scenario(**mapping)``. ``None``
+    values in ``overrides`` are ignored, so optional config keys can stay unset.
+    """
+    if isinstance(scenario, str):
+        if scenario not in SCENARIOS:
+            raise UnknownScenarioError(f"unknown scenario {scenario!r}; available: {', '.join(SCENARIOS)}")
+        base = SCENARIOS[scenario]
+    elif isinstance(scenario, Scenario):
+        base = scenario
+    elif isinstance(scenario, Mapping):
+        values = dict(scenario)
+        name = values.get("name")
+        base = SCENARIOS[name].replace(**values) if name in SCENARIOS else Scenario().replace(**values)
+    else:
+        raise TypeError(f"scenario must be a name, a Scenario or a mapping, got {type(scenario).__name__}")
+    return base.replace(**{k: v for k, v in overrides.items() if v is not None})
+
+
+@dataclass(frozen=True)
+class SampleBatch:
+    """``T`` independently corrupted copies of the same clean samples, stacked.
+
+    Indexing gives one trial as ``Samples``; the stacked tensors serve batched estimators.
+
+    Attributes:
+        scenario: the resolved scenario.
+        seed: the seed of the generator that drew the noise.
+        t: sampling instants ``[N]``.
+        clean: the uncorrupted samples (each ``[N, n]``); ``tau`` from the clean states.
+        q, qd, qdd, tau: noisy samples ``[T, N, n]``.
+        relative_error: the drawn ``u`` ``[T, 4, N, n]`` (arrays in ``SAMPLE_ARRAYS`` order):
+            ``noisy = clean · (1 + u)``.
+        outliers: ``[T, 4, N, n]`` bool, the components that got ``outlier_noise``.
+    """
+
+    scenario: Scenario
+    seed: int
+    t: Tensor
+    clean: Samples
+    q: Tensor
+    qd: Tensor
+    qdd: Tensor
+    tau: Tensor
+    relative_error: Tensor
+    outliers: Tensor
+
+    def __len__(self) -> int:
+        return self.q.shape[0]
+
+    def __getitem__(self, trial: int) -> Samples:
+        return Samples(self.q[trial], self.qd[trial], self.qdd[trial], self.tau[trial])
+
+    def __iter__(self) -> Iterator[Samples]:
+        return (self[i] for i in range(len(self)))
+
+
+def clean_samples(
+    robot: Robot, n_samples: int = 10, params: Tensor | None = None, t_end: float = 10.0
+) -> tuple[Tensor, Samples]:
+    """Sampling instants ``t[N]`` and uncorrupted samples of ``robot.excitation`` (CPU, float64).
+
+    Torques are ``robot.inverse_dynamics(params, q, qd, qdd)``; ``params[P]`` defaults to
+    ``robot.nominal_params()``.
+    """
+    if params is None:
+        params = robot.nominal_params()
+        if params is None:
+            raise ValueError(
+                f"{type(robot).__name__} has no nominal parameters to simulate with; pass params=[P] "
+                f"({', '.join(robot.param_names)})"
+            )
+    params = torch.as_tensor(params, dtype=torch.float64)
+    if params.shape != (robot.n_params,):
+        raise ValueError(
+            f"params must have shape ({robot.n_params},) for {', '.join(robot.param_names)}, "
+            f"got {tuple(params.shape)}"
+        )
+    t = sample_times(n_samples, t_end)
+    q, qd, qdd = robot.excitation(t)
+    tau = robot.inverse_dynamics(params, q, qd, qdd)
+    return t, Samples(q, qd, qdd, tau)
+
+
+def simulate_batch(
+    robot: Robot,
+    scenario: str | Scenario | Mapping[str, Any] = "clean",
+    trials: int = 1,
+    seed: int = 0,
+    n_samples: int | None = None,
+    params: Tensor | None = None,
+    **overrides: Any,
+) -> SampleBatch:
+    """``trials`` independent noisy copies of one scenario, drawn in one vectorised call.
+
+    Args:
+        robot: any ``Robot``; its ``excitation`` gives the states.
+        scenario: preset name (see ``SCENARIOS``), ``Scenario`` or mapping (see ``get_scenario``).
+        trials: number of independent noise draws ``T``.
+        seed: seeds the ``torch.Generator`` that draws every random number.
+        n_samples: overrides ``scenario.n_samples``.
+        params: true physical parameters ``[P]`` (default ``robot.nominal_params()``).
+        **overrides: any other ``Scenario`` field, e.g. ``torque_noise=0.1``.
+
+    Returns:
+        A ``SampleBatch`` with noisy arrays ``[T, N, n]`` (CPU, float64).
+    """
+    sc = get_scenario(scenario, n_samples=n_samples, **overrides)
+    if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
+        raise ValueError(f"simulate_batch: trials must be an integer >= 1, got {trials!r}")
+    t, clean = clean_samples(robot, sc.n_samples, params, sc.t_end)
+    n = clean.n_joints
+    shape = (trials, len(SAMPLE_ARRAYS), sc.n_samples, n)
+    n_components = math.prod(shape[1:])
+    if sc.n_outliers > n_components:
+        raise ValueError(
+            f"scenario {sc.name!r}: n_outliers={sc.n_outliers} exceeds the {n_components} sample components "
+            f"({sc.n_samples} samples x 4 arrays x {n} joints)"
+        )
+    gen = torch.Generator().manual_seed(int(seed))
+    # Per trial, 2·M consecutive numbers: M for the errors, M to choose the outliers — so trial i
+    # depends only on (seed, i), whatever the number of trials.
+    draws = torch.rand(trials, 2, n_components, generator=gen, dtype=torch.float64)
+    unit = (2.0 * draws[:, 0] - 1.0).view(shape)  # U(-1, 1)
+    outliers = torch.zeros(trials, n_components, dtype=torch.bool)
+    if sc.n_outliers:
+        outliers.scatter_(1, draws[:, 1].argsort(dim=1)[:, : sc.n_outliers], True)
+    outliers = outliers.view(shape)
+    base = torch.tensor([sc.state_noise] * 3 + [sc.torque_noise], dtype=torch.float64)[:, None, None]
+    level = torch.where(outliers, torch.tensor(sc.outlier_noise, dtype=torch.float64), base)
+    u = unit * level
+    clean_stack = torch.stack([getattr(clean, k) for k in SAMPLE_ARRAYS])  # [4, N, n]
+    noisy = clean_stack * (1.0 + u)  # [T, 4, N, n]
+    return SampleBatch(sc, int(seed), t, clean, *noisy.unbind(1), relative_error=u, outliers=outliers)
+
+
+def simulate(
+    robot: Robot,
+    scenario: str | Scenario | Mapping[str, Any] = "clean",
+    seed: int = 0,
+    n_samples: int | None = None,
+    params: Tensor | None = None,
+    **overrides: Any,
+) -> Samples:
+    """One noisy sample set of a scenario: trial 0 of ``simulate_batch`` with the same arguments.
+
+    Example: ``simulate(CylindricalRobot(), "outliers", seed=3)`` → ``Samples`` with ``[10, 3]`` arrays.
+    """
+    return simulate_batch(robot, scenario, 1, seed, n_samples, params, **overrides)[0]
