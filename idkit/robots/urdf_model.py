@@ -1,0 +1,248 @@
+"""Parse a fixed-base URDF into moving bodies with float64 placements and inertials.
+
+Why not pytorch-kinematics' parser: it stores joint origins in float32 (torques then drift by
+~1e-6 N·m on a real arm) and keeps no inertial data, which is what dynamics needs. URDF is a small
+XML format, so ``xml.etree`` reads it directly in float64.
+
+A *body* is one moving joint (revolute, continuous or prismatic) together with its child link and
+every link welded to that link by ``fixed`` joints; those welded inertials are merged into the
+body's inertial (e.g. a flange or a tool). Links welded to the root (the KUKA ``box`` and
+``lwr_base_link``) never move and are dropped, as pinocchio does. Each body's frame is its
+child link's frame, which URDF defines to be the joint frame.
+
+Bodies are listed depth-first from the root (children in document order), so a body's parent
+always precedes it; kinematic trees (branches) are therefore supported, not only serial chains.
+"""
+
+from __future__ import annotations
+
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ASSETS = Path(__file__).resolve().parent / "assets"
+MOVING = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
+UNSUPPORTED = {
+    "floating": "a floating base is not supported (fixed-base robots only)",
+    "planar": "planar joints are not supported",
+}
+#: Order of the 10 standard inertial parameters of one body (inertia about the body-frame origin).
+INERTIAL_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
+
+
+@dataclass(frozen=True)
+class Body:
+    """One moving joint and the rigid body it carries.
+
+    Attributes:
+        joint: URDF joint name.
+        link: URDF child link name (the body frame).
+        kind: ``"revolute"`` (revolute or continuous) or ``"prismatic"``.
+        parent: index of the parent body, ``-1`` when the parent is the fixed root.
+        rotation: ``[3, 3]`` orientation of the joint frame in the parent body frame at ``q = 0``.
+        translation: ``[3]`` position of the joint frame origin in the parent body frame.
+        axis: ``[3]`` unit joint axis in the joint (= body) frame.
+        inertial: ``[10]`` standard parameters ``(m, m c, I_xx, I_xy, I_xz, I_yy, I_yz, I_zz)`` with
+            the inertia about the body-frame origin, welded links included.
+        limits: ``(lower, upper)`` from ``<limit>``, or ``None`` (continuous joints).
+    """
+
+    joint: str
+    link: str
+    kind: str
+    parent: int
+    rotation: np.ndarray
+    translation: np.ndarray
+    axis: np.ndarray
+    inertial: np.ndarray
+    limits: tuple[float, float] | None
+
+
+@dataclass(frozen=True)
+class KinematicTree:
+    """The moving bodies of a fixed-base robot, parents before children."""
+
+    name: str
+    root: str
+    bodies: tuple[Body, ...]
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(b.joint for b in self.bodies)
+
+    @property
+    def link_names(self) -> tuple[str, ...]:
+        return tuple(b.link for b in self.bodies)
+
+    @property
+    def parents(self) -> tuple[int, ...]:
+        return tuple(b.parent for b in self.bodies)
+
+
+def read_urdf_text(urdf: str | os.PathLike) -> tuple[bytes, str]:
+    """The URDF's bytes and a label for error messages.
+
+    ``urdf`` is URDF text (starts with ``<``), a file path, or the name of a URDF shipped in
+    ``idkit/robots/assets`` (e.g. ``"cylindrical"``). Text is encoded to UTF-8 bytes and its XML
+    declaration's ``encoding`` is rewritten to match, so a declared encoding never disagrees.
+    """
+    if isinstance(urdf, str) and urdf.lstrip().startswith("<"):
+        text = urdf.lstrip()
+        if text.startswith("<?xml"):
+            end = text.find("?>")
+            text = '<?xml version="1.0" encoding="utf-8"' + text[end:] if end > 0 else text
+        return text.encode("utf-8"), "<URDF text>"
+    path = Path(urdf)
+    if not path.is_file() and (ASSETS / f"{urdf}.urdf").is_file():
+        path = ASSETS / f"{urdf}.urdf"
+    if not path.is_file():
+        shipped = sorted(p.stem for p in ASSETS.glob("*.urdf"))
+        raise FileNotFoundError(
+            f"urdf: {str(urdf)!r} is neither URDF text, an existing file, nor a shipped asset "
+            f"(shipped: {', '.join(shipped) or 'none'})"
+        )
+    return path.read_bytes(), str(path)
+
+
+def _floats(element: ET.Element | None, attribute: str, default: tuple[float, ...], where: str) -> np.ndarray:
+    if element is None or element.get(attribute) is None:
+        return np.array(default, dtype=np.float64)
+    try:
+        values = np.array([float(v) for v in element.get(attribute, "").split()], dtype=np.float64)
+    except ValueError:
+        raise ValueError(f"urdf: {where}: {attribute}={element.get(attribute)!r} is not numeric") from None
+    if values.shape != (len(default),):
+        raise ValueError(f"urdf: {where}: {attribute} needs {len(default)} numbers, got {element.get(attribute)!r}")
+    return values
+
+
+def rpy_matrix(rpy: np.ndarray) -> np.ndarray:
+    """URDF fixed-axis roll-pitch-yaw: ``R = Rz(yaw) Ry(pitch) Rx(roll)``, ``[3, 3]``."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def _origin(element: ET.Element, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The first ``<origin>`` child as ``(R[3, 3], p[3])`` (urdfdom also reads only the first)."""
+    origin = element.find("origin")
+    xyz = _floats(origin, "xyz", (0.0, 0.0, 0.0), f"{where} <origin>")
+    rpy = _floats(origin, "rpy", (0.0, 0.0, 0.0), f"{where} <origin>")
+    return rpy_matrix(rpy), xyz
+
+
+def _link_inertial(link: ET.Element) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(m, c[3], I_c[3, 3])`` of a link in its own frame; zeros when it has no ``<inertial>``."""
+    where = f"link {link.get('name')!r}"
+    inertial = link.find("inertial")
+    if inertial is None:
+        return 0.0, np.zeros(3), np.zeros((3, 3))
+    mass = _floats(inertial.find("mass"), "value", (0.0,), f"{where} <mass>")[0]
+    rotation, com = _origin(inertial, f"{where} <inertial>")
+    element = inertial.find("inertia")
+    names = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    xx, xy, xz, yy, yz, zz = (_floats(element, k, (0.0,), f"{where} <inertia>")[0] for k in names)
+    inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    return float(mass), com, rotation @ inertia @ rotation.T
+
+
+def _standard(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray:
+    """Standard parameters ``[10]`` from mass, centre of mass and inertia about it (same frame)."""
+    inertia_o = inertia_c + mass * (com @ com * np.eye(3) - np.outer(com, com))  # parallel axis
+    (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia_o
+    return np.array([mass, *(mass * com), xx, xy, xz, yy, yz, zz])
+
+
+def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
+    """Parse URDF text, a path or a shipped asset name into a :class:`KinematicTree`.
+
+    Raises:
+        ValueError: malformed XML, a joint of unsupported type (``floating``, ``planar``,
+            unknown) or with ``<mimic>``, a zero axis, a link with two parents, no unique root,
+            or no moving joint. The message names the offending joint or link.
+    """
+    data, label = read_urdf_text(urdf)
+    try:
+        robot = ET.fromstring(data)
+    except ET.ParseError as error:
+        raise ValueError(f"urdf: {label} is not valid XML: {error}") from None
+    if robot.tag != "robot":
+        raise ValueError(f"urdf: {label}: root element is <{robot.tag}>, expected <robot>")
+    links = {link.get("name"): link for link in robot.findall("link")}
+    children: dict[str, list[ET.Element]] = {name: [] for name in links}
+    parent_of: dict[str, str] = {}
+    for joint in robot.findall("joint"):
+        name, kind = joint.get("name"), joint.get("type")
+        if kind in UNSUPPORTED:
+            raise ValueError(f"urdf: joint {name!r} has type {kind!r}: {UNSUPPORTED[kind]}")
+        if kind not in MOVING and kind != "fixed":
+            raise ValueError(
+                f"urdf: joint {name!r} has unknown type {kind!r} "
+                "(supported: revolute, continuous, prismatic, fixed)"
+            )
+        if joint.find("mimic") is not None:
+            raise ValueError(f"urdf: joint {name!r} has <mimic>: mimic joints are not supported")
+        parent = joint.find("parent")
+        child = joint.find("child")
+        parent_link = None if parent is None else parent.get("link")
+        child_link = None if child is None else child.get("link")
+        for role, link_name in (("parent", parent_link), ("child", child_link)):
+            if link_name not in links:
+                raise ValueError(f"urdf: joint {name!r}: {role} link {link_name!r} is not defined")
+        if child_link in parent_of:
+            raise ValueError(
+                f"urdf: link {child_link!r} is the child of two joints ({parent_of[child_link]!r}, "
+                f"{name!r}): closed loops are not supported"
+            )
+        parent_of[child_link] = name
+        children[parent_link].append(joint)
+    roots = [name for name in links if name not in parent_of]
+    if len(roots) != 1:
+        raise ValueError(f"urdf: {label}: expected one root link, found {roots or 'none (a loop)'}")
+    bodies: list[Body] = []
+    inertials: list[np.ndarray] = []
+    # Depth-first walk; each stack entry: (link, owning body index, pose of the link in that body).
+    stack = [(roots[0], -1, np.eye(3), np.zeros(3))]
+    while stack:
+        link, owner, rot, pos = stack.pop()
+        mass, com, inertia = _link_inertial(links[link])
+        if owner >= 0:
+            inertials[owner] += _standard(mass, rot @ com + pos, rot @ inertia @ rot.T)
+        pending = []
+        for joint in children[link]:
+            name, kind = joint.get("name"), joint.get("type")
+            j_rot, j_pos = _origin(joint, f"joint {name!r}")
+            rot_c, pos_c = rot @ j_rot, rot @ j_pos + pos  # joint frame in the owning body frame
+            child = joint.find("child").get("link")
+            if kind == "fixed":
+                pending.append((child, owner, rot_c, pos_c))
+                continue
+            axis = _floats(joint.find("axis"), "xyz", (1.0, 0.0, 0.0), f"joint {name!r} <axis>")
+            norm = np.linalg.norm(axis)
+            if norm < 1e-12:
+                raise ValueError(f"urdf: joint {name!r} has a zero axis")
+            limit = joint.find("limit")
+            limits = None
+            if MOVING[kind] == "prismatic" or kind == "revolute":
+                lo = _floats(limit, "lower", (0.0,), f"joint {name!r} <limit>")[0]
+                hi = _floats(limit, "upper", (0.0,), f"joint {name!r} <limit>")[0]
+                limits = (float(lo), float(hi)) if hi > lo else None
+            bodies.append(Body(name, child, MOVING[kind], owner, rot_c, pos_c, axis / norm, np.zeros(10), limits))
+            inertials.append(np.zeros(10))
+            pending.append((child, len(bodies) - 1, np.eye(3), np.zeros(3)))
+        stack.extend(reversed(pending))  # document order on the depth-first walk
+    if not bodies:
+        raise ValueError(f"urdf: {label} has no revolute, continuous or prismatic joint")
+    bodies = [
+        Body(b.joint, b.link, b.kind, b.parent, b.rotation, b.translation, b.axis, inertial, b.limits)
+        for b, inertial in zip(bodies, inertials)
+    ]
+    return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies))
