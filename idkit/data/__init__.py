@@ -1,5 +1,6 @@
 """Samples for identification: the paper's trajectory, simulated noise scenarios, user data files."""
 
+from idkit.data.io import FLOBAROID_KEYS, load_samples, save_samples
 from idkit.data.scenarios import (
     SCENARIOS,
     SampleBatch,
@@ -13,6 +14,7 @@ from idkit.data.scenarios import (
 from idkit.data.trajectory import check_bounds, fourier_excitation, paper_trajectory, sample_times
 
 __all__ = [
+    "FLOBAROID_KEYS",
     "SCENARIOS",
     "SampleBatch",
     "Scenario",
@@ -21,8 +23,10 @@ __all__ = [
     "clean_samples",
     "fourier_excitation",
     "get_scenario",
+    "load_samples",
     "paper_trajectory",
     "sample_times",
+    "save_samples",
     "simulate",
     "simulate_batch",
 ]

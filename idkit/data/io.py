@@ -1,0 +1,161 @@
+"""Load and save user samples (``q, qd, qdd, tau``, each ``[N, n]``) as ``.npz`` or ``.csv``.
+
+Formats:
+    ``.npz``: one 2-D array ``[N samples, n joints]`` per quantity, under the keys ``q``, ``qd``,
+    ``qdd``, ``tau`` by default. Other names map through ``keys``, e.g. the FloBaRoID/KUKA files:
+    ``load_samples(path, keys=FLOBAROID_KEYS)`` reads ``positions``, ``velocities``,
+    ``accelerations``, ``torques``. Extra arrays in the file are ignored.
+
+    ``.csv``: comma-separated, one header line, then one line per sample. The header names the
+    columns ``q1..qn, qd1..qdn, qdd1..qddn, tau1..taun`` (joint numbers from 1; any column order;
+    extra columns such as ``t`` are ignored). ``keys`` renames the prefixes. Values are parsed as
+    float64 (``nan``/``inf`` parse, and are then rejected).
+
+Validation reuses ``Samples`` (2-D, equal shapes, finite) and adds where the problem is: the file,
+the file's array or column name, and the sample (for CSV also the line).
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from idkit.problem import SAMPLE_ARRAYS, Samples
+
+#: Default file names of the four arrays (and CSV column prefixes).
+DEFAULT_KEYS: Mapping[str, str] = {name: name for name in SAMPLE_ARRAYS}
+#: The FloBaRoID recordings, e.g. ``shared/data/kuka-lwr4/measurements_1.npz``.
+FLOBAROID_KEYS: Mapping[str, str] = {
+    "q": "positions",
+    "qd": "velocities",
+    "qdd": "accelerations",
+    "tau": "torques",
+}
+
+
+def _resolve_keys(keys: Mapping[str, str] | None) -> dict[str, str]:
+    merged = dict(DEFAULT_KEYS)
+    if keys is not None:
+        unknown = sorted(set(keys) - set(SAMPLE_ARRAYS))
+        if unknown:
+            raise ValueError(f"keys: unknown array name(s) {unknown}; map some of {', '.join(SAMPLE_ARRAYS)}")
+        merged.update(keys)
+    return merged
+
+
+def load_samples(path: str | Path, keys: Mapping[str, str] | None = None) -> Samples:
+    """Read samples from ``path`` (``.npz`` or ``.csv``, see the module docstring).
+
+    Args:
+        path: the file.
+        keys: file name of each array (``.npz`` key or CSV column prefix) for those that differ
+            from ``q``, ``qd``, ``qdd``, ``tau``.
+
+    Returns:
+        Validated ``Samples`` (float64, CPU).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: unknown suffix, missing arrays/columns (the message lists those present),
+            non-numeric or non-finite values, inconsistent shapes — naming file, array and sample.
+    """
+    path = Path(path)
+    names = _resolve_keys(keys)
+    if not path.is_file():
+        raise FileNotFoundError(f"samples file not found: {path}")
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        arrays = _read_npz(path, names)
+    elif suffix == ".csv":
+        arrays = _read_csv(path, names)
+    else:
+        raise ValueError(f"{path}: unsupported file type {path.suffix!r}; use .npz or .csv")
+    try:
+        return Samples(*(torch.as_tensor(arrays[k], dtype=torch.float64) for k in SAMPLE_ARRAYS))
+    except ValueError as exc:
+        renamed = {k: v for k, v in names.items() if k != v}
+        note = f" (file names: {', '.join(f'{k}={v!r}' for k, v in renamed.items())})" if renamed else ""
+        raise ValueError(f"{path}: {exc}{note}") from None
+
+
+def _read_npz(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:
+    with np.load(path, allow_pickle=False) as data:
+        missing = [v for v in names.values() if v not in data.files]
+        if missing:
+            raise ValueError(
+                f"{path}: missing array(s) {missing}; the file has {sorted(data.files)} "
+                f"(map other names with keys={{'q': ..., ...}}, e.g. FLOBAROID_KEYS for FloBaRoID/KUKA files)"
+            )
+        return {k: np.asarray(data[v]) for k, v in names.items()}
+
+
+def _read_csv(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:
+    with path.open(newline="") as handle:
+        rows = list(csv.reader(handle))
+    if not rows:
+        raise ValueError(f"{path}: empty file; expected a header line q1..qn, qd1.., qdd1.., tau1..")
+    header = [cell.strip() for cell in rows[0]]
+    columns: dict[str, dict[int, int]] = {k: {} for k in SAMPLE_ARRAYS}
+    for col, label in enumerate(header):
+        for k, prefix in names.items():
+            match = re.fullmatch(re.escape(prefix) + r"(\d+)", label)
+            if match:
+                columns[k][int(match.group(1))] = col
+    n = len(columns["q"])
+    for k, prefix in names.items():
+        wanted = [f"{prefix}{j}" for j in range(1, max(n, 1) + 1)]
+        if sorted(columns[k]) != list(range(1, n + 1)) or n == 0:
+            raise ValueError(f"{path}: header must have columns {wanted}; found {header}")
+    data = rows[1:]
+    if not data:
+        raise ValueError(f"{path}: no samples after the header line")
+    table = np.empty((len(data), len(header)))
+    for i, row in enumerate(data):
+        if len(row) != len(header):
+            raise ValueError(
+                f"{path}: line {i + 2} (sample {i}) has {len(row)} values but the header has {len(header)}"
+            )
+        for col, cell in enumerate(row):
+            try:
+                table[i, col] = float(cell)
+            except ValueError:
+                raise ValueError(
+                    f"{path}: line {i + 2} (sample {i}), column {header[col]!r}: not a number: {cell!r}"
+                ) from None
+    arrays = {k: table[:, [columns[k][j] for j in range(1, n + 1)]] for k in SAMPLE_ARRAYS}
+    for k in SAMPLE_ARRAYS:
+        bad = np.argwhere(~np.isfinite(arrays[k]))
+        if len(bad):
+            i, j = (int(x) for x in bad[0])
+            raise ValueError(
+                f"{path}: array {k!r} (column {names[k]}{j + 1!s}) has a non-finite value "
+                f"({arrays[k][i, j]}) at sample {i} (line {i + 2}), joint {j}"
+            )
+    return arrays
+
+
+def save_samples(samples: Samples, path: str | Path, keys: Mapping[str, str] | None = None) -> Path:
+    """Write ``samples`` to ``path`` (``.npz`` or ``.csv``) so that ``load_samples`` reads them back.
+
+    CSV values are written with 17 significant digits, which round-trips float64 exactly.
+    Returns the path written.
+    """
+    path = Path(path)
+    names = _resolve_keys(keys)
+    arrays = {k: getattr(samples, k).detach().cpu().double().numpy() for k in SAMPLE_ARRAYS}
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        np.savez(path, **{names[k]: v for k, v in arrays.items()})
+    elif suffix == ".csv":
+        n = samples.n_joints
+        header = [f"{names[k]}{j}" for k in SAMPLE_ARRAYS for j in range(1, n + 1)]
+        table = np.concatenate([arrays[k] for k in SAMPLE_ARRAYS], axis=1)
+        np.savetxt(path, table, fmt="%.17g", delimiter=",", header=",".join(header), comments="")
+    else:
+        raise ValueError(f"{path}: unsupported file type {path.suffix!r}; use .npz or .csv")
+    return path
