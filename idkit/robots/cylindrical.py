@@ -4,6 +4,22 @@ Joints: ``theta1`` (revolute about the vertical), ``d2`` (prismatic, vertical), 
 radial). Physical parameters ``(m2, m3, s3z, I)`` with ``I = I1zz + I2yy + I3yy`` (eq. 22); the
 paper's tables print ``-s3z``. Eqs. (19)–(21) assume link 1 is a point and links 2 and 3 are thin
 rods with no sideways centre-of-mass offset; friction is omitted, as in the paper.
+
+A matching URDF ships as ``idkit/robots/assets/cylindrical.urdf`` (Table I read as standard DH;
+``idkit.robots.cylindrical_urdf`` renders it for any parameters), and the tests check eqs. (19)–(21)
+against a pytorch-kinematics Lagrangian oracle and pinocchio on it to 1e-9. They are the *exact*
+rigid-body dynamics of that robot only under these assumptions:
+
+* gravity along ``-z`` and joint ``d2`` vertical (``tau2`` sees no other mass than ``m2 + m3``);
+* link 1's and link 2's centres of mass on the vertical axis (their height is free): a horizontal
+  offset ``r`` would add ``m r²`` to the ``theta1`` inertia;
+* link 3's centre of mass on joint 3's axis, at ``s3z`` along it (a vertical offset is harmless): a
+  horizontal offset ``x`` across that axis adds ``m3 x²`` to the ``theta1`` inertia and couples
+  ``tau1`` and ``tau3`` through ``-m3 x d̈3`` and ``-m3 x θ̈1``;
+* only the moments about the vertical enter — ``I1zz`` of frame 1, ``I2yy`` and ``I3yy`` of DH
+  frames 2 and 3, whose ``y`` axis is vertical — and only their sum ``I`` (eq. 22) is identifiable;
+  "thin rod" just fixes which entry that is (products of inertia are taken by the prismatic joints);
+* rigid links, no friction, no motor/gear inertia.
 """
 
 from __future__ import annotations
