@@ -1,0 +1,153 @@
+"""Conformance checks for ``Cost`` plugins.
+
+Shape (``idkit.interfaces``): ``cost(error[..., n, N], measured[n, N]) -> value[...]``, where
+``error = measured - predicted`` in the paper's joints x samples layout.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+from torch import Tensor
+
+from idkit.interfaces import Cost
+from idkit.testing._common import (
+    BATCH_SHAPES,
+    DTYPES,
+    RTOL,
+    call,
+    check_hyperparameters,
+    conformance_check,
+    expect_close,
+    expect_raises,
+    expect_tensor,
+    fail,
+    shape_str,
+)
+
+#: Joints and samples of the checks' error matrices (distinct, so a transposed use shows).
+N_JOINTS, N_SAMPLES = 3, 7
+
+
+def measured_torques(dtype: torch.dtype = torch.float64) -> Tensor:
+    """Reproducible measured torques ``[n, N]`` with ``0.5 <= |T| <= 2`` (no near-zero entries)."""
+    gen = torch.Generator().manual_seed(20260201)
+    size = torch.rand(N_JOINTS, N_SAMPLES, generator=gen, dtype=torch.float64) * 1.5 + 0.5
+    sign = torch.where(torch.rand(N_JOINTS, N_SAMPLES, generator=gen, dtype=torch.float64) < 0.5, -1.0, 1.0)
+    return (sign * size).to(dtype)
+
+
+def errors(batch: tuple[int, ...] = (), dtype: torch.dtype = torch.float64) -> Tensor:
+    """Reproducible error matrices ``[*batch, n, N]``, normal with standard deviation 0.3."""
+    gen = torch.Generator().manual_seed(20260202)
+    return (0.3 * torch.randn(*batch, N_JOINTS, N_SAMPLES, generator=gen, dtype=torch.float64)).to(dtype)
+
+
+def _cost_call(cost: Cost, error: Tensor, measured: Tensor) -> Tensor:
+    what = f"cost({shape_str('error', error.shape)}, {shape_str('measured', measured.shape)})"
+    return call(what, cost, error, measured)
+
+
+@conformance_check
+def check_cost_relative_flag(cost: Cost) -> None:
+    """``relative`` is a bool: whether the cost divides by the measured torques."""
+    if not isinstance(cost.relative, bool):
+        fail(f"relative must be a bool, got {cost.relative!r}")
+
+
+@conformance_check
+def check_cost_shapes_and_dtypes(cost: Cost) -> None:
+    """``error[*b, n, N]`` gives finite ``value[*b]`` of the input dtype for ``b`` in ``()``, ``(2,)``,
+    ``(2, 3)`` and float32/float64, without changing its inputs."""
+    for dtype in DTYPES:
+        measured = measured_torques(dtype)
+        for batch in BATCH_SHAPES:
+            error = errors(batch, dtype)
+            before = error.clone(), measured.clone()
+            value = _cost_call(cost, error, measured)
+            expect_tensor(value, f"cost({shape_str('error', error.shape)}, {dtype})", batch, dtype)
+            if not (torch.equal(before[0], error) and torch.equal(before[1], measured)):
+                fail(f"cost({shape_str('error', error.shape)}) modified its inputs in place")
+
+
+@conformance_check
+def check_cost_batch_invariance(cost: Cost) -> None:
+    """A batched call equals the stack of unbatched calls (no mixing across the batch)."""
+    measured, error = measured_torques(), errors((2, 3))
+    batched = _cost_call(cost, error, measured)
+    single = torch.stack(
+        [torch.stack([_cost_call(cost, error[i, j], measured) for j in range(3)]) for i in range(2)]
+    )
+    expect_close(batched, single, "cost(error[2, 3, n, N]) vs. six calls with error[n, N]", 1e-10)
+
+
+@conformance_check
+def check_cost_zero_error_is_best(cost: Cost) -> None:
+    """A perfect fit (zero error) costs no more than any of several random errors."""
+    measured = measured_torques()
+    zero = _cost_call(cost, torch.zeros(N_JOINTS, N_SAMPLES, dtype=torch.float64), measured)
+    expect_tensor(zero, "cost(zero error)", (), torch.float64)
+    values = _cost_call(cost, errors((8,)), measured)
+    worse = (values < zero).nonzero().flatten().tolist()
+    if worse:
+        fail(
+            f"a random error costs {values[worse[0]].item()!r} < {zero.item()!r} = cost of zero error; "
+            "identification minimises the cost, so a perfect fit must be a minimum"
+        )
+
+
+@conformance_check
+def check_cost_relative_scale_invariance(cost: Cost) -> None:
+    """A relative cost depends on ``error / measured`` only: scaling both by 3.7 changes nothing."""
+    if not cost.relative:
+        return
+    measured, error = measured_torques(), errors((2,))
+    base = _cost_call(cost, error, measured)
+    scaled = _cost_call(cost, 3.7 * error, 3.7 * measured)
+    expect_close(scaled, base, "relative cost of (3.7 error, 3.7 measured) vs (error, measured)", RTOL[torch.float64])
+
+
+@conformance_check
+def check_cost_rejects_bad_shapes(cost: Cost) -> None:
+    """A relative cost given ``measured`` that does not match ``error``'s ``[n, N]`` raises instead of
+    broadcasting. (An absolute cost may ignore ``measured``.)"""
+    if not cost.relative:
+        return
+    error, good = errors((2,)), measured_torques()
+    fix = "Check that measured.shape == error.shape[-2:] and raise ValueError."
+    wrong = (
+        torch.cat([good, good[:, :1]], dim=1),  # [n, N + 1]
+        torch.cat([good, good[:1]], dim=0),  # [n + 1, N]
+        good[:1],  # [1, N]: would broadcast silently over the joints
+    )
+    for measured in wrong:
+        expect_raises(
+            f"cost(error[2, {N_JOINTS}, {N_SAMPLES}], {shape_str('measured', measured.shape)})",
+            cost, error, measured, fix=fix,
+        )
+
+
+@conformance_check
+def check_cost_differentiable(cost: Cost) -> None:
+    """Autograd gives finite gradients w.r.t. the error (gradient estimators such as Adam need them)."""
+    error = errors((2,)).requires_grad_(True)
+    value = _cost_call(cost, error, measured_torques())
+    if not value.requires_grad:
+        fail("cost output does not depend on error through autograd (detached?)")
+    (grad,) = torch.autograd.grad(value.sum(), error, allow_unused=True)
+    if grad is None:
+        fail("cost output has no gradient w.r.t. error")
+    expect_tensor(grad, "d cost / d error", tuple(error.shape), error.dtype)
+
+
+COST_CHECKS: tuple[Callable[[Cost], None], ...] = (
+    check_hyperparameters,
+    check_cost_relative_flag,
+    check_cost_shapes_and_dtypes,
+    check_cost_batch_invariance,
+    check_cost_zero_error_is_best,
+    check_cost_relative_scale_invariance,
+    check_cost_rejects_bad_shapes,
+    check_cost_differentiable,
+)

@@ -1,0 +1,237 @@
+"""Conformance checks for ``Estimator`` plugins, and the small problems they are run on.
+
+``fit(problem) -> Estimate``. Each check takes the estimator and a ``problem_factory(dtype=...,
+seed=...) -> Problem``; the default, ``make_problem``, simulates the cylindrical robot on its
+excitation trajectory with 2 % torque noise and the cost ``f1``. Pass
+``functools.partial(make_problem, MyRobot())`` to check an estimator on another robot.
+
+Estimators are checked with the options they were built with: build them cheaply (few
+iterations), or declare ``conformance_options`` on the class and use ``check_plugin``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from typing import Any, Protocol
+
+import torch
+from torch import Tensor
+
+from idkit.estimate import Estimate
+from idkit.interfaces import Cost, Estimator, Robot
+from idkit.problem import Problem, Samples
+from idkit.testing._common import call, check_hyperparameters, conformance_check, expect_close, fail
+
+
+class ProblemFactory(Protocol):
+    def __call__(self, *, dtype: str = "float64", seed: int = 0) -> Problem: ...
+
+
+def make_problem(
+    robot: Robot | None = None,
+    *,
+    n_samples: int = 20,
+    noise: float = 0.02,
+    cost: Cost | str | None = "f1",
+    dtype: str = "float64",
+    seed: int = 0,
+) -> Problem:
+    """A small simulated identification problem.
+
+    States come from ``robot.excitation`` at ``n_samples`` instants in ``(0, 10]`` s; torques from
+    the robot's nominal parameters (the middle of ``bounds()`` if it has none), times
+    ``1 + noise * u`` with ``u ~ U(-1, 1)``. The data are the same for every ``seed`` (the seed
+    is the problem's, for the estimator's own randomness), so fits with equal seeds must agree.
+
+    Args:
+        robot: defaults to the core ``cylindrical`` robot.
+        n_samples: number of samples ``N``.
+        noise: multiplicative uniform torque noise level (0.02 = up to 2 %).
+        cost: a ``Cost``, a registered cost name, or ``None``.
+        dtype: the problem's dtype, ``"float64"`` or ``"float32"``.
+        seed: the problem's seed.
+    """
+    from idkit import registry
+
+    if robot is None:
+        robot = registry.create("robot", "cylindrical")
+    if isinstance(cost, str):
+        cost = registry.create("cost", cost)
+    truth = robot.nominal_params()
+    if truth is None:
+        lower, upper = robot.bounds()
+        truth = (lower + upper) / 2
+    t = 10.0 * torch.arange(1, n_samples + 1, dtype=torch.float64) / n_samples
+    q, qd, qdd = robot.excitation(t)
+    with torch.no_grad():
+        tau = robot.inverse_dynamics(truth.to(torch.float64), q, qd, qdd)
+    gen = torch.Generator().manual_seed(20260301)
+    tau = tau * (1 + noise * (2 * torch.rand(tau.shape, generator=gen, dtype=torch.float64) - 1))
+    return Problem(robot, Samples(q, qd, qdd, tau), cost=cost, seed=seed, dtype=dtype)
+
+
+def _fit(estimator: Estimator, problem: Problem) -> Estimate:
+    what = f"fit(problem with robot {type(problem.robot).__name__}, dtype {problem.dtype}, seed {problem.seed})"
+    estimate = call(what, estimator.fit, problem)
+    if not isinstance(estimate, Estimate):
+        fail(f"{what} must return an idkit.estimate.Estimate, got {type(estimate).__name__}")
+    return estimate
+
+
+def _finite_floats(values: Any, what: str, names: tuple[str, ...]) -> None:
+    if not isinstance(values, dict) or list(values) != list(names):
+        keys = list(values) if isinstance(values, dict) else type(values).__name__
+        fail(f"{what} must be a dict keyed by {list(names)} in that order, got keys {keys}")
+    for name, value in values.items():
+        if not isinstance(value, float) or not math.isfinite(value):
+            fail(f"{what}[{name!r}] must be a finite Python float, got {value!r} ({type(value).__name__})")
+
+
+@conformance_check
+def check_estimator_estimate(estimator: Estimator, problem_factory: ProblemFactory = make_problem) -> None:
+    """``fit`` returns an ``Estimate``: a label, finite ``params`` keyed by ``param_names``,
+    ``base_params`` keyed by ``base_param_names`` (or ``None``), a wall time and a ``details`` dict."""
+    problem = problem_factory(dtype="float64", seed=0)
+    robot = problem.robot
+    est = _fit(estimator, problem)
+    if not isinstance(est.estimator, str) or not est.estimator:
+        fail(f"Estimate.estimator must be a non-empty label such as 'LS-rel', got {est.estimator!r}")
+    _finite_floats(est.params, "Estimate.params", robot.param_names)
+    if est.base_params is not None:
+        _finite_floats(est.base_params, "Estimate.base_params", robot.base_param_names)
+    if not (isinstance(est.wall_time_s, float) and math.isfinite(est.wall_time_s) and est.wall_time_s >= 0):
+        fail(f"Estimate.wall_time_s must be a finite float >= 0, got {est.wall_time_s!r}")
+    if not isinstance(est.details, dict):
+        fail(f"Estimate.details must be a dict, got {type(est.details).__name__}")
+
+
+@conformance_check
+def check_estimator_cost_convention(estimator: Estimator, problem_factory: ProblemFactory = make_problem) -> None:
+    """With ``problem.cost`` set, ``Estimate.cost`` is that cost at the reported parameters (so
+    estimates of different estimators compare on one criterion); their own criterion goes in details."""
+    problem = problem_factory(dtype="float64", seed=0)
+    if problem.cost is None:
+        return
+    est = _fit(estimator, problem)
+    if not isinstance(est.cost, float):
+        fail(f"Estimate.cost must be a float when problem.cost is set, got {est.cost!r}")
+    params = torch.tensor(list(est.params.values()), dtype=torch.float64)
+    with torch.no_grad():
+        expected = problem.evaluate(params)
+    expect_close(torch.tensor(est.cost), expected, "Estimate.cost vs problem.evaluate(Estimate.params)", 1e-6)
+
+
+@conformance_check
+def check_estimator_json(estimator: Estimator, problem_factory: ProblemFactory = make_problem) -> None:
+    """The estimate is strict JSON (no NaN tokens) and survives ``Estimate.from_json(e.to_json())``."""
+    est = _fit(estimator, problem_factory(dtype="float64", seed=0))
+    text = call("Estimate.to_json()", est.to_json)
+    try:
+        json.loads(text)
+    except ValueError as exc:
+        fail(f"Estimate.to_json() is not valid JSON: {exc}")
+    if Estimate.from_json(text).to_dict() != est.to_dict():
+        fail("Estimate.from_json(e.to_json()) differs from e; keep details to str keys and JSON values")
+    for key in est.details:
+        if not isinstance(key, str):
+            fail(f"Estimate.details key {key!r} is not a str; JSON would turn it into {str(key)!r}")
+
+
+@conformance_check
+def check_estimator_deterministic(estimator: Estimator, problem_factory: ProblemFactory = make_problem) -> None:
+    """Two fits with the same seed give identical params, base params and cost: all randomness
+    comes from ``problem.generator()``, and no state carries over from one fit to the next."""
+    fits = []
+    for global_seed in (1, 2):  # a different global RNG state each time: it must not matter
+        with torch.random.fork_rng():
+            torch.manual_seed(global_seed)
+            fits.append(_fit(estimator, problem_factory(dtype="float64", seed=7)))
+    first, second = fits
+    for what in ("params", "base_params", "cost"):
+        a, b = getattr(first, what), getattr(second, what)
+        if a != b:
+            fail(
+                f"two fits with seed 7 differ in Estimate.{what}: {a!r} vs {b!r}; draw random numbers "
+                "only from problem.generator() and keep no state between fits"
+            )
+
+
+@conformance_check
+def check_estimator_float32(estimator: Estimator, problem_factory: ProblemFactory = make_problem) -> None:
+    """A float32 problem fits without code changes and gives finite parameters."""
+    problem = problem_factory(dtype="float32", seed=0)
+    est = _fit(estimator, problem)
+    _finite_floats(est.params, "Estimate.params (float32 problem)", problem.robot.param_names)
+
+
+@conformance_check
+def check_estimator_leaves_problem_unchanged(
+    estimator: Estimator, problem_factory: ProblemFactory = make_problem
+) -> None:
+    """``fit`` does not modify the samples it is given."""
+    problem = problem_factory(dtype="float64", seed=0)
+    before = {k: getattr(problem.samples, k).clone() for k in ("q", "qd", "qdd", "tau")}
+    _fit(estimator, problem)
+    for name, old in before.items():
+        if not torch.equal(old, getattr(problem.samples, name)):
+            fail(f"fit modified problem.samples.{name} in place")
+
+
+class _WithoutRegressor(Robot):
+    """A robot that hides its regressor: what an estimator meets with, e.g., a URDF-less plugin."""
+
+    def __init__(self, robot: Robot) -> None:
+        self._robot = robot
+        self.joint_names, self.param_names = robot.joint_names, robot.param_names
+
+    def bounds(self) -> tuple[Tensor, Tensor]:
+        return self._robot.bounds()
+
+    def nominal_params(self) -> Tensor | None:
+        return self._robot.nominal_params()
+
+    def excitation(self, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        return self._robot.excitation(t)
+
+    def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
+        return self._robot.inverse_dynamics(params, q, qd, qdd)
+
+
+@conformance_check
+def check_estimator_unsupported_problem(
+    estimator: Estimator, problem_factory: ProblemFactory = make_problem
+) -> None:
+    """On a problem it cannot handle — no cost, or a robot without a regressor — ``fit`` either
+    works or raises ValueError/NotImplementedError saying what is missing, never a stray
+    AttributeError/TypeError from deep inside."""
+    problem = problem_factory(dtype="float64", seed=0)
+    variants = {
+        "problem.cost = None": Problem(problem.robot, problem.samples, cost=None),
+        "a robot without regressor()": Problem(
+            _WithoutRegressor(problem.robot), problem.samples, cost=problem.cost
+        ),
+    }
+    for what, variant in variants.items():
+        try:
+            estimator.fit(variant)
+        except (ValueError, NotImplementedError):
+            continue
+        except Exception as exc:
+            fail(
+                f"fit on {what} raised {type(exc).__name__}: {exc}; raise ValueError (or "
+                "NotImplementedError) that says what the estimator needs"
+            )
+
+
+ESTIMATOR_CHECKS: tuple[Callable[..., None], ...] = (
+    check_hyperparameters,
+    check_estimator_estimate,
+    check_estimator_cost_convention,
+    check_estimator_json,
+    check_estimator_deterministic,
+    check_estimator_float32,
+    check_estimator_leaves_problem_unchanged,
+    check_estimator_unsupported_problem,
+)
