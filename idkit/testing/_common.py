@@ -61,9 +61,7 @@ def call(description: str, function: Callable[..., Any], *args: Any, **kwargs: A
     except ConformanceError:
         raise
     except Exception as exc:
-        raise ConformanceError(
-            f"{description} raised {type(exc).__name__} on valid input: {exc}"
-        ) from exc
+        raise ConformanceError(f"{description} raised {type(exc).__name__} on valid input: {exc}") from exc
 
 
 def shape_str(name: str, shape: Sequence[int]) -> str:
@@ -95,7 +93,8 @@ def expect_close(actual: Tensor, expected: Tensor, what: str, rtol: float) -> No
         worst = int((gap - limit).flatten().argmax())
         index = tuple(int(i) for i in torch.unravel_index(torch.tensor(worst), gap.shape))
         fail(
-            f"{what}: worst mismatch at index {index}: {actual[index].item()!r} vs {expected[index].item()!r} "
+            f"{what}: worst mismatch at index {index}: {actual[index].item()!r} vs "
+            f"{expected[index].item()!r} "
             f"(largest difference {gap.max().item():.3g}, relative tolerance {rtol:g})"
         )
 
@@ -130,7 +129,7 @@ def get_params(plugin: Any) -> dict[str, Any]:
 
 def _same(a: Any, b: Any) -> bool:
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
     try:
         return bool(a == b) or (a is b)
     except Exception:  # e.g. tensors of different shapes

@@ -105,7 +105,9 @@ def check_cost_relative_scale_invariance(cost: Cost) -> None:
     measured, error = measured_torques(), errors((2,))
     base = _cost_call(cost, error, measured)
     scaled = _cost_call(cost, 3.7 * error, 3.7 * measured)
-    expect_close(scaled, base, "relative cost of (3.7 error, 3.7 measured) vs (error, measured)", RTOL[torch.float64])
+    expect_close(
+        scaled, base, "relative cost of (3.7 error, 3.7 measured) vs (error, measured)", RTOL[torch.float64]
+    )
 
 
 @conformance_check
@@ -124,7 +126,10 @@ def check_cost_rejects_bad_shapes(cost: Cost) -> None:
     for measured in wrong:
         expect_raises(
             f"cost(error[2, {N_JOINTS}, {N_SAMPLES}], {shape_str('measured', measured.shape)})",
-            cost, error, measured, fix=fix,
+            cost,
+            error,
+            measured,
+            fix=fix,
         )
 
 

@@ -73,7 +73,9 @@ def make_problem(
 
 
 def _fit(estimator: Estimator, problem: Problem) -> Estimate:
-    what = f"fit(problem with robot {type(problem.robot).__name__}, dtype {problem.dtype}, seed {problem.seed})"
+    what = (
+        f"fit(problem with robot {type(problem.robot).__name__}, dtype {problem.dtype}, seed {problem.seed})"
+    )
     estimate = call(what, estimator.fit, problem)
     if not isinstance(estimate, Estimate):
         fail(f"{what} must return an idkit.estimate.Estimate, got {type(estimate).__name__}")
@@ -108,7 +110,9 @@ def check_estimator_estimate(estimator: Estimator, problem_factory: ProblemFacto
 
 
 @conformance_check
-def check_estimator_cost_convention(estimator: Estimator, problem_factory: ProblemFactory = make_problem) -> None:
+def check_estimator_cost_convention(
+    estimator: Estimator, problem_factory: ProblemFactory = make_problem
+) -> None:
     """With ``problem.cost`` set, ``Estimate.cost`` is that cost at the reported parameters (so
     estimates of different estimators compare on one criterion); their own criterion goes in details."""
     problem = problem_factory(dtype="float64", seed=0)
@@ -140,7 +144,9 @@ def check_estimator_json(estimator: Estimator, problem_factory: ProblemFactory =
 
 
 @conformance_check
-def check_estimator_deterministic(estimator: Estimator, problem_factory: ProblemFactory = make_problem) -> None:
+def check_estimator_deterministic(
+    estimator: Estimator, problem_factory: ProblemFactory = make_problem
+) -> None:
     """Two fits with the same seed give identical params, base params and cost: all randomness
     comes from ``problem.generator()``, and no state carries over from one fit to the next."""
     fits = []

@@ -32,7 +32,9 @@ from idkit.testing._common import (
 N_SAMPLES = 7
 
 
-def states(robot: Robot, dtype: torch.dtype = torch.float64, n_samples: int = N_SAMPLES) -> tuple[Tensor, ...]:
+def states(
+    robot: Robot, dtype: torch.dtype = torch.float64, n_samples: int = N_SAMPLES
+) -> tuple[Tensor, ...]:
     """Reproducible joint states ``(q, qd, qdd)``, each ``[N, n]``, uniform in ``[-1, 1]``."""
     gen = torch.Generator().manual_seed(20260101)
     return tuple(
@@ -130,7 +132,8 @@ def check_robot_shapes_and_dtypes(robot: Robot) -> None:
             tau = _id_call(robot, params, q, qd, qdd)
             what = f"inverse_dynamics({shape_str('params', params.shape)}, {dtype})"
             expect_tensor(tau, what, (*batch, N_SAMPLES, robot.n_joints), dtype)
-            for name, old, new in zip(("params", "q", "qd", "qdd"), before, (params, q, qd, qdd)):
+            after = (params, q, qd, qdd)
+            for name, old, new in zip(("params", "q", "qd", "qdd"), before, after, strict=True):
                 if not torch.equal(old, new):
                     fail(f"{what} modified its input {name!r} in place")
 
@@ -155,15 +158,29 @@ def check_robot_rejects_bad_sizes(robot: Robot) -> None:
     n, p = robot.n_joints, robot.n_params
     fix = "Check params.shape[-1] == len(param_names) and q/qd/qdd shape [N, n] and raise ValueError."
     wider = torch.cat([params, params[..., :1]], dim=-1)
-    expect_raises(f"inverse_dynamics(params[2, {p + 1}]) (P = {p})", robot.inverse_dynamics,
-                  wider, q, qd, qdd, fix=fix)
+    expect_raises(
+        f"inverse_dynamics(params[2, {p + 1}]) (P = {p})", robot.inverse_dynamics, wider, q, qd, qdd, fix=fix
+    )
     if p > 1:
-        expect_raises(f"inverse_dynamics(params[2, {p - 1}]) (P = {p})", robot.inverse_dynamics,
-                      params[..., :-1], q, qd, qdd, fix=fix)
+        expect_raises(
+            f"inverse_dynamics(params[2, {p - 1}]) (P = {p})",
+            robot.inverse_dynamics,
+            params[..., :-1],
+            q,
+            qd,
+            qdd,
+            fix=fix,
+        )
     extra = torch.cat([q, q[:, :1]], dim=1)
-    expect_raises(f"inverse_dynamics with q[{N_SAMPLES}, {n + 1}] (n = {n})", robot.inverse_dynamics,
-                  params, extra, torch.cat([qd, qd[:, :1]], dim=1), torch.cat([qdd, qdd[:, :1]], dim=1),
-                  fix=fix)
+    expect_raises(
+        f"inverse_dynamics with q[{N_SAMPLES}, {n + 1}] (n = {n})",
+        robot.inverse_dynamics,
+        params,
+        extra,
+        torch.cat([qd, qd[:, :1]], dim=1),
+        torch.cat([qdd, qdd[:, :1]], dim=1),
+        fix=fix,
+    )
 
 
 @conformance_check
@@ -180,23 +197,29 @@ def check_robot_regressor(robot: Robot) -> None:
         for batch in BATCH_SHAPES:
             params = sample_params(robot, batch, dtype)
             alpha = call("base_params(params)", robot.base_params, params)
-            expect_tensor(alpha, f"base_params({shape_str('params', params.shape)}, {dtype})",
-                          (*batch, b), dtype)
+            expect_tensor(
+                alpha, f"base_params({shape_str('params', params.shape)}, {dtype})", (*batch, b), dtype
+            )
             back = call("params_from_base(alpha)", robot.params_from_base, alpha)
-            expect_tensor(back, f"params_from_base({shape_str('alpha', alpha.shape)}, {dtype})",
-                          (*batch, p), dtype)
+            expect_tensor(
+                back, f"params_from_base({shape_str('alpha', alpha.shape)}, {dtype})", (*batch, p), dtype
+            )
             if dtype is torch.float64:
                 tau = _id_call(robot, params, q, qd, qdd)
                 linear = torch.einsum("snb,...b->...sn", y, alpha)
-                expect_close(linear, tau, f"Y @ base_params(params{list(params.shape)}) vs "
-                             "inverse_dynamics(params)", RTOL[dtype])
+                expect_close(
+                    linear,
+                    tau,
+                    f"Y @ base_params(params{list(params.shape)}) vs inverse_dynamics(params)",
+                    RTOL[dtype],
+                )
                 again = call("base_params(params_from_base(alpha))", robot.base_params, back)
                 expect_close(again, alpha, "base_params(params_from_base(alpha)) vs alpha", RTOL[dtype])
 
 
 @conformance_check
 def check_robot_differentiable(robot: Robot) -> None:
-    """Autograd gives finite gradients of the torques w.r.t. the parameters (gradient estimators need them)."""
+    """Autograd gives finite gradients of the torques w.r.t. the parameters (for gradient estimators)."""
     q, qd, qdd = states(robot)
     params = sample_params(robot, (2,)).requires_grad_(True)
     tau = _id_call(robot, params, q, qd, qdd)
@@ -217,7 +240,7 @@ def check_robot_excitation(robot: Robot) -> None:
         out = call(f"excitation(t[5], {dtype})", robot.excitation, t)
         if not (isinstance(out, tuple) and len(out) == 3):
             fail(f"excitation(t) must return a tuple (q, qd, qdd), got {type(out).__name__}")
-        for name, x in zip(("q", "qd", "qdd"), out):
+        for name, x in zip(("q", "qd", "qdd"), out, strict=True):
             expect_tensor(x, f"excitation(t[5], {dtype}) {name}", (5, robot.n_joints), dtype)
     nominal = robot.nominal_params()
     if nominal is None:
