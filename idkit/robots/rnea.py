@@ -27,7 +27,12 @@ from torch import Tensor
 
 from idkit.robots.urdf_model import KinematicTree
 
-cross = torch.linalg.cross  # broadcasts over leading dimensions
+
+
+def cross(u: Tensor, v: Tensor) -> Tensor:
+    """``u × v`` over the last dimension, broadcasting the leading ones (``[..., 3]``)."""
+    u, v = torch.broadcast_tensors(u, v)
+    return torch.linalg.cross(u, v)
 
 
 @dataclass(frozen=True)

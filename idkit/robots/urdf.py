@@ -1,0 +1,232 @@
+"""Any fixed-base URDF robot: standard parameters, exact regressor, numerical base parameters.
+
+Parameters ``p[P]`` (``P = 10 nb (+ 2 n friction) (+ n offset)``), in this order:
+
+* per moving body (link frame = joint frame; welded links merged), the 10 standard inertial
+  parameters ``<link>.m, .mcx, .mcy, .mcz, .Ixx, .Ixy, .Ixz, .Iyy, .Iyz, .Izz`` with the inertia
+  about the LINK-FRAME ORIGIN (not the centre of mass): the dynamics are linear in these;
+* with ``friction=True``: ``<joint>.fc`` for every joint, then ``<joint>.fv`` for every joint
+  (the paper's eq. (1) ``F_c sign(qd) + F_v qd``);
+* with ``offset=True``: ``<joint>.offset``, a constant torque per joint (sensor bias).
+
+Base parameters (``alpha = K p``) come from :mod:`idkit.robots.base_params` on the regressor stacked
+over ``n_states`` random states; ``base_param_names`` names each after the standard parameter it is
+built on, with a trailing ``R`` when other parameters are regrouped into it (Khalil's convention);
+``base_param_groups`` spells out every group.
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from idkit.interfaces import Robot
+from idkit.robots.base_params import BaseParameters, find_base_parameters
+from idkit.robots.rnea import TreeTensors, rnea, rnea_regressor
+from idkit.robots.urdf_model import INERTIAL_NAMES, KinematicTree, parse_urdf
+
+
+class URDFRobot(Robot):
+    """Inverse dynamics of a fixed-base URDF robot by a batched torch Newton–Euler pass.
+
+    Args:
+        urdf: a URDF file path, URDF text, or the name of a URDF shipped in ``idkit/robots/assets``.
+        friction: add per-joint Coulomb ``fc`` and viscous ``fv`` friction parameters.
+        offset: add a per-joint constant torque offset.
+        gravity: gravitational acceleration (m/s²) along −z of the root link.
+        n_states: random states stacked to find the base parameters (``n_states * n >> P``).
+        tolerance: relative rank tolerance of the base-parameter search.
+        seed: seed of the random states (``q`` uniform within the joint limits, or ``[-π, π]`` /
+            ``[-1, 1] m`` without limits; ``qd``, ``qdd`` standard normal).
+        max_coulomb, max_viscous, max_offset: search-box widths of the friction (N·m, N·m·s/rad)
+            and offset (N·m) parameters; their a-priori value is 0.
+
+    Search boxes (``bounds``), from the URDF's a-priori values ``m0, h0 = m0 c0, I0`` of a body
+    (``L = max(|c0|, 0.1 m)``, ``m_hi`` the upper mass bound): mass ``[m0/2, 2 m0]`` (``[0, 1 kg]``
+    when ``m0 = 0``); first moments ``h0 ± m_hi L``; diagonal inertia about the origin
+    ``[I0/2, 2 I0]`` (``[0, m_hi L²]`` when 0); products ``I0_kl ± sqrt(I_hi,kk I_hi,ll) / 2``;
+    ``fc ∈ [0, max_coulomb]``, ``fv ∈ [0, max_viscous]``, ``offset ∈ ±max_offset``.
+    ``base_bounds`` is the smallest box holding ``K p`` for every ``p`` in that box (interval
+    arithmetic: ``K mid ± |K| half_width``), so every physical point of the box is reachable.
+    """
+
+    search_space = "base"
+
+    def __init__(
+        self,
+        urdf: str,
+        friction: bool = False,
+        offset: bool = False,
+        gravity: float = 9.81,
+        n_states: int = 200,
+        tolerance: float = 1e-8,
+        seed: int = 0,
+        max_coulomb: float = 10.0,
+        max_viscous: float = 10.0,
+        max_offset: float = 10.0,
+    ) -> None:
+        self.urdf = urdf
+        self.friction = friction
+        self.offset = offset
+        self.gravity = gravity
+        self.n_states = n_states
+        self.tolerance = tolerance
+        self.seed = seed
+        self.max_coulomb = max_coulomb
+        self.max_viscous = max_viscous
+        self.max_offset = max_offset
+        self.tree: KinematicTree = parse_urdf(urdf)
+        self.joint_names = self.tree.joint_names
+        self.link_names = self.tree.link_names
+        names = [f"{link}.{p}" for link in self.link_names for p in INERTIAL_NAMES]
+        if friction:
+            names += [f"{j}.fc" for j in self.joint_names] + [f"{j}.fv" for j in self.joint_names]
+        if offset:
+            names += [f"{j}.offset" for j in self.joint_names]
+        self.param_names = tuple(names)
+        self._tensors: dict[tuple[torch.device, torch.dtype], TreeTensors] = {}
+        self.base = self._find_base()
+        self.base_map = torch.as_tensor(self.base.matrix)
+        self._pinv = torch.as_tensor(np.linalg.pinv(self.base.matrix))
+        self.base_param_groups = self.base.groups(self.param_names)
+        self.base_param_names = tuple(
+            self.param_names[i] + ("R" if np.count_nonzero(row) > 1 else "")
+            for i, row in zip(self.base.indices, self.base.matrix)
+        )
+
+    # ---------------------------------------------------------------- structure
+    def _tree_tensors(self, like: Tensor) -> TreeTensors:
+        key = (like.device, like.dtype)
+        if key not in self._tensors:
+            self._tensors[key] = TreeTensors.build(self.tree, like.device, like.dtype)
+        return self._tensors[key]
+
+    def random_states(self, n_states: int, generator: torch.Generator) -> tuple[Tensor, Tensor, Tensor]:
+        """Random ``(q, qd, qdd)`` each ``[n_states, n]``: ``q`` within limits, rates standard normal."""
+        lower, upper = [], []
+        for body in self.tree.bodies:
+            default = (-np.pi, np.pi) if body.kind == "revolute" else (-1.0, 1.0)
+            lo, hi = body.limits or default
+            lower.append(lo)
+            upper.append(hi)
+        lo, hi = torch.tensor(lower, dtype=torch.float64), torch.tensor(upper, dtype=torch.float64)
+        shape = (n_states, self.n_joints)
+        q = lo + (hi - lo) * torch.rand(shape, generator=generator, dtype=torch.float64)
+        qd = torch.randn(shape, generator=generator, dtype=torch.float64)
+        qdd = torch.randn(shape, generator=generator, dtype=torch.float64)
+        return q, qd, qdd
+
+    def _find_base(self) -> BaseParameters:
+        generator = torch.Generator().manual_seed(int(self.seed))
+        states = self.random_states(self.n_states, generator)
+        stacked = self.standard_regressor(*states).reshape(-1, self.n_params)
+        return find_base_parameters(stacked.numpy(), self.tolerance)
+
+    # ---------------------------------------------------------------- parameters
+    def nominal_params(self) -> Tensor:
+        """The URDF's CAD parameters ``[P]`` (friction and offset 0)."""
+        inertial = np.concatenate([b.inertial for b in self.tree.bodies])
+        extra = np.zeros(self.n_params - inertial.size)
+        return torch.as_tensor(np.concatenate([inertial, extra]))
+
+    def bounds(self) -> tuple[Tensor, Tensor]:
+        """Search box ``(lower[P], upper[P])`` from the a-priori values (rule in the class doc)."""
+        lower, upper = [], []
+        for body in self.tree.bodies:
+            m0, h0 = body.inertial[0], body.inertial[1:4]
+            inertia0 = body.inertial[[4, 7, 9]]  # xx, yy, zz
+            m_lo, m_hi = (m0 / 2, 2 * m0) if m0 > 0 else (0.0, 1.0)
+            length = max(np.linalg.norm(h0) / m0 if m0 > 0 else 0.0, 0.1)
+            diag_lo = np.where(inertia0 > 0, inertia0 / 2, 0.0)
+            diag_hi = np.where(inertia0 > 0, 2 * inertia0, m_hi * length**2)
+            products0 = body.inertial[[5, 6, 8]]  # xy, xz, yz
+            half = np.sqrt(diag_hi[[0, 0, 1]] * diag_hi[[1, 2, 2]]) / 2
+            (xx_lo, yy_lo, zz_lo), (xx_hi, yy_hi, zz_hi) = diag_lo, diag_hi
+            (xy_lo, xz_lo, yz_lo), (xy_hi, xz_hi, yz_hi) = products0 - half, products0 + half
+            lower += [m_lo, *(h0 - m_hi * length), xx_lo, xy_lo, xz_lo, yy_lo, yz_lo, zz_lo]
+            upper += [m_hi, *(h0 + m_hi * length), xx_hi, xy_hi, xz_hi, yy_hi, yz_hi, zz_hi]
+        n = self.n_joints
+        if self.friction:
+            lower += [0.0] * (2 * n)
+            upper += [self.max_coulomb] * n + [self.max_viscous] * n
+        if self.offset:
+            lower += [-self.max_offset] * n
+            upper += [self.max_offset] * n
+        return torch.tensor(lower, dtype=torch.float64), torch.tensor(upper, dtype=torch.float64)
+
+    def base_bounds(self) -> tuple[Tensor, Tensor]:
+        """Search box ``(lower[B], upper[B])``: the interval image ``K mid ± |K| half`` of ``bounds``."""
+        lower, upper = self.bounds()
+        mid, half = (upper + lower) / 2, (upper - lower) / 2
+        centre, radius = self.base_map @ mid, self.base_map.abs() @ half
+        return centre - radius, centre + radius
+
+    def base_params(self, params: Tensor) -> Tensor:
+        """``alpha[..., B] = K p`` for ``params[..., P]``."""
+        self._check_params(params)
+        return params @ self.base_map.to(params).T
+
+    def params_from_base(self, alpha: Tensor) -> Tensor:
+        """Physical parameters ``[..., P]`` closest (Euclidean) to the CAD values with ``K p = alpha``.
+
+        ``p = p0 + pinv(K) (alpha - K p0)``: the base parameters fix ``B`` combinations; the other
+        ``P - B`` directions (the null space of ``K``) stay at their a-priori value. Not unique and
+        not guaranteed physical (e.g. a mass may become negative) when ``alpha`` is far from ``K p0``.
+        """
+        if alpha.shape[-1] != len(self.base_param_names):
+            raise ValueError(
+                f"urdf: base parameters need {len(self.base_param_names)} values in the last dimension, "
+                f"got shape {tuple(alpha.shape)}"
+            )
+        base_map, pinv = self.base_map.to(alpha), self._pinv.to(alpha)
+        nominal = self.nominal_params().to(alpha)
+        return nominal + (alpha - nominal @ base_map.T) @ pinv.T
+
+    # ---------------------------------------------------------------- dynamics
+    def _check_params(self, params: Tensor) -> None:
+        if params.shape[-1:] != (self.n_params,):
+            raise ValueError(
+                f"urdf: params need {self.n_params} values in the last dimension ({self.param_names[0]}, ...), "
+                f"got shape {tuple(params.shape)}"
+            )
+
+    def _check_states(self, q: Tensor, qd: Tensor, qdd: Tensor) -> None:
+        for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
+            if value.ndim != 2 or value.shape[1] != self.n_joints or value.shape != q.shape:
+                raise ValueError(
+                    f"urdf: {name} must be [N, {self.n_joints}] like q, got {tuple(value.shape)} "
+                    f"(joints: {', '.join(self.joint_names)})"
+                )
+
+    def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
+        """Torques ``tau[..., N, n]`` for ``params[..., P]`` by the batched Newton–Euler pass."""
+        self._check_params(params)
+        self._check_states(q, qd, qdd)
+        nb = len(self.tree.bodies)
+        inertials = params[..., : 10 * nb].unflatten(-1, (nb, 10))
+        tau = rnea(self._tree_tensors(q), inertials, q, qd, qdd, self.gravity)
+        extra = params[..., None, 10 * nb :]  # [..., 1, 2n + n]
+        n = self.n_joints
+        if self.friction:
+            tau = tau + extra[..., :n] * torch.sign(qd) + extra[..., n : 2 * n] * qd
+            extra = extra[..., 2 * n :]
+        if self.offset:
+            tau = tau + extra
+        return tau
+
+    def standard_regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
+        """Regressor ``Y[N, n, P]`` of all standard parameters: ``tau = Y @ params``."""
+        self._check_states(q, qd, qdd)
+        inertial = rnea_regressor(self._tree_tensors(q), q, qd, qdd, self.gravity).flatten(-2)
+        blocks = [inertial]
+        if self.friction:
+            blocks += [torch.diag_embed(torch.sign(qd)), torch.diag_embed(qd)]
+        if self.offset:
+            blocks.append(torch.diag_embed(torch.ones_like(q)))
+        return torch.cat(blocks, dim=-1)
+
+    def regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
+        """Base regressor ``Y[N, n, B]``: the base columns of the standard one, ``tau = Y @ alpha``."""
+        return self.standard_regressor(q, qd, qdd)[..., list(self.base.indices)]
