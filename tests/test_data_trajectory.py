@@ -121,7 +121,7 @@ def test_robot_default_excitation_is_the_fourier_series(cylindrical):
             return torch.zeros(1), torch.ones(1)
 
         def inverse_dynamics(self, params, q, qd, qdd):
-            return params[..., None, None] * qdd
+            return params[..., 0, None, None] * qdd
 
     t = sample_times(10)
     for a, b in zip(Point().excitation(t), fourier_excitation(t, 2), strict=True):
