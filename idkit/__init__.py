@@ -19,6 +19,7 @@ _LAZY = {
     "Samples": "idkit.problem",
     "Estimate": "idkit.estimate",
     "registry": "idkit.registry",
+    "run": "idkit.experiments.single",
 }
 
 __all__ = sorted(_LAZY)

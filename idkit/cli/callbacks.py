@@ -1,0 +1,130 @@
+"""Hydra callback gathering every job of a multirun into ``summary.csv`` and ``summary.md``.
+
+The summary is rebuilt from the job folders on disk after every job (under a file lock, since
+parallel launchers end jobs concurrently) and once more at the end of the sweep. Rebuilding from
+disk is what lets a failing job leave the others intact: Hydra stops calling back once a job has
+failed, but by then the summary already lists every job that finished, and the failed one has an
+``error.json`` in its folder. Import-light (no torch): Hydra instantiates it in the launching
+process.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from hydra.core.utils import JobReturn, JobStatus
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig
+
+log = logging.getLogger(__name__)
+
+SUMMARY_CSV = "summary.csv"
+SUMMARY_MD = "summary.md"
+ERROR_FILE = "error.json"
+
+
+@contextlib.contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    try:
+        import fcntl
+    except ImportError:  # Windows: no advisory locks; the atomic writes still keep files whole
+        yield
+        return
+    with open(path, "a+") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _overrides(job_dir: Path) -> str:
+    import yaml
+
+    file = job_dir / ".hydra" / "overrides.yaml"
+    if not file.exists():
+        return ""
+    return " ".join(yaml.safe_load(file.read_text()) or [])
+
+
+def _job_number(path: Path) -> tuple[int, str]:
+    return (int(path.name), "") if path.name.isdigit() else (1 << 30, path.name)
+
+
+def summary_rows(sweep_dir: Path) -> tuple[list[str], list[dict[str, Any]]]:
+    """One row per job folder: status, overrides, estimator, estimate, errors, cost, time."""
+    rows: list[dict[str, Any]] = []
+    params: list[str] = []
+    for job_dir in sorted((p for p in sweep_dir.iterdir() if p.is_dir()), key=_job_number):
+        result, error = job_dir / "result.json", job_dir / ERROR_FILE
+        row: dict[str, Any] = {"job": job_dir.name, "overrides": _overrides(job_dir)}
+        if result.exists():
+            data = json.loads(result.read_text())
+            row.update(status="ok", estimator=data.get("estimator"))
+            for name, value in (data.get("estimate") or {}).items():
+                row[name] = value
+                if name not in params:
+                    params.append(name)
+            row.update(
+                parameter_error=data.get("parameter_error"), cost=data.get("cost"), wall_time_s=data.get("wall_time_s")
+            )
+        elif error.exists():
+            row.update(status="failed", error=json.loads(error.read_text()).get("error"))
+        else:
+            row.update(status="running or killed")
+        rows.append(row)
+    header = ["job", "status", "overrides", "estimator", *params, "parameter_error", "cost", "wall_time_s", "error"]
+    return header, rows
+
+
+def _fmt(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    return str(value).replace("|", "\\|").replace("\n", " ")
+
+
+def write_summary(sweep_dir: Path) -> None:
+    """Rebuild ``summary.csv`` and ``summary.md`` in ``sweep_dir`` from its job folders."""
+    from idkit.experiments import files
+
+    header, rows = summary_rows(sweep_dir)
+    files.write_csv(sweep_dir / SUMMARY_CSV, header, ([row.get(k) for k in header] for row in rows))
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(_fmt(row.get(k)) for k in header) + " |" for row in rows]
+    files.write_text(sweep_dir / SUMMARY_MD, "\n".join(lines) + "\n")
+
+
+class MultirunSummary(Callback):
+    """Writes ``error.json`` for a failed job and keeps the sweep's summary up to date."""
+
+    def on_job_end(self, config: DictConfig, job_return: JobReturn, **kwargs: Any) -> None:
+        from hydra.types import RunMode
+
+        from idkit.experiments import files
+
+        hydra_cfg = config.hydra
+        job_dir = Path(hydra_cfg.runtime.output_dir)
+        if job_return.status == JobStatus.FAILED:
+            # JobReturn.return_value re-raises for a failed job; the exception itself is kept here.
+            exc = job_return._return_value
+            files.write_json(job_dir / ERROR_FILE, {"status": "failed", "error": f"{type(exc).__name__}: {exc}"})
+        if hydra_cfg.mode == RunMode.MULTIRUN:
+            self._summarise(Path(hydra_cfg.sweep.dir))
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        self._summarise(Path(config.hydra.sweep.dir))
+
+    @staticmethod
+    def _summarise(sweep_dir: Path) -> None:
+        if not sweep_dir.is_dir():
+            return
+        with _locked(sweep_dir / ".summary.lock"):
+            write_summary(sweep_dir)
+        log.info("sweep summary: %s", sweep_dir / SUMMARY_MD)
