@@ -32,7 +32,8 @@ class URDFRobot(Robot):
     """Inverse dynamics of a fixed-base URDF robot by a batched torch Newton–Euler pass.
 
     Args:
-        urdf: a URDF file path, URDF text, or the name of a URDF shipped in ``idkit/robots/assets``.
+        urdf: a URDF file path, URDF text, or the name of a URDF shipped in ``idkit/robots/assets``
+            (default: the paper's cylindrical robot).
         friction: add per-joint Coulomb ``fc`` and viscous ``fv`` friction parameters.
         offset: add a per-joint constant torque offset.
         gravity: gravitational acceleration (m/s²) along −z of the root link.
@@ -56,7 +57,7 @@ class URDFRobot(Robot):
 
     def __init__(
         self,
-        urdf: str,
+        urdf: str = "cylindrical",
         friction: bool = False,
         offset: bool = False,
         gravity: float = 9.81,
