@@ -24,7 +24,7 @@ Randomness: one CPU ``torch.Generator`` seeded with ``seed`` draws ``U(0, 1)`` n
 outliers. Same seed → identical samples, and trial ``i`` depends only on ``(seed, i)``: trial 0
 of ``simulate_batch(trials=T, seed=s)`` is ``simulate(seed=s)`` for any ``T``. The draw does not
 depend on the noise levels, so scenarios with the same ``N`` and seed share their random numbers
-(common random numbers: differences between scenarios are not seed luck).
+(common random numbers: a comparison of two scenarios is not blurred by different draws).
 """
 
 from __future__ import annotations
@@ -56,7 +56,8 @@ class Scenario:
         n_samples: number of samples ``N`` over ``0 < t <= t_end``.
         state_noise: level ``X`` of the multiplicative error on ``q``, ``qd``, ``qdd``.
         torque_noise: level ``X`` of the multiplicative error on ``tau``.
-        n_outliers: how many of the ``N · 4 · n`` components get ``outlier_noise`` instead.
+        n_outliers: how many of the ``N · 4 · n`` components get ``outlier_noise`` instead (a
+            count, not a share: overriding ``n_samples`` keeps it).
         outlier_noise: level of the error on those components.
         t_end: length of the excitation window in seconds.
         description: one line for tables and logs.
