@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import tomllib
 import zipfile
 
 import pytest
+import tomllib
 from conftest import REPO
 
 
@@ -22,7 +22,8 @@ def test_package_list_covers_every_subpackage():
 @pytest.mark.slow
 def test_wheel_ships_configs_and_assets(tmp_path):
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(tmp_path), str(REPO)],
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q"]
+        + ["-w", str(tmp_path), str(REPO)],
         check=True,
     )
     names = zipfile.ZipFile(next(tmp_path.glob("robot_idkit-*.whl"))).namelist()

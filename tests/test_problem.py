@@ -74,7 +74,9 @@ def test_dtype_and_generator(cylindrical):
 
 @settings(max_examples=30, deadline=None)
 @given(
-    params=st.dictionaries(st.sampled_from(["m2", "m3", "s3z", "I"]), st.floats(allow_nan=False), min_size=1),
+    params=st.dictionaries(
+        st.sampled_from(["m2", "m3", "s3z", "I"]), st.floats(allow_nan=False), min_size=1
+    ),
     cost=st.one_of(st.none(), st.floats(allow_nan=False, allow_infinity=False)),
     history=st.lists(st.floats(0, 1e6), max_size=5),
 )

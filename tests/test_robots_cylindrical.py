@@ -42,7 +42,7 @@ def test_matches_autograd_lagrangian(cylindrical, rng):
     q, qd, qdd = random_states(50, rng)
     params = torch.tensor([[5.0, 3.0, -0.5, 3.0], [1.3, 0.7, 0.4, 2.2]], dtype=torch.float64)
     tau = cylindrical.inverse_dynamics(params, q, qd, qdd)
-    for p, t in zip(params, tau):
+    for p, t in zip(params, tau, strict=True):
         reference = vmap(euler_lagrange, in_dims=(None, 0, 0, 0))(p, q, qd, qdd)
         torch.testing.assert_close(t, reference, rtol=1e-12, atol=1e-12)
 
@@ -67,7 +67,8 @@ def test_regressor_times_base_params_equals_dynamics(batch, n, seed):
 def test_base_params_round_trip(m2, m3, s3z, inertia):
     robot = CylindricalRobot()
     params = torch.tensor([m2, m3, s3z, inertia], dtype=torch.float64)
-    torch.testing.assert_close(robot.params_from_base(robot.base_params(params)), params, rtol=1e-10, atol=1e-12)
+    back = robot.params_from_base(robot.base_params(params))
+    torch.testing.assert_close(back, params, rtol=1e-10, atol=1e-12)
 
 
 def test_base_params_eq_24(cylindrical):

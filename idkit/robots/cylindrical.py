@@ -62,7 +62,7 @@ class CylindricalRobot(Robot):
         for name, value in (("true_params", self.true_params), ("lower", self.lower), ("upper", self.upper)):
             if len(value) != 4:
                 raise ValueError(f"cylindrical: {name} needs 4 values (m2, m3, s3z, I), got {len(value)}")
-        if any(lo >= hi for lo, hi in zip(self.lower, self.upper)):
+        if any(lo >= hi for lo, hi in zip(self.lower, self.upper, strict=True)):
             raise ValueError(f"cylindrical: empty search box lower={self.lower} upper={self.upper}")
 
     def bounds(self) -> tuple[Tensor, Tensor]:
