@@ -28,7 +28,6 @@ from torch import Tensor
 from idkit.robots.urdf_model import KinematicTree
 
 
-
 def cross(u: Tensor, v: Tensor) -> Tensor:
     """``u × v`` over the last dimension, broadcasting the leading ones (``[..., 3]``)."""
     u, v = torch.broadcast_tensors(u, v)
@@ -118,7 +117,9 @@ def forward_kinematics(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gr
     kin = Kinematics([], [], [], [], [])
     for k, parent in enumerate(tree.parents):
         axis = tree.axis[k]
-        w_p, dw_p, a_p = (root_w, root_w, root_a) if parent < 0 else (kin.w[parent], kin.dw[parent], kin.a[parent])
+        w_p, dw_p, a_p = (
+            (root_w, root_w, root_a) if parent < 0 else (kin.w[parent], kin.dw[parent], kin.a[parent])
+        )
         if bool(tree.revolute[k]):
             rotation = tree.rotation[k] @ _axis_rotation(axis, q[:, k])
             translation = tree.translation[k].expand(n_samples, 3)
@@ -219,10 +220,11 @@ def rnea_regressor(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gravit
     (a Plücker line in the root frame).
     """
     kin = forward_kinematics(tree, q, qd, qdd, gravity)
-    nb = len(tree.parents)
     w, dw, a = (torch.stack(x, dim=1) for x in (kin.w, kin.dw, kin.a))  # [N, nb, 3]
     zeros3 = torch.zeros_like(a)
-    force = torch.cat([a[..., None], _skew(dw) + _skew(w) @ _skew(w), zeros3[..., None].expand(-1, -1, -1, 6)], -1)
+    force = torch.cat(
+        [a[..., None], _skew(dw) + _skew(w) @ _skew(w), zeros3[..., None].expand(-1, -1, -1, 6)], -1
+    )
     moment = torch.cat(
         [zeros3[..., None], -_skew(a), _inertia_operator(dw) + _skew(w) @ _inertia_operator(w)], -1
     )  # [N, nb, 3, 10] each: body-frame wrench blocks
@@ -244,5 +246,7 @@ def rnea_regressor(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gravit
     # Plücker coordinates of each joint's axis: torque = line · (moment, force) wrench.
     line_moment = torch.where(revolute, axis_w, torch.zeros_like(axis_w))
     line_force = torch.where(revolute, cross(pos, axis_w), axis_w)
-    y = torch.einsum("njs,nisp->njip", line_moment, moment_w) + torch.einsum("njs,nisp->njip", line_force, force_w)
+    y = torch.einsum("njs,nisp->njip", line_moment, moment_w) + torch.einsum(
+        "njs,nisp->njip", line_force, force_w
+    )
     return y * tree.subtree[None, :, :, None]

@@ -17,7 +17,6 @@ built on, with a trailing ``R`` when other parameters are regrouped into it (Kha
 
 from __future__ import annotations
 
-
 import numpy as np
 import torch
 from torch import Tensor
@@ -94,7 +93,7 @@ class URDFRobot(Robot):
         self.base_param_groups = self.base.groups(self.param_names)
         self.base_param_names = tuple(
             self.param_names[i] + ("R" if np.count_nonzero(row) > 1 else "")
-            for i, row in zip(self.base.indices, self.base.matrix)
+            for i, row in zip(self.base.indices, self.base.matrix, strict=True)
         )
 
     # ---------------------------------------------------------------- structure
@@ -189,8 +188,8 @@ class URDFRobot(Robot):
     def _check_params(self, params: Tensor) -> None:
         if params.shape[-1:] != (self.n_params,):
             raise ValueError(
-                f"urdf: params need {self.n_params} values in the last dimension ({self.param_names[0]}, ...), "
-                f"got shape {tuple(params.shape)}"
+                f"urdf: params need {self.n_params} values in the last dimension "
+                f"({self.param_names[0]}, ...), got shape {tuple(params.shape)}"
             )
 
     def _check_states(self, q: Tensor, qd: Tensor, qdd: Tensor) -> None:

@@ -115,7 +115,9 @@ def _floats(element: ET.Element | None, attribute: str, default: tuple[float, ..
     except ValueError:
         raise ValueError(f"urdf: {where}: {attribute}={element.get(attribute)!r} is not numeric") from None
     if values.shape != (len(default),):
-        raise ValueError(f"urdf: {where}: {attribute} needs {len(default)} numbers, got {element.get(attribute)!r}")
+        raise ValueError(
+            f"urdf: {where}: {attribute} needs {len(default)} numbers, got {element.get(attribute)!r}"
+        )
     return values
 
 
@@ -159,6 +161,23 @@ def _standard(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray
     inertia_o = inertia_c + mass * (com @ com * np.eye(3) - np.outer(com, com))  # parallel axis
     (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia_o
     return np.array([mass, *(mass * com), xx, xy, xz, yy, yz, zz])
+
+
+def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translation: np.ndarray) -> Body:
+    """The :class:`Body` a moving joint starts (inertial filled in later)."""
+    name, kind = joint.get("name"), joint.get("type")
+    axis = _floats(joint.find("axis"), "xyz", (1.0, 0.0, 0.0), f"joint {name!r} <axis>")
+    norm = np.linalg.norm(axis)
+    if norm < 1e-12:
+        raise ValueError(f"urdf: joint {name!r} has a zero axis")
+    limits = None
+    if kind != "continuous":
+        limit = joint.find("limit")
+        lo = _floats(limit, "lower", (0.0,), f"joint {name!r} <limit>")[0]
+        hi = _floats(limit, "upper", (0.0,), f"joint {name!r} <limit>")[0]
+        limits = (float(lo), float(hi)) if hi > lo else None
+    child = joint.find("child").get("link")
+    return Body(name, child, MOVING[kind], parent, rotation, translation, axis / norm, np.zeros(10), limits)
 
 
 def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
@@ -209,40 +228,35 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
         raise ValueError(f"urdf: {label}: expected one root link, found {roots or 'none (a loop)'}")
     bodies: list[Body] = []
     inertials: list[np.ndarray] = []
-    # Depth-first walk; each stack entry: (link, owning body index, pose of the link in that body).
-    stack = [(roots[0], -1, np.eye(3), np.zeros(3))]
+    # Depth-first walk. A stack entry is (link, owning body, pose of the link in that body, the
+    # Body its moving parent joint starts — or None when it hangs on a fixed joint).
+    stack: list[tuple[str, int, np.ndarray, np.ndarray, Body | None]] = [
+        (roots[0], -1, np.eye(3), np.zeros(3), None)
+    ]
     while stack:
-        link, owner, rot, pos = stack.pop()
+        link, owner, rot, pos, body = stack.pop()
+        if body is not None:
+            bodies.append(body)
+            inertials.append(np.zeros(10))
+            owner, rot, pos = len(bodies) - 1, np.eye(3), np.zeros(3)
         mass, com, inertia = _link_inertial(links[link])
         if owner >= 0:
             inertials[owner] += _standard(mass, rot @ com + pos, rot @ inertia @ rot.T)
         pending = []
         for joint in children[link]:
-            name, kind = joint.get("name"), joint.get("type")
+            name = joint.get("name")
             j_rot, j_pos = _origin(joint, f"joint {name!r}")
             rot_c, pos_c = rot @ j_rot, rot @ j_pos + pos  # joint frame in the owning body frame
             child = joint.find("child").get("link")
-            if kind == "fixed":
-                pending.append((child, owner, rot_c, pos_c))
-                continue
-            axis = _floats(joint.find("axis"), "xyz", (1.0, 0.0, 0.0), f"joint {name!r} <axis>")
-            norm = np.linalg.norm(axis)
-            if norm < 1e-12:
-                raise ValueError(f"urdf: joint {name!r} has a zero axis")
-            limit = joint.find("limit")
-            limits = None
-            if MOVING[kind] == "prismatic" or kind == "revolute":
-                lo = _floats(limit, "lower", (0.0,), f"joint {name!r} <limit>")[0]
-                hi = _floats(limit, "upper", (0.0,), f"joint {name!r} <limit>")[0]
-                limits = (float(lo), float(hi)) if hi > lo else None
-            bodies.append(Body(name, child, MOVING[kind], owner, rot_c, pos_c, axis / norm, np.zeros(10), limits))
-            inertials.append(np.zeros(10))
-            pending.append((child, len(bodies) - 1, np.eye(3), np.zeros(3)))
-        stack.extend(reversed(pending))  # document order on the depth-first walk
+            if joint.get("type") == "fixed":
+                pending.append((child, owner, rot_c, pos_c, None))
+            else:
+                pending.append((child, owner, rot_c, pos_c, _moving_body(joint, owner, rot_c, pos_c)))
+        stack.extend(reversed(pending))  # children in document order
     if not bodies:
         raise ValueError(f"urdf: {label} has no revolute, continuous or prismatic joint")
     bodies = [
         Body(b.joint, b.link, b.kind, b.parent, b.rotation, b.translation, b.axis, inertial, b.limits)
-        for b, inertial in zip(bodies, inertials)
+        for b, inertial in zip(bodies, inertials, strict=True)
     ]
     return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies))
