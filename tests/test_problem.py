@@ -81,7 +81,8 @@ def test_dtype_and_generator(cylindrical):
     history=st.lists(st.floats(0, 1e6), max_size=5),
 )
 def test_estimate_json_round_trip(params, cost, history):
-    estimate = Estimate("PSO-f13", params, cost, 0.01, details={"history": torch.tensor(history, dtype=torch.float64)})
+    details = {"history": torch.tensor(history, dtype=torch.float64)}
+    estimate = Estimate("PSO-f13", params, cost, 0.01, details=details)
     back = Estimate.from_json(estimate.to_json())
     finite = {k: (v if math.isfinite(v) else None) for k, v in params.items()}
     assert back.params == finite and back.cost == cost
