@@ -1,0 +1,246 @@
+"""A functional, batched global-best particle swarm (EvoTorch/evosax style).
+
+The whole state of any number of independent swarms is one ``SwarmState`` of tensors with leading
+batch dimensions ``...`` (e.g. costs × runs); ``init`` and ``step`` are pure functions of it, so
+many runs are one tensor computation and the loop in ``run`` only walks the iterations.
+
+One iteration of the synchronous gbest PSO (the paper's eqs. 3–4):
+
+1. ``v ← w v + c1 r1 (pbest − x) + c2 r2 (gbest − x)``, optionally clamped to ``±v_max``;
+2. ``x ← x + v``, then the boundary rule puts ``x`` back in the box;
+3. evaluate ``f(x)``; personal bests improve where ``f(x) < f(pbest)`` (strictly), and the
+   global best is the best personal best.
+
+``r1``, ``r2`` are uniform on [0, 1), drawn independently per particle *and per dimension* (the
+usual reading of eq. 3 and what pyswarms does); ``per_particle=True`` draws one number per
+particle for all dimensions instead.
+
+Boundary rules (what happens to a coordinate that left ``[lower, upper]``):
+
+- ``"clamp"``: put it on the wall and zero that velocity component. Simple, but a particle whose
+  personal and global bests lie on the wall stays there — the paper's swarms stall on the m2 = 0
+  or m3 = 0 face this way.
+- ``"reflect"``: mirror it back into the box (repeatedly, so any overshoot lands inside) and
+  reverse that velocity component, so the particle keeps exploring.
+- ``"random"``: re-draw it uniformly between its previous position and the wall it crossed, and
+  zero that velocity component (a "random-back" rule: the particle approaches the wall without
+  sticking to it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+
+BOUNDARIES = ("clamp", "reflect", "random")
+
+#: Upper limit on the elements of one block of pre-drawn random numbers (see ``random_blocks``).
+RANDOM_BLOCK_ELEMENTS = 1 << 21
+
+
+class SwarmState(NamedTuple):
+    """Batched swarm state; ``...`` are independent swarms, ``K`` particles, ``P`` dimensions."""
+
+    position: Tensor  #: [..., K, P] current positions
+    velocity: Tensor  #: [..., K, P]
+    best_position: Tensor  #: [..., K, P] personal bests
+    best_cost: Tensor  #: [..., K] cost at the personal bests
+    global_position: Tensor  #: [..., P] best position of each swarm
+    global_cost: Tensor  #: [...] its cost
+
+
+@dataclass(frozen=True)
+class SwarmRules:
+    """The update rule's constants.
+
+    Args:
+        c1, c2: cognitive and social learning rates of eq. (3).
+        inertia: ``(w_start, w_end, ramp)``: ``w`` falls linearly from ``w_start`` to ``w_end`` over
+            the first ``ramp`` moves and stays at ``w_end`` after (the paper: 0.9, 0.4, 100).
+        boundary: one of ``BOUNDARIES`` (module docstring).
+        velocity_limit: ``v_max`` as a fraction of each dimension's box width, or ``None``.
+        per_particle: one ``r1``/``r2`` per particle instead of per particle and dimension.
+    """
+
+    c1: float = 1.3
+    c2: float = 1.3
+    inertia: tuple[float, float, int] = (0.9, 0.4, 100)
+    boundary: str = "clamp"
+    velocity_limit: float | None = None
+    per_particle: bool = False
+
+    def __post_init__(self) -> None:
+        if self.boundary not in BOUNDARIES:
+            raise ValueError(f"unknown boundary rule {self.boundary!r}; use one of {', '.join(BOUNDARIES)}")
+        if self.velocity_limit is not None and not self.velocity_limit > 0:
+            raise ValueError(f"velocity_limit must be > 0 or None, got {self.velocity_limit}")
+        if len(self.inertia) != 3 or int(self.inertia[2]) < 0:
+            raise ValueError(f"inertia must be (w_start, w_end, ramp >= 0), got {self.inertia}")
+
+    def weight(self, move: int) -> float:
+        """Inertia ``w`` of move ``move`` (0-based): the linear ramp, then constant."""
+        start, end, ramp = self.inertia
+        if move >= ramp:
+            return float(end)
+        return float(start + (end - start) * move / ramp)
+
+
+def _update_bests(state: SwarmState, position: Tensor, cost: Tensor) -> SwarmState:
+    better = cost < state.best_cost
+    best_cost = torch.where(better, cost, state.best_cost)
+    best_position = torch.where(better.unsqueeze(-1), position, state.best_position)
+    global_cost, index = best_cost.min(dim=-1)
+    global_position = best_position.gather(
+        -2, index[..., None, None].expand(*index.shape, 1, position.shape[-1])
+    ).squeeze(-2)
+    return SwarmState(position, state.velocity, best_position, best_cost, global_position, global_cost)
+
+
+def init(
+    objective: Callable[[Tensor], Tensor],
+    lower: Tensor,
+    upper: Tensor,
+    batch_shape: tuple[int, ...],
+    particles: int,
+    generator: torch.Generator,
+) -> SwarmState:
+    """Uniform positions in the box, zero velocities, bests from one evaluation.
+
+    Args:
+        objective: ``cost[..., K]`` of ``positions[..., K, P]``.
+        lower, upper: box ``[P]`` on the device/dtype to compute in.
+        batch_shape: leading dimensions ``...`` (independent swarms).
+        particles: ``K``.
+        generator: the only source of randomness.
+    """
+    shape = (*batch_shape, particles, lower.shape[-1])
+    u = torch.rand(shape, generator=generator, device=lower.device, dtype=lower.dtype)
+    position = lower + (upper - lower) * u
+    cost = objective(position)
+    empty = SwarmState(
+        position,
+        torch.zeros_like(position),
+        position,
+        torch.full_like(cost, float("inf")),
+        position[..., 0, :],
+        cost[..., 0],
+    )
+    return _update_bests(empty, position, cost)
+
+
+def _bound(
+    position: Tensor,
+    velocity: Tensor,
+    previous: Tensor,
+    lower: Tensor,
+    upper: Tensor,
+    rules: SwarmRules,
+    u: Tensor | None,
+) -> tuple[Tensor, Tensor]:
+    if rules.boundary == "clamp":
+        clamped = torch.minimum(torch.maximum(position, lower), upper)
+        return clamped, torch.where(clamped != position, 0.0, velocity)
+    if rules.boundary == "reflect":
+        width = upper - lower
+        # Unfold the real line onto the box: period 2·width, mirrored on the second half.
+        t = torch.remainder(position - lower, 2 * width)
+        mirrored = t > width
+        inside = lower + torch.where(mirrored, 2 * width - t, t)
+        outside = (position < lower) | (position > upper)
+        return inside, torch.where(outside, -velocity, velocity)
+    # "random": uniformly between the previous position and the crossed wall.
+    assert u is not None
+    low_out, high_out = position < lower, position > upper
+    redrawn = torch.where(low_out, lower + (previous - lower) * u, position)
+    redrawn = torch.where(high_out, upper - (upper - previous) * u, redrawn)
+    return redrawn, torch.where(low_out | high_out, 0.0, velocity)
+
+
+def step(
+    state: SwarmState,
+    objective: Callable[[Tensor], Tensor],
+    weight: float,
+    random: Tensor,
+    lower: Tensor,
+    upper: Tensor,
+    rules: SwarmRules,
+) -> SwarmState:
+    """One move of every particle of every swarm, then one evaluation.
+
+    Args:
+        state: the swarms.
+        objective: ``cost[..., K]`` of ``positions[..., K, P]``.
+        weight: inertia ``w`` of this move.
+        random: ``[2 or 3, ..., K, P]`` uniform numbers: ``r1``, ``r2`` (and the boundary rule's
+            draw for ``"random"``); last dimension 1 for ``per_particle``.
+        lower, upper: the box ``[P]``.
+        rules: the constants.
+    """
+    x = state.position
+    velocity = (
+        weight * state.velocity
+        + rules.c1 * random[0] * (state.best_position - x)
+        + rules.c2 * random[1] * (state.global_position.unsqueeze(-2) - x)
+    )
+    if rules.velocity_limit is not None:
+        vmax = rules.velocity_limit * (upper - lower)
+        velocity = torch.minimum(torch.maximum(velocity, -vmax), vmax)
+    position, velocity = _bound(
+        x + velocity, velocity, x, lower, upper, rules, random[2] if rules.boundary == "random" else None
+    )
+    cost = objective(position)
+    moved = SwarmState(position, velocity, *state[2:])
+    return _update_bests(moved, position, cost)
+
+
+def random_blocks(shape: tuple[int, ...], draws: int, moves: int, generator: torch.Generator, like: Tensor):
+    """Yield ``moves`` tensors ``[draws, *shape]`` of uniform numbers, drawn in large blocks.
+
+    One ``torch.rand`` call per block instead of per move saves most of the per-call overhead on
+    small swarms; the block size depends only on ``shape``, so a seed gives the same numbers.
+    """
+    per_move = draws
+    for size in shape:
+        per_move *= size
+    block = max(1, min(moves, RANDOM_BLOCK_ELEMENTS // max(per_move, 1)))
+    done = 0
+    while done < moves:
+        count = min(block, moves - done)
+        numbers = torch.rand(
+            (count, draws, *shape), generator=generator, device=like.device, dtype=like.dtype
+        )
+        yield from numbers.unbind(0)
+        done += count
+
+
+def run(
+    objective: Callable[[Tensor], Tensor],
+    lower: Tensor,
+    upper: Tensor,
+    batch_shape: tuple[int, ...],
+    particles: int,
+    iterations: int,
+    rules: SwarmRules,
+    generator: torch.Generator,
+) -> tuple[SwarmState, Tensor]:
+    """``iterations`` evaluations per particle (``init`` is the first), i.e. ``iterations − 1`` moves.
+
+    Returns:
+        The final state and the history ``[iterations, ...]`` of each swarm's global best cost.
+    """
+    if particles < 1 or iterations < 1:
+        raise ValueError(f"need particles >= 1 and iterations >= 1, got {particles}, {iterations}")
+    state = init(objective, lower, upper, batch_shape, particles, generator)
+    history = state.global_cost.new_empty((iterations, *batch_shape))
+    history[0] = state.global_cost
+    draws = 3 if rules.boundary == "random" else 2
+    shape = (*batch_shape, particles, 1 if rules.per_particle else lower.shape[-1])
+    numbers = random_blocks(shape, draws, iterations - 1, generator, lower)
+    for move, random in enumerate(numbers):
+        state = step(state, objective, rules.weight(move), random, lower, upper, rules)
+        history[move + 1] = state.global_cost
+    return state, history
