@@ -137,11 +137,12 @@ def _same(a: Any, b: Any) -> bool:
 
 
 @conformance_check
-def check_hyperparameters(plugin: Any) -> None:
+def check_hyperparameters(plugin: Any, *_: Any) -> None:
     """Constructor options are explicit keyword arguments with defaults, stored unchanged.
 
     This is what lets a config section (and the command line, ``estimator.weight=tukey``) map
     one-to-one onto a constructor call, and what lets a run be rebuilt from its record.
+    (Further arguments, such as an estimator check's problem factory, are ignored.)
     """
     cls = type(plugin)
     if cls.__init__ is object.__init__:

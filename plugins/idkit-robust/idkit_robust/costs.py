@@ -1,0 +1,88 @@
+"""Robust costs of the torque error matrix ``E[..., n, N]``: Huber and trimmed mean of squares.
+
+Both act on the absolute error ``E = measured - predicted`` or, with ``relative=True``, on the
+relative error ``E / T`` of eq. (27), using idkit's near-zero policy for the measured torques
+``T`` (``idkit.costs.relative``: entries below ``floor`` x their joint's RMS are floored, with a
+warning). Both average over the ``n x N`` entries, so their scale does not grow with ``N``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import Tensor
+
+from idkit.costs.relative import DEFAULT_FLOOR, relative_error
+from idkit.interfaces import Cost
+
+
+def _errors(name: str, error: Tensor, measured: Tensor, relative: bool, floor: float) -> Tensor:
+    """The (relative) error matrix ``[..., n, N]``, after checking ``measured`` is ``[n, N]``."""
+    if error.ndim < 2 or measured.shape != error.shape[-2:]:
+        raise ValueError(
+            f"{name}: error must be [..., n, N] and measured [n, N] with the same n, N; got error "
+            f"{tuple(error.shape)} and measured {tuple(measured.shape)}"
+        )
+    return relative_error(error, measured, floor) if relative else error
+
+
+class HuberCost(Cost):
+    """Mean Huber loss of the error entries: quadratic within ``±delta``, linear beyond.
+
+    ``rho(e) = e²/2`` for ``|e| <= delta``, ``delta (|e| - delta/2)`` otherwise (Huber 1964). Large
+    errors (outliers) then pull on the estimate with a bounded force, unlike squares.
+
+    Args:
+        delta: the threshold between quadratic and linear, in the error's units: N m (or N) for
+            the absolute error, a fraction for the relative error (0.1 = 10 %).
+        relative: use the relative error ``E / T`` (eq. 27) instead of ``E``.
+        floor: near-zero policy of the relative error (``idkit.costs.relative``).
+    """
+
+    def __init__(self, delta: float = 1.0, relative: bool = False, floor: float = DEFAULT_FLOOR) -> None:
+        if not delta > 0:
+            raise ValueError(f"huber: delta must be > 0, got {delta}")
+        self.delta = delta
+        self.relative = relative  # per instance: shadows the Cost class default on purpose
+        self.floor = floor
+
+    def __call__(self, error: Tensor, measured: Tensor) -> Tensor:
+        """``value[...]`` for ``error[..., n, N]`` and ``measured[n, N]``."""
+        e = _errors("huber", error, measured, self.relative, self.floor).abs()
+        d = self.delta
+        rho = torch.where(e <= d, 0.5 * e.square(), d * (e - 0.5 * d))
+        return rho.mean(dim=(-2, -1))
+
+    def __repr__(self) -> str:
+        return f"HuberCost(delta={self.delta}, relative={self.relative}, floor={self.floor})"
+
+
+class TrimmedCost(Cost):
+    """Trimmed mean of the squared error entries: the largest ``trim`` fraction is left out.
+
+    The criterion of least trimmed squares (Rousseeuw 1984): of the ``m = n N`` squared entries
+    the ``floor(trim m)`` largest are dropped and the rest averaged, so up to that many
+    outliers have no influence at all. ``trim=0`` is the mean squared error.
+
+    Args:
+        trim: fraction of entries to drop, ``0 <= trim < 1``.
+        relative: use the relative error ``E / T`` (eq. 27) instead of ``E``.
+        floor: near-zero policy of the relative error (``idkit.costs.relative``).
+    """
+
+    def __init__(self, trim: float = 0.1, relative: bool = False, floor: float = DEFAULT_FLOOR) -> None:
+        if not 0 <= trim < 1:
+            raise ValueError(f"trimmed: trim must be in [0, 1), got {trim}")
+        self.trim = trim
+        self.relative = relative  # per instance: shadows the Cost class default on purpose
+        self.floor = floor
+
+    def __call__(self, error: Tensor, measured: Tensor) -> Tensor:
+        """``value[...]`` for ``error[..., n, N]`` and ``measured[n, N]``."""
+        e2 = _errors("trimmed", error, measured, self.relative, self.floor).square().flatten(-2)
+        keep = e2.shape[-1] - math.floor(self.trim * e2.shape[-1] + 1e-9)  # 0.29 * 100 -> 29, not 28
+        return torch.topk(e2, keep, dim=-1, largest=False, sorted=False).values.mean(dim=-1)
+
+    def __repr__(self) -> str:
+        return f"TrimmedCost(trim={self.trim}, relative={self.relative}, floor={self.floor})"
