@@ -11,10 +11,9 @@ from __future__ import annotations
 import math
 
 import torch
-from torch import Tensor
-
 from idkit.costs.relative import DEFAULT_FLOOR, relative_error
 from idkit.interfaces import Cost
+from torch import Tensor
 
 
 def _errors(name: str, error: Tensor, measured: Tensor, relative: bool, floor: float) -> Tensor:

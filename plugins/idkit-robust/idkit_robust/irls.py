@@ -23,12 +23,11 @@ import warnings
 from collections.abc import Callable
 
 import torch
-from torch import Tensor
-
 from idkit.costs.relative import DEFAULT_FLOOR, relative_denominator
 from idkit.estimate import Estimate, jsonable
 from idkit.interfaces import Estimator
 from idkit.problem import Problem
+from torch import Tensor
 
 #: ``Phi^{-1}(3/4)``: the MAD of a standard normal variable.
 MAD_TO_SIGMA = 0.6744897501960817

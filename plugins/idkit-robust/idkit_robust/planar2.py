@@ -33,9 +33,8 @@ import math
 from collections.abc import Sequence
 
 import torch
-from torch import Tensor
-
 from idkit.interfaces import Robot
+from torch import Tensor
 
 #: Simulation truth ``(m1, c1, I1, m2, c2, I2, fv1, fv2)``: a light arm, 0.5 m upper link.
 NOMINAL_PARAMS = (2.0, 0.25, 0.05, 1.5, 0.2, 0.03, 0.4, 0.25)
