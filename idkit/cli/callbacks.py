@@ -71,14 +71,26 @@ def summary_rows(sweep_dir: Path) -> tuple[list[str], list[dict[str, Any]]]:
                 if name not in params:
                     params.append(name)
             row.update(
-                parameter_error=data.get("parameter_error"), cost=data.get("cost"), wall_time_s=data.get("wall_time_s")
+                parameter_error=data.get("parameter_error"),
+                cost=data.get("cost"),
+                wall_time_s=data.get("wall_time_s"),
             )
         elif error.exists():
             row.update(status="failed", error=json.loads(error.read_text()).get("error"))
         else:
             row.update(status="running or killed")
         rows.append(row)
-    header = ["job", "status", "overrides", "estimator", *params, "parameter_error", "cost", "wall_time_s", "error"]
+    header = [
+        "job",
+        "status",
+        "overrides",
+        "estimator",
+        *params,
+        "parameter_error",
+        "cost",
+        "wall_time_s",
+        "error",
+    ]
     return header, rows
 
 
@@ -114,7 +126,9 @@ class MultirunSummary(Callback):
         if job_return.status == JobStatus.FAILED:
             # JobReturn.return_value re-raises for a failed job; the exception itself is kept here.
             exc = job_return._return_value
-            files.write_json(job_dir / ERROR_FILE, {"status": "failed", "error": f"{type(exc).__name__}: {exc}"})
+            files.write_json(
+                job_dir / ERROR_FILE, {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
+            )
         if hydra_cfg.mode == RunMode.MULTIRUN:
             self._summarise(Path(hydra_cfg.sweep.dir))
 

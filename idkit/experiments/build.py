@@ -57,6 +57,16 @@ def describe(kind: registry.Kind, spec: Spec | None) -> dict[str, Any] | None:
     if isinstance(spec, (str, Mapping)):
         name = spec if isinstance(spec, str) else split(kind, spec)[0]
         meta = registry.info(kind, name)
-        return {"name": name, "entry_point": meta.value, "distribution": meta.distribution, "version": meta.version}
+        return {
+            "name": name,
+            "entry_point": meta.value,
+            "distribution": meta.distribution,
+            "version": meta.version,
+        }
     cls = type(spec)
-    return {"name": None, "entry_point": f"{cls.__module__}:{cls.__qualname__}", "distribution": None, "version": None}
+    return {
+        "name": None,
+        "entry_point": f"{cls.__module__}:{cls.__qualname__}",
+        "distribution": None,
+        "version": None,
+    }

@@ -71,7 +71,9 @@ def _reference_key(column: str) -> str:
     return f"minus_{column[1:]}" if column.startswith("-") else column
 
 
-def load_reference(path: str | Path | None = None, columns: Sequence[str] = COLUMNS) -> dict[str, dict[str, dict]]:
+def load_reference(
+    path: str | Path | None = None, columns: Sequence[str] = COLUMNS
+) -> dict[str, dict[str, dict]]:
     """The published tables as ``{scenario: {method: {"params": {...}, "time_s": ...}}}``.
 
     ``path=None`` reads the copy shipped with idkit (``idkit/experiments/data/paper-tables.csv``,
@@ -88,7 +90,10 @@ def load_reference(path: str | Path | None = None, columns: Sequence[str] = COLU
         for column in columns:
             value = float(row[_reference_key(column)])
             params[column.lstrip("-")] = -value if column.startswith("-") else value
-        tables.setdefault(row["scenario"], {})[row["method"]] = {"params": params, "time_s": _unit_time(row["time"])}
+        tables.setdefault(row["scenario"], {})[row["method"]] = {
+            "params": params,
+            "time_s": _unit_time(row["time"]),
+        }
     for methods in tables.values():
         if "PSO-f13" in methods and "PSO-f14" in methods:
             a, b = methods["PSO-f13"]["params"], methods["PSO-f14"]["params"]
@@ -128,7 +133,12 @@ class ScenarioTable:
 
     def markdown(self, columns: Sequence[str] = COLUMNS) -> str:
         table = TABLES.get(self.scenario, "")
-        head = ["method", *(c.replace("-", "−") for c in columns), "computation time", "mean \\|rel. error\\|"]
+        head = [
+            "method",
+            *(c.replace("-", "−") for c in columns),
+            "computation time",
+            "mean \\|rel. error\\|",
+        ]
         lines = [
             f"### Table {table}: `{self.scenario}` — idkit (paper)",
             "",
@@ -173,7 +183,8 @@ class PaperTables:
             ra, rb = t.reference_error(mine), t.reference_error(other)
             if a is None or b is None:
                 continue
-            text = f"- `{t.scenario}`: {mine} {100 * a:.1f} % vs {other} {100 * b:.1f} % → {'beats' if a < b else 'loses'}"
+            outcome = "beats" if a < b else "loses"
+            text = f"- `{t.scenario}`: {mine} {100 * a:.1f} % vs {other} {100 * b:.1f} % → {outcome}"
             if ra is not None and rb is not None:
                 text += f" (paper: {100 * ra:.1f} % vs {100 * rb:.1f} % → {'beats' if ra < rb else 'loses'})"
             lines.append(text)
@@ -184,7 +195,8 @@ class PaperTables:
         verdicts = self.verdicts()
         if verdicts:
             parts.append(
-                f"Mean |relative parameter error| of {self.compare[0]} vs {self.compare[1]} (one draw per table):\n\n"
+                f"Mean |relative parameter error| of {self.compare[0]} vs {self.compare[1]} "
+                "(one draw per table):\n\n"
                 + "\n".join(verdicts)
             )
         parts.append(f"Total wall time {self.wall_time_s:.1f} s.")
@@ -230,7 +242,8 @@ class PaperTables:
                 "task": "paper",
                 "wall_time_s": self.wall_time_s,
                 "tables": {
-                    t.scenario: {"truth": t.truth, "estimates": [e.to_dict() for e in t.estimates]} for t in self.tables
+                    t.scenario: {"truth": t.truth, "estimates": [e.to_dict() for e in t.estimates]}
+                    for t in self.tables
                 },
                 "files": written,
             },
@@ -274,10 +287,13 @@ def run(
     started = time.perf_counter()
     robot_obj = build("robot", robot)
     published = load_reference(reference, columns) if reference != "" else {}
-    truth = dict(zip(robot_obj.param_names, robot_obj.nominal_params().tolist()))
+    truth = dict(zip(robot_obj.param_names, robot_obj.nominal_params().tolist(), strict=True))
     linear_specs = [plain(s) for s in linear]
     cost_objs = [build("cost", c) for c in costs]
-    cost_names = [plain(c) if isinstance(plain(c), str) else type(o).__name__ for c, o in zip(costs, cost_objs)]
+    cost_names = [
+        plain(c) if isinstance(plain(c), str) else type(o).__name__
+        for c, o in zip(costs, cost_objs, strict=True)
+    ]
     tables = []
     for scenario in tqdm(scenarios, desc="paper tables", unit="table", disable=not progress):
         samples = simulate(robot_obj, scenario, seed=seed)
@@ -289,7 +305,7 @@ def run(
                 estimates.append(build("estimator", {**options, "relative": relative}).fit(problem))
         by_cost = build("estimator", pso).fit_costs(problem, cost_objs)
         estimates += by_cost
-        chosen = [e for name, e in zip(cost_names, by_cost) if name in average_of]
+        chosen = [e for name, e in zip(cost_names, by_cost, strict=True) if name in average_of]
         if len(chosen) == len(average_of) and chosen:
             estimates.append(average(chosen, average_label(average_of)))
         tables.append(ScenarioTable(scenario, truth, estimates, published.get(scenario, {})))

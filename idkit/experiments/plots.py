@@ -74,7 +74,7 @@ def boxplots(errors: Mapping[str, Mapping[str, Sequence[float]]], path: Path, ti
     fig, axes = plt.subplots(
         1, len(scenarios), figsize=(max(4, 0.45 * n_methods + 1.5) * len(scenarios), 4), squeeze=False
     )
-    for ax, scenario in zip(axes[0], scenarios):
+    for ax, scenario in zip(axes[0], scenarios, strict=True):
         labels = list(errors[scenario])
         data = [np.clip(np.asarray(errors[scenario][m], dtype=float), 1e-6, 1e6) for m in labels]
         ax.boxplot(data, whis=(5, 95), showfliers=False)
@@ -93,7 +93,9 @@ def single_run(result: RunResult, out: Path) -> dict[str, str]:
     history = result.history()
     if history is not None:
         written["convergence_plot"] = str(
-            convergence(*history, title=f"{result.estimate.estimator}: convergence", path=out / "convergence.png")
+            convergence(
+                *history, title=f"{result.estimate.estimator}: convergence", path=out / "convergence.png"
+            )
         )
     if result.truth is not None:
         written["estimate_plot"] = str(

@@ -99,10 +99,14 @@ class RunResult:
         """A compact text table: estimate, true value and relative error per parameter."""
         est = self.estimate
         rel = self.relative_error or {}
-        source = self.data.get("scenario", {}).get("name") if "scenario" in self.data else self.data.get("file")
-        lines = [f"{est.estimator} · robot {self.plugins['robot']['name'] if self.plugins.get('robot') else '?'}"
-                 f" · data {source} · seed {self.seed}",
-                 f"{'parameter':<12}{'estimate':>12}{'true':>12}{'rel. error':>12}"]
+        source = (
+            self.data.get("scenario", {}).get("name") if "scenario" in self.data else self.data.get("file")
+        )
+        lines = [
+            f"{est.estimator} · robot {self.plugins['robot']['name'] if self.plugins.get('robot') else '?'}"
+            f" · data {source} · seed {self.seed}",
+            f"{'parameter':<12}{'estimate':>12}{'true':>12}{'rel. error':>12}",
+        ]
         for name, value in est.params.items():
             true = "" if self.truth is None else f"{self.truth[name]:12.4f}"
             r = rel.get(name)
@@ -178,7 +182,7 @@ def load_data(
     sc = get_scenario(_scenario_spec(scenario), n_samples=n_samples)
     samples = simulate(robot, sc, seed=seed, params=params)
     true = torch.as_tensor(params, dtype=torch.float64) if params is not None else robot.nominal_params()
-    truth = dict(zip(robot.param_names, true.tolist()))
+    truth = dict(zip(robot.param_names, true.tolist(), strict=True))
     return samples, truth, {"scenario": sc.as_dict()}
 
 
@@ -228,7 +232,10 @@ def run(
         truth=truth,
         seed=seed,
         data=source,
-        plugins={kind: describe(kind, spec) for kind, spec in (("robot", robot), ("estimator", estimator), ("cost", cost))},
+        plugins={
+            kind: describe(kind, spec)
+            for kind, spec in (("robot", robot), ("estimator", estimator), ("cost", cost))
+        },
         config=config,
     )
     if out_dir is not None:
