@@ -38,6 +38,7 @@ def label(plugin: Any) -> str:
 
 
 def fail(message: str) -> NoReturn:
+    __tracebackhide__ = True
     raise ConformanceError(message)
 
 
@@ -46,10 +47,12 @@ def conformance_check(func: F) -> F:
 
     @functools.wraps(func)
     def wrapper(plugin: Any, *args: Any, **kwargs: Any) -> None:
+        __tracebackhide__ = True  # pytest: show the failing check, not this wrapper
         try:
             func(plugin, *args, **kwargs)
         except ConformanceError as err:
-            raise ConformanceError(f"{func.__name__} failed for {label(plugin)}: {err}") from err
+            message = f"{func.__name__} failed for {label(plugin)}: {err}"
+            raise ConformanceError(message).with_traceback(err.__traceback__) from err.__cause__
 
     return wrapper  # type: ignore[return-value]
 
