@@ -88,6 +88,8 @@ def expect_tensor(value: Any, what: str, shape: Sequence[int], dtype: torch.dtyp
 
 def expect_close(actual: Tensor, expected: Tensor, what: str, rtol: float) -> None:
     """Fail unless ``|actual - expected| <= rtol * (|expected| + max|expected|)`` everywhere."""
+    if actual.shape != expected.shape:
+        fail(f"{what}: shapes differ, {tuple(actual.shape)} vs {tuple(expected.shape)}")
     actual, expected = actual.detach().double(), expected.detach().double()
     scale = expected.abs().max().clamp_min(1e-300)
     gap = (actual - expected).abs()
