@@ -125,15 +125,17 @@ class MultirunSummary(Callback):
         job_dir = Path(hydra_cfg.runtime.output_dir)
         if job_return.status == JobStatus.FAILED:
             # JobReturn.return_value re-raises for a failed job; the exception itself is kept here.
+            # idkit.cli.app wraps user errors for Hydra's compact printing: record the original.
             exc = job_return._return_value
-            files.write_json(
-                job_dir / ERROR_FILE, {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
-            )
+            cause = exc.__cause__ or exc
+            error = {"status": "failed", "error": f"{type(cause).__name__}: {cause}"}
+            files.write_json(job_dir / ERROR_FILE, error)
         if hydra_cfg.mode == RunMode.MULTIRUN:
             self._summarise(Path(hydra_cfg.sweep.dir))
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         self._summarise(Path(config.hydra.sweep.dir))
+        log.info("sweep summary: %s", Path(config.hydra.sweep.dir) / SUMMARY_MD)
 
     @staticmethod
     def _summarise(sweep_dir: Path) -> None:
@@ -141,4 +143,3 @@ class MultirunSummary(Callback):
             return
         with _locked(sweep_dir / ".summary.lock"):
             write_summary(sweep_dir)
-        log.info("sweep summary: %s", sweep_dir / SUMMARY_MD)

@@ -120,7 +120,11 @@ class RunResult:
         return "\n".join(lines)
 
     def history(self) -> tuple[list[str], list[list[float]]] | None:
-        """Convergence history as CSV ``(header, rows)``: best cost per iteration (per run if several)."""
+        """Convergence history as CSV ``(header, rows)``: best cost per iteration, one column per run.
+
+        Reads ``details["history"]``: a list (one run), a list of lists ``[runs][iterations]`` or a
+        mapping of named columns.
+        """
         history = self.estimate.details.get("history")
         if not history:
             return None
@@ -129,10 +133,9 @@ class RunResult:
             columns = [list(history[k]) for k in keys]
             rows = [[i, *(c[i] for c in columns)] for i in range(len(columns[0]))]
             return ["iteration", *keys], rows
-        first = history[0]
-        if isinstance(first, (list, tuple)):  # [iterations][runs]
-            header = ["iteration", *(f"run_{r}" for r in range(len(first)))]
-            return header, [[i, *row] for i, row in enumerate(history)]
+        if isinstance(history[0], (list, tuple)):  # [runs][iterations], as the PSO keeps it
+            header = ["iteration", *(f"run_{r}" for r in range(len(history)))]
+            return header, [[i, *step] for i, step in enumerate(zip(*history, strict=True))]
         return ["iteration", "best_cost"], [[i, value] for i, value in enumerate(history)]
 
     def save(self, out_dir: str | Path, make_plots: bool = True) -> dict[str, str]:
