@@ -50,7 +50,9 @@ WEIGHTS: dict[str, Callable[[Tensor, float], Tensor]] = {"huber": huber_weights,
 def mad_scale(r: Tensor) -> Tensor:
     """Robust scale ``median(|r|) / 0.6745`` of residuals ``r[M]`` (the median of an even count
     averages the two middle values, as numpy's does)."""
-    return torch.quantile(r.abs(), 0.5) / MAD_TO_SIGMA
+    v = r.abs().sort().values
+    m = v.shape[0]
+    return (v[(m - 1) // 2] + v[m // 2]) / (2 * MAD_TO_SIGMA)
 
 
 def _solve(w: Tensor, t: Tensor) -> Tensor:
@@ -73,7 +75,8 @@ class IRLS(Estimator):
         weight: ``"huber"`` or ``"tukey"`` (bisquare; rejects gross outliers completely).
         tuning: the constant ``c`` in units of the robust scale; ``None`` = 1.345 (Huber) or
             4.685 (Tukey). Smaller is more robust and less efficient.
-        max_iter: most reweighting steps per stage.
+        max_iter: most reweighting steps per stage (the convergence is linear; with the MAD
+            scale re-estimated every step a rate of ~0.8 per step is typical).
         tol: stop when the relative change of ``alpha`` is at most ``tol`` (at least 100 machine
             epsilons of the problem's dtype: IRLS converges linearly, round-off sets the floor).
         relative: fit the relative error (eq. 27 via eqs. 36-37) instead of the absolute one.
@@ -87,8 +90,8 @@ class IRLS(Estimator):
         self,
         weight: str = "huber",
         tuning: float | None = None,
-        max_iter: int = 100,
-        tol: float = 1e-9,
+        max_iter: int = 200,
+        tol: float = 1e-8,
         relative: bool = False,
         floor: float = DEFAULT_FLOOR,
         threads: int | None = 1,

@@ -71,7 +71,9 @@ def lagrangian_torques(p: torch.Tensor, q: torch.Tensor, qd: torch.Tensor, qdd: 
     def centres(q):  # centre-of-mass positions (x, y) of both links
         q1, q12 = q[0], q[0] + q[1]
         p1 = c1 * torch.stack((torch.cos(q1), torch.sin(q1)))
-        p2 = l1 * torch.stack((torch.cos(q1), torch.sin(q1))) + c2 * torch.stack((torch.cos(q12), torch.sin(q12)))
+        p2 = l1 * torch.stack((torch.cos(q1), torch.sin(q1))) + c2 * torch.stack(
+            (torch.cos(q12), torch.sin(q12))
+        )
         return p1, p2
 
     def lagrangian(q, qd):
