@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-
 from idkit import registry
+
 from idkit_robust.costs import HuberCost, TrimmedCost
 
 RNG = np.random.default_rng(11)

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from conftest import outlier_problem
+from idkit import registry
+from idkit.problem import Problem
+from robust_data import outlier_problem
 from scipy.optimize import least_squares
 from scipy.stats import norm
 
-from idkit import registry
-from idkit.problem import Problem
 from idkit_robust.irls import IRLS
 from idkit_robust.planar2 import Planar2Robot
 
