@@ -15,6 +15,13 @@ linear in its standard parameters ``pi = (m, h = m c, I_O)``::
 
 The backward pass sums child wrenches into parents; the joint torque is the wrench projected on the
 joint axis (moment for revolute, force for prismatic joints).
+
+Speed (CPU): vectors are stored component-major, ``[3, N]`` (``[..., 3, N]`` with a parameter
+batch), so every elementwise kernel runs over contiguous samples; rotations are never formed per
+sample: ``R(q) = F Rot(axis, q)`` is applied as ``(A0 + sin q A1 + (1 - cos q) A2) v`` with the three
+constant 3×3 matrices stacked into one ``[9, 3]`` matrix product (Rodrigues), and crosses with
+constant vectors are constant-matrix products. Per sample and joint this is a few dozen flops
+spread over long vector kernels, instead of many tiny 3×3 batched products.
 """
 
 from __future__ import annotations
@@ -29,128 +36,151 @@ from idkit.robots.urdf_model import KinematicTree
 
 
 def cross(u: Tensor, v: Tensor) -> Tensor:
-    """``u × v`` over the last dimension, broadcasting the leading ones (``[..., 3]``)."""
+    """``u × v`` for component-major vectors ``[..., 3, N]`` (leading dimensions broadcast)."""
     u, v = torch.broadcast_tensors(u, v)
-    return torch.linalg.cross(u, v)
+    return torch.linalg.cross(u, v, dim=-2)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """``[v]×`` with ``[v]× x = v × x``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+@dataclass(frozen=True)
+class Joint:
+    """Constants of one body's joint, on one device and dtype (vectors as ``[3, 1]`` columns).
+
+    Attributes:
+        revolute: ``False`` for a prismatic joint.
+        to_child: ``[9, 3]`` (revolute) ``[F^T; -K F^T; K² F^T]`` so that
+            ``R^T v = A0 v + sin q A1 v + (1 - cos q) A2 v``, or ``[3, 3]`` ``F^T`` (prismatic), with
+            ``F`` the joint frame's orientation in the parent at ``q = 0`` and ``K = [axis]×``.
+        to_parent: ``[9, 3]`` ``[F; F K; F K²]`` (``R v``), or ``[3, 3]`` ``F``.
+        axis: ``[3, 1]`` unit axis in the body frame; ``skew_axis``: ``K``.
+        origin: ``[3, 1]`` joint origin in the parent at ``q = 0``; ``skew_origin``: its ``[·]×``.
+        slide: ``[3, 1]`` prismatic direction in the parent frame (``F axis``).
+    """
+
+    revolute: bool
+    to_child: Tensor
+    to_parent: Tensor
+    axis: Tensor
+    skew_axis: Tensor
+    origin: Tensor
+    skew_origin: Tensor
+    slide: Tensor
 
 
 @dataclass(frozen=True)
 class TreeTensors:
-    """The constant geometry of a :class:`KinematicTree` as tensors on one device and dtype.
+    """The constant geometry of a :class:`KinematicTree` on one device and dtype."""
 
-    Attributes:
-        rotation: ``[nb, 3, 3]`` joint-frame orientation in the parent body at ``q = 0``.
-        translation: ``[nb, 3]`` joint-frame origin in the parent body.
-        axis: ``[nb, 3]`` unit joint axes in the body frames.
-        revolute: ``[nb]`` bool, ``False`` for prismatic joints.
-        subtree: ``[nb, nb]`` with ``subtree[j, i] = 1`` when body ``i`` is ``j`` or a descendant.
-        parents: parent body indices (``-1`` = the fixed root).
-    """
-
-    rotation: Tensor
-    translation: Tensor
-    axis: Tensor
-    revolute: Tensor
-    subtree: Tensor
+    joints: tuple[Joint, ...]
     parents: tuple[int, ...]
 
     @classmethod
     def build(cls, tree: KinematicTree, device: torch.device | str, dtype: torch.dtype) -> TreeTensors:
-        nb = len(tree.bodies)
-        subtree = np.eye(nb)
-        for i in range(nb):  # walk up from every body, marking its ancestors
-            j = tree.bodies[i].parent
-            while j >= 0:
-                subtree[j, i] = 1.0
-                j = tree.bodies[j].parent
-
         def tensor(array: np.ndarray) -> Tensor:
-            return torch.as_tensor(np.asarray(array), dtype=dtype, device=device)
+            return torch.as_tensor(np.ascontiguousarray(array), dtype=dtype, device=device)
 
-        return cls(
-            rotation=tensor(np.stack([b.rotation for b in tree.bodies])),
-            translation=tensor(np.stack([b.translation for b in tree.bodies])),
-            axis=tensor(np.stack([b.axis for b in tree.bodies])),
-            revolute=torch.tensor([b.kind == "revolute" for b in tree.bodies], device=device),
-            subtree=tensor(subtree),
-            parents=tree.parents,
-        )
+        joints = []
+        for body in tree.bodies:
+            rot, axis, origin = body.rotation, body.axis, body.translation
+            k = _skew(axis)
+            revolute = body.kind == "revolute"
+            if revolute:
+                to_child = np.concatenate([rot.T, -k @ rot.T, k @ k @ rot.T])
+                to_parent = np.concatenate([rot, rot @ k, rot @ k @ k])
+            else:
+                to_child, to_parent = rot.T, rot
+            joints.append(
+                Joint(
+                    revolute=revolute,
+                    to_child=tensor(to_child),
+                    to_parent=tensor(to_parent),
+                    axis=tensor(axis[:, None]),
+                    skew_axis=tensor(k),
+                    origin=tensor(origin[:, None]),
+                    skew_origin=tensor(_skew(origin)),
+                    slide=tensor((rot @ axis)[:, None]),
+                )
+            )
+        return cls(tuple(joints), tree.parents)
 
 
 @dataclass(frozen=True)
 class Kinematics:
-    """Per-body motion for ``N`` states; lists indexed by body, each entry ``[N, 3]`` or ``[N, 3, 3]``.
+    """Per-body motion for ``N`` states (lists indexed by body).
 
-    ``rotation[k]``/``translation[k]``: pose of body ``k`` in its parent body at the current ``q``;
-    ``w``, ``dw``, ``a``: angular velocity, angular acceleration and classical linear acceleration of
-    the origin (gravity included) in body ``k``'s coordinates.
+    ``w``, ``dw``, ``a`` (each ``[3, N]``): angular velocity, angular acceleration and classical
+    linear acceleration of the body origin (gravity included), in the body's coordinates.
+    ``sin``, ``cos`` (``[N]``, revolute joints) or ``offset`` (``[3, N]``, prismatic: the joint
+    origin in the parent frame) describe the body's pose in its parent.
     """
 
-    rotation: list[Tensor]
-    translation: list[Tensor]
     w: list[Tensor]
     dw: list[Tensor]
     a: list[Tensor]
+    sin: list[Tensor | None]
+    cos: list[Tensor | None]
+    offset: list[Tensor | None]
 
 
-def _axis_rotation(axis: Tensor, angle: Tensor) -> Tensor:
-    """Rodrigues: rotation ``[N, 3, 3]`` by ``angle[N]`` about the unit ``axis[3]``."""
-    x, y, z = axis.unbind(-1)
-    zero = torch.zeros((), dtype=axis.dtype, device=axis.device)
-    skew = torch.stack([torch.stack([zero, -z, y]), torch.stack([z, zero, -x]), torch.stack([-y, x, zero])])
-    s, c = torch.sin(angle)[:, None, None], torch.cos(angle)[:, None, None]
-    eye = torch.eye(3, dtype=axis.dtype, device=axis.device)
-    return eye + s * skew + (1.0 - c) * (skew @ skew)
+def _rotate(matrix: Tensor, sin: Tensor | None, cos: Tensor | None, vectors: Tensor) -> Tensor:
+    """Apply a joint rotation (``to_child`` or ``to_parent``) to ``vectors[..., 3, N]``."""
+    if sin is None:
+        return matrix @ vectors
+    y0, y1, y2 = (matrix @ vectors).split(3, dim=-2)
+    return y0 + sin * y1 + (1.0 - cos) * y2
 
 
-def _rotate_t(rotation: Tensor, vector: Tensor) -> Tensor:
-    """``R^T v`` for ``R[N, 3, 3]`` and ``v[N, 3]``."""
-    return (vector[:, None, :] @ rotation)[:, 0, :]
+def _origin_cross(joint: Joint, offset: Tensor | None, vectors: Tensor) -> Tensor:
+    """``p × v`` with ``p`` the joint origin in the parent frame (a constant-matrix product if fixed)."""
+    if offset is None:
+        return joint.skew_origin @ vectors
+    return cross(offset, vectors)
 
 
 def forward_kinematics(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gravity: float) -> Kinematics:
     """Forward Newton–Euler pass for states ``q, qd, qdd`` each ``[N, nb]``."""
-    n_samples = q.shape[0]
-    root_a = q.new_zeros(n_samples, 3)
-    root_a[:, 2] = gravity
-    root_w = q.new_zeros(n_samples, 3)
-    kin = Kinematics([], [], [], [], [])
-    for k, parent in enumerate(tree.parents):
-        axis = tree.axis[k]
-        w_p, dw_p, a_p = (
-            (root_w, root_w, root_a) if parent < 0 else (kin.w[parent], kin.dw[parent], kin.a[parent])
-        )
-        if bool(tree.revolute[k]):
-            rotation = tree.rotation[k] @ _axis_rotation(axis, q[:, k])
-            translation = tree.translation[k].expand(n_samples, 3)
+    q, qd, qdd = q.T, qd.T, qdd.T  # [nb, N]: one contiguous row per joint after .contiguous()
+    q, qd, qdd = q.contiguous(), qd.contiguous(), qdd.contiguous()
+    n_samples = q.shape[1]
+    zero = q.new_zeros(3, n_samples)
+    up = zero.clone()
+    up[2] = gravity
+    kin = Kinematics([], [], [], [], [], [])
+    for k, (joint, parent) in enumerate(zip(tree.joints, tree.parents, strict=True)):
+        w_p, dw_p, a_p = (zero, zero, up) if parent < 0 else (kin.w[parent], kin.dw[parent], kin.a[parent])
+        sin = cos = offset = None
+        if joint.revolute:
+            sin, cos = torch.sin(q[k]), torch.cos(q[k])
         else:
-            rotation = tree.rotation[k].expand(n_samples, 3, 3)
-            translation = tree.translation[k] + q[:, k, None] * (tree.rotation[k] @ axis)
-        # Acceleration of the new origin as a point of the parent body, then into body k.
-        a = a_p + cross(dw_p, translation) + cross(w_p, cross(w_p, translation))
-        a = _rotate_t(rotation, a)
-        w_in = _rotate_t(rotation, w_p)  # parent's angular velocity in body k
-        dw = _rotate_t(rotation, dw_p)
-        joint_rate = qd[:, k, None] * axis
-        if bool(tree.revolute[k]):
-            w = w_in + joint_rate
-            dw = dw + qdd[:, k, None] * axis + cross(w_in, joint_rate)
+            offset = joint.origin + joint.slide * q[k]
+        # Acceleration of the joint origin as a point of the parent: a + dw × p + w × (w × p).
+        p = joint.origin if offset is None else offset
+        a_origin = a_p - _origin_cross(joint, offset, dw_p) + w_p * (w_p * p).sum(0) - p * (w_p * w_p).sum(0)
+        w_in, dw, a = _rotate(joint.to_child, sin, cos, torch.stack([w_p, dw_p, a_origin])).unbind(0)
+        coriolis = -(joint.skew_axis @ w_in) * qd[k]  # w_in × (axis qd)
+        if joint.revolute:
+            w = w_in + joint.axis * qd[k]
+            dw = dw + joint.axis * qdd[k] + coriolis
         else:
             w = w_in
-            a = a + qdd[:, k, None] * axis + 2.0 * cross(w_in, joint_rate)
-        kin.rotation.append(rotation)
-        kin.translation.append(translation)
-        kin.w.append(w)
-        kin.dw.append(dw)
-        kin.a.append(a)
+            a = a + joint.axis * qdd[k] + 2.0 * coriolis
+        for store, value in zip(
+            (kin.w, kin.dw, kin.a, kin.sin, kin.cos, kin.offset), (w, dw, a, sin, cos, offset), strict=True
+        ):
+            store.append(value)
     return kin
 
 
-def _inertia_matrix(params: Tensor) -> Tensor:
-    """``I_O[..., 3, 3]`` from standard parameters ``[..., 10]``."""
-    xx, xy, xz, yy, yz, zz = params[..., 4:].unbind(-1)
+def _skew_batch(h: Tensor) -> Tensor:
+    """``[h]×[..., 3, 3]`` for ``h[..., 3]``."""
+    x, y, z = h.unbind(-1)
+    zero = torch.zeros_like(x)
     return torch.stack(
-        [torch.stack([xx, xy, xz], -1), torch.stack([xy, yy, yz], -1), torch.stack([xz, yz, zz], -1)], -2
+        [torch.stack([zero, -z, y], -1), torch.stack([z, zero, -x], -1), torch.stack([-y, x, zero], -1)], -2
     )
 
 
@@ -158,95 +188,91 @@ def rnea(tree: TreeTensors, inertials: Tensor, q: Tensor, qd: Tensor, qdd: Tenso
     """Joint torques ``tau[..., N, nb]`` for standard parameters ``inertials[..., nb, 10]``.
 
     The kinematics run once for the ``N`` states; the wrenches and the backward pass broadcast over
-    the parameter batch ``...``.
+    the parameter batch ``...`` (each body's inertia acts as a ``[..., 3, 3]`` matrix on ``[3, N]``).
     """
     kin = forward_kinematics(tree, q, qd, qdd, gravity)
     nb = len(tree.parents)
-    mass = inertials[..., :, 0, None, None]  # [..., nb, 1, 1]
-    first = inertials[..., :, None, 1:4]  # [..., nb, 1, 3]
-    inertia = _inertia_matrix(inertials)[..., :, None, :, :]  # [..., nb, 1, 3, 3]
+    xx, xy, xz, yy, yz, zz = inertials[..., 4:].unbind(-1)
+    inertia = torch.stack(
+        [torch.stack([xx, xy, xz], -1), torch.stack([xy, yy, yz], -1), torch.stack([xz, yz, zz], -1)], -2
+    )  # [..., nb, 3, 3]
+    first = inertials[..., 1:4]  # [..., nb, 3]
+    skew_first = _skew_batch(first)
     force: list[Tensor] = []
     moment: list[Tensor] = []
     for k in range(nb):
         w, dw, a = kin.w[k], kin.dw[k], kin.a[k]
-        h = first[..., k, :, :]
-        inertia_k = inertia[..., k, :, :, :]
-        force.append(mass[..., k, :, :] * a + cross(dw, h) + cross(w, cross(w, h)))
-        i_w = (inertia_k @ w[..., None])[..., 0]
-        i_dw = (inertia_k @ dw[..., None])[..., 0]
-        moment.append(i_dw + cross(w, i_w) + cross(h, a))
+        mass, h = inertials[..., k, 0, None, None], first[..., k, :, None]  # [..., 1, 1], [..., 3, 1]
+        i_dw, i_w = (inertia[..., k, None, :, :] @ torch.stack([dw, w])).unbind(-3)
+        h_dw, h_a = (skew_first[..., k, None, :, :] @ torch.stack([dw, a])).unbind(-3)
+        # f = m a + dw × h + w × (w × h);  n = I dw + w × (I w) + h × a
+        force.append(mass * a - h_dw + w * (h * w).sum(-2, keepdim=True) - h * (w * w).sum(0))
+        moment.append(i_dw + cross(w, i_w) + h_a)
     torques: list[Tensor] = [q.new_zeros(())] * nb
     for k in reversed(range(nb)):
-        axis = tree.axis[k]
-        torques[k] = (moment[k] if bool(tree.revolute[k]) else force[k]) @ axis
+        joint = tree.joints[k]
+        torques[k] = ((moment[k] if joint.revolute else force[k]) * joint.axis).sum(-2)
         parent = tree.parents[k]
         if parent >= 0:
-            f_p = (kin.rotation[k] @ force[k][..., None])[..., 0]  # child's force in the parent frame
+            f_p, n_p = _rotate(
+                joint.to_parent, kin.sin[k], kin.cos[k], torch.stack([force[k], moment[k]], -3)
+            ).unbind(-3)
             force[parent] = force[parent] + f_p
-            m_p = (kin.rotation[k] @ moment[k][..., None])[..., 0] + cross(kin.translation[k], f_p)
-            moment[parent] = moment[parent] + m_p
+            moment[parent] = moment[parent] + n_p + _origin_cross(joint, kin.offset[k], f_p)
     return torch.stack(torques, dim=-1)
 
 
-def _skew(v: Tensor) -> Tensor:
-    """``[v]×[..., 3, 3]`` for ``v[..., 3]``."""
-    x, y, z = v.unbind(-1)
-    zero = torch.zeros_like(x)
+def _symmetric_products(u: Tensor, v: Tensor) -> Tensor:
+    """``s[..., 6, N]`` with ``u · (I v) = s · (I_xx, I_xy, I_xz, I_yy, I_yz, I_zz)`` for symmetric ``I``."""
+    (ux, uy, uz), (vx, vy, vz) = u.unbind(-2), v.unbind(-2)
     return torch.stack(
-        [torch.stack([zero, -z, y], -1), torch.stack([z, zero, -x], -1), torch.stack([-y, x, zero], -1)], -2
-    )
-
-
-def _inertia_operator(w: Tensor) -> Tensor:
-    """``L(w)[..., 3, 6]`` with ``I w = L(w) (I_xx, I_xy, I_xz, I_yy, I_yz, I_zz)``."""
-    x, y, z = w.unbind(-1)
-    zero = torch.zeros_like(x)
-    return torch.stack(
-        [
-            torch.stack([x, y, z, zero, zero, zero], -1),
-            torch.stack([zero, x, zero, y, z, zero], -1),
-            torch.stack([zero, zero, x, zero, y, z], -1),
-        ],
-        -2,
+        [ux * vx, ux * vy + uy * vx, ux * vz + uz * vx, uy * vy, uy * vz + uz * vy, uz * vz], -2
     )
 
 
 def rnea_regressor(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gravity: float) -> Tensor:
     """Regressor ``Y[N, nb, nb, 10]``: ``tau[:, j] = sum_i Y[:, j, i] @ inertials[i]`` exactly.
 
-    Regressor-form Newton–Euler: each body's wrench is ``A_i(w, dw, a) pi_i`` with ``A_i[N, 6, 10]``;
-    the wrench blocks are carried to the root frame (moments about the root origin) in one batched
-    product, and joint ``j`` sees the blocks of the bodies in its subtree projected on its axis
-    (a Plücker line in the root frame).
+    Regressor-form Newton–Euler. Joint ``j`` feels body ``i`` (in its subtree) through the wrench
+    ``(f_i, n_i)`` projected on ``j``'s unit motion (its twist at unit rate) written in body ``i``'s
+    frame, ``l = (l_m, l_f)``: ``tau_j = l_m · n_i + l_f · f_i``. These motions are carried from
+    body to body like velocities. Expanding the wrench with triple products gives the coefficient of
+    each parameter::
+
+        m:   l_f · a
+        h:   l_f × dw + (l_f × w) × w + a × l_m
+        I_O: sym(l_m, dw) + sym(l_m × w, w)          (see _symmetric_products)
     """
     kin = forward_kinematics(tree, q, qd, qdd, gravity)
-    w, dw, a = (torch.stack(x, dim=1) for x in (kin.w, kin.dw, kin.a))  # [N, nb, 3]
-    zeros3 = torch.zeros_like(a)
-    force = torch.cat(
-        [a[..., None], _skew(dw) + _skew(w) @ _skew(w), zeros3[..., None].expand(-1, -1, -1, 6)], -1
-    )
-    moment = torch.cat(
-        [zeros3[..., None], -_skew(a), _inertia_operator(dw) + _skew(w) @ _inertia_operator(w)], -1
-    )  # [N, nb, 3, 10] each: body-frame wrench blocks
-    # Poses of the bodies in the root frame.
-    rot_world: list[Tensor] = []
-    pos_world: list[Tensor] = []
-    for k, parent in enumerate(tree.parents):
+    nb = len(tree.parents)
+    y = q.new_zeros(q.shape[0], nb, nb, 10)
+    ancestors: list[list[int]] = []
+    lines: list[tuple[Tensor, Tensor]] = []  # per body: (l_m, l_f), each [c, 3, N]
+    for k, (joint, parent) in enumerate(zip(tree.joints, tree.parents, strict=True)):
+        own_m, own_f = (
+            (joint.axis, torch.zeros_like(joint.axis))
+            if joint.revolute
+            else (torch.zeros_like(joint.axis), joint.axis)
+        )
+        own_m, own_f = own_m.expand(1, 3, q.shape[0]), own_f.expand(1, 3, q.shape[0])
         if parent < 0:
-            rot_world.append(kin.rotation[k])
-            pos_world.append(kin.translation[k])
+            ancestors.append([k])
+            line_m, line_f = own_m, own_f
         else:
-            rot_world.append(rot_world[parent] @ kin.rotation[k])
-            pos_world.append(pos_world[parent] + (rot_world[parent] @ kin.translation[k][..., None])[..., 0])
-    rot, pos = torch.stack(rot_world, 1), torch.stack(pos_world, 1)  # [N, nb, 3, 3], [N, nb, 3]
-    force_w = rot @ force
-    moment_w = rot @ moment + _skew(pos) @ force_w  # about the root origin
-    axis_w = (rot @ tree.axis[:, :, None])[..., 0]  # [N, nb, 3]
-    revolute = tree.revolute[:, None]
-    # Plücker coordinates of each joint's axis: torque = line · (moment, force) wrench.
-    line_moment = torch.where(revolute, axis_w, torch.zeros_like(axis_w))
-    line_force = torch.where(revolute, cross(pos, axis_w), axis_w)
-    y = torch.einsum("njs,nisp->njip", line_moment, moment_w) + torch.einsum(
-        "njs,nisp->njip", line_force, force_w
-    )
-    return y * tree.subtree[None, :, :, None]
+            ancestors.append([*ancestors[parent], k])
+            m_p, f_p = lines[parent]
+            stacked = torch.stack([m_p, f_p - _origin_cross(joint, kin.offset[k], m_p)])  # f + m × p
+            m_k, f_k = _rotate(joint.to_child, kin.sin[k], kin.cos[k], stacked).unbind(0)
+            line_m, line_f = torch.cat([m_k, own_m]), torch.cat([f_k, own_f])
+        lines.append((line_m, line_f))
+        w, dw, a = kin.w[k], kin.dw[k], kin.a[k]
+        coefficients = torch.cat(
+            [
+                (line_f * a).sum(-2, keepdim=True),
+                cross(line_f, dw) + cross(cross(line_f, w), w) + cross(a, line_m),
+                _symmetric_products(line_m, dw) + _symmetric_products(cross(line_m, w), w),
+            ],
+            -2,
+        )  # [c, 10, N]
+        y[:, ancestors[k], k, :] = coefficients.permute(2, 0, 1)
+    return y
