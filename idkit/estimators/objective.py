@@ -6,16 +6,21 @@
 - the search space: the robot's physical parameters in ``bounds()`` (the paper's way) or, for
   robots with ``search_space == "base"``, the base parameters in ``base_bounds()``;
 - the torque prediction: ``inverse_dynamics`` in general (``Problem.error``'s path); for a robot
-  with a regressor, ``Y @ base_params(x)`` as one ``[..., B] × [B, n·N]`` matmul — exact, because
-  ``tau = Y(q, qd, qdd) · alpha`` is the definition of the regressor (tests check both agree);
-- each cost as ``error[..., n, N] → value[...]`` with ``measured`` bound. For the built-in norm
-  products (``idkit.costs.paper``) the relative denominator (eq. 27 with its near-zero floor) is
-  computed once instead of in every call; the value is computed by the same operations.
+  with a regressor, ``E = T − base_params(x) @ Yᵀ`` as one ``addmm`` — exact up to rounding,
+  because ``tau = Y(q, qd, qdd) · alpha`` defines the regressor (tests check both paths agree);
+  for relative costs ``T`` and ``Y`` are divided by the denominator of eq. (27) once, so the
+  product gives ``E_rel`` directly;
+- the paper's norm-product costs (``idkit.costs.paper``) through ``fast_norm_product``: the
+  same norms with fewer tensor ops (one ``|E|``, row and column sums from one matmul, the
+  spectral norm in closed form). Values agree with the cost's own ``__call__`` to rounding
+  (tests: 1e-12 relative); other costs are called as they are.
+
+Per-op overhead (microseconds per tensor op) dominates a paper-sized swarm, so op count is what
+this module minimises. Estimators report the final cost through the cost's own ``__call__``.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 
 import torch
@@ -29,19 +34,82 @@ from idkit.problem import Problem
 
 SPACES = ("physical", "base")
 
+#: Below this ``1 + r`` (see ``spectral_norm_3``) the two largest eigenvalues of ``E Eᵀ`` nearly
+#: coincide and the closed form loses digits (``acos`` is ill-conditioned at −1); such entries
+#: are recomputed by ``torch.linalg.matrix_norm``.
+_NEAR_DOUBLE = 1e-6
 
-def bound_cost(cost: Cost, measured: Tensor) -> Callable[[Tensor], Tensor]:
-    """``error[..., n, N] → value[...]`` for ``cost`` with ``measured[n, N]`` fixed."""
-    if type(cost).__call__ is NormProductCost.__call__ and type(cost).error_matrix in (
-        NormProductCost.error_matrix,
-        RelativeNormProductCost.error_matrix,
-    ):
-        norms = [NORMS[name] for name in cost.norms]
-        if isinstance(cost, RelativeNormProductCost):
-            denominator = relative_denominator(measured, cost.floor)
-            return lambda error: math.prod(norm(error / denominator) for norm in norms)
-        return lambda error: math.prod(norm(error) for norm in norms)
-    return lambda error: cost(error, measured)
+
+def spectral_norm_3(e: Tensor) -> Tensor:
+    """Largest singular value ``[...]`` of ``e[..., 3, N]``: closed-form eigenvalue of ``e eᵀ``.
+
+    Smith's trigonometric solution for a symmetric 3 × 3 matrix ``G``: with ``q = tr G / 3``,
+    ``p = ‖G − qI‖_F / √6``, ``B = (G − qI) / p`` and ``r = det B / 2 = tr B³ / 6`` (``B`` is
+    traceless), ``λ_max = q + 2p cos(acos(r) / 3)``. About 15 tensor ops instead of a batched SVD,
+    which costs microseconds per matrix.
+    """
+    g = e @ e.mT
+    q = g.diagonal(dim1=-2, dim2=-1).sum(-1) / 3
+    shifted = g - q[..., None, None] * torch.eye(3, dtype=g.dtype, device=g.device)
+    p = (shifted.square().sum((-2, -1)) / 6).sqrt()
+    cube = (shifted * (shifted @ shifted)).sum((-2, -1))  # tr(S³) = tr(S S S) for symmetric S
+    safe = torch.where(p > 0, p, 1.0)
+    r = (cube / (6 * safe**3)).clamp(-1.0, 1.0)
+    top = torch.where(p > 0, q + 2 * p * torch.cos(torch.acos(r) / 3), q)
+    value = top.clamp_min(0).sqrt()
+    near = (r < -1 + _NEAR_DOUBLE) & (p > 0)
+    if bool(near.any()):
+        value = value.clone()
+        value[near] = torch.linalg.matrix_norm(e[near], ord=2)
+    return value
+
+
+def fast_norm_product(names: Sequence[str], n: int, samples: int, like: Tensor) -> Callable[[Tensor], Tensor]:
+    """``e[..., n, N] → Π NORMS[name](e)`` with few ops; equal to the plain product up to rounding.
+
+    ``"1"`` and ``"inf"`` (largest column / row absolute sum) come from one matmul of ``|e|``
+    with a 0/1 matrix that sums each column and each row; ``"2"`` uses ``spectral_norm_3`` when
+    ``n == 3``.
+    """
+    sums = None
+    if "1" in names or "inf" in names:
+        # [n·N, N + n]: column j of the first N sums sample j over joints, the last n sum each joint.
+        eye_n = torch.eye(n, dtype=like.dtype, device=like.device)
+        eye_s = torch.eye(samples, dtype=like.dtype, device=like.device)
+        sums = torch.cat(
+            (eye_s.repeat(n, 1), eye_n.repeat_interleave(samples, dim=0)), dim=1
+        )  # rows ordered joint-major, as e.reshape(..., n·N)
+    uses_abs = sums is not None or "max_abs" in names
+
+    def value(e: Tensor) -> Tensor:
+        a = e.abs() if uses_abs else e
+        s = (a.reshape(*a.shape[:-2], n * samples) @ sums) if sums is not None else None
+        out = None
+        for name in names:
+            if name == "1":
+                v = s[..., :samples].amax(-1)
+            elif name == "inf":
+                v = s[..., samples:].amax(-1)
+            elif name == "max_abs":
+                v = a.amax(dim=(-2, -1))
+            elif name == "2" and n == 3:
+                v = spectral_norm_3(e)
+            else:
+                v = NORMS[name](e)
+            out = v if out is None else out * v
+        return out
+
+    return value
+
+
+def is_norm_product(cost: Cost) -> bool:
+    """Whether ``cost`` is one of the plain norm products of ``idkit.costs.paper`` (not overridden)."""
+    return (
+        isinstance(cost, NormProductCost)
+        and type(cost).__call__ is NormProductCost.__call__
+        and type(cost).error_matrix in (NormProductCost.error_matrix, RelativeNormProductCost.error_matrix)
+        and bool(cost.norms)
+    )
 
 
 def cost_label(cost: Cost) -> str:
@@ -97,12 +165,27 @@ class Objective:
         self.samples = s
         self.measured = s.measured_matrix()  # [n, N]
         self.shape = tuple(self.measured.shape)
+        self.terms = []  # per cost: (denominator or None, error → value)
+        for cost in self.costs:
+            if is_norm_product(cost):
+                denominator = None
+                if isinstance(cost, RelativeNormProductCost):
+                    denominator = relative_denominator(self.measured, cost.floor)
+                value = fast_norm_product(cost.norms, *self.shape, self.measured)
+            else:
+                denominator, value = None, (lambda error, cost=cost: cost(error, self.measured))
+            self.terms.append((denominator, value))
         if self.use_regressor:
             y = robot.regressor(s.q, s.qd, s.qdd)  # [N, n, B]
-            # [B, n·N] so that alpha[..., B] @ it is the prediction in the joints × samples layout.
-            self.regressor_t = y.permute(2, 1, 0).reshape(y.shape[-1], -1).contiguous()
-            self.measured_flat = self.measured.reshape(-1)
-        self.bound = [bound_cost(c, self.measured) for c in self.costs]
+            # -Yᵀ as [B, n·N]: alpha[..., B] @ it is minus the prediction in the joints × samples layout.
+            minus_yt = -y.permute(2, 1, 0).reshape(y.shape[-1], -1)
+            self.absolute = (self.measured.reshape(-1), minus_yt.contiguous())
+            self.linear = []  # per cost: (T, -Yᵀ), divided by the relative denominator if any
+            for denominator, _ in self.terms:
+                scale = 1.0 if denominator is None else denominator.reshape(-1)
+                self.linear.append(
+                    ((self.measured.reshape(-1) / scale).contiguous(), (minus_yt / scale).contiguous())
+                )
 
     @property
     def dimension(self) -> int:
@@ -121,17 +204,36 @@ class Objective:
     def error(self, x: Tensor) -> Tensor:
         """Torque error ``E[..., n, N] = measured − predicted`` at search positions ``x[..., D]``."""
         if self.use_regressor:
-            predicted = self.base(x) @ self.regressor_t
-            return (self.measured_flat - predicted).unflatten(-1, self.shape)
+            t, minus_yt = self.absolute
+            return (t + self.base(x) @ minus_yt).view(*x.shape[:-1], *self.shape)
         s = self.samples
         predicted = self.problem.robot.inverse_dynamics(x, s.q, s.qd, s.qdd)
         return (s.tau - predicted).transpose(-1, -2)
 
+    def exact(self, index: int, x: Tensor) -> Tensor:
+        """Cost ``index`` at positions ``x[..., D]`` by the cost's own ``__call__`` (for reporting).
+
+        Physical space goes through ``Problem.error`` (inverse dynamics), base space through the
+        regressor.
+        """
+        error = self.error(x) if self.space == "base" else self.problem.error(x)
+        return self.costs[index](error, self.measured)
+
     def __call__(self, x: Tensor) -> Tensor:
         """``cost[C, ...]`` of positions ``x[C, ..., D]``: slice ``c`` by cost ``c``."""
-        if x.shape[0] != len(self.bound):
-            raise ValueError(f"positions have {x.shape[0]} cost slices, the objective has {len(self.bound)}")
-        error = self.error(x)
-        if len(self.bound) == 1:
-            return self.bound[0](error[0]).unsqueeze(0)
-        return torch.stack([f(e) for f, e in zip(self.bound, error.unbind(0), strict=True)])
+        if x.shape[0] != len(self.terms):
+            raise ValueError(f"positions have {x.shape[0]} cost slices, the objective has {len(self.terms)}")
+        if self.use_regressor:
+            alpha = self.base(x)
+            batch = x.shape[1:-1]
+            values = []
+            for c, ((_, value), (t, minus_yt)) in enumerate(zip(self.terms, self.linear, strict=True)):
+                a = alpha[c].reshape(-1, alpha.shape[-1])
+                values.append(value(torch.addmm(t, a, minus_yt).view(*batch, *self.shape)))
+        else:
+            error = self.error(x)
+            values = [
+                value(e if d is None else e / d)
+                for (d, value), e in zip(self.terms, error.unbind(0), strict=True)
+            ]
+        return values[0].unsqueeze(0) if len(values) == 1 else torch.stack(values)
