@@ -68,8 +68,9 @@ class KeepRule:
             return torch.zeros_like(finite).scatter(-1, index, True) & finite
         if self.kind == "relative":
             return finite & (safe <= (1 + self.tol) * best)
-        median = safe.nanmedian(dim=-1, keepdim=True).values
-        mad = (safe - median).abs().nanmedian(dim=-1, keepdim=True).values
+        finite_only = torch.where(finite, costs, torch.nan)  # statistics of the finite runs only
+        median = finite_only.nanmedian(dim=-1, keepdim=True).values
+        mad = (finite_only - median).abs().nanmedian(dim=-1, keepdim=True).values
         return finite & ((safe <= median + self.k * 1.4826 * mad) | (safe == best))
 
     def describe(self) -> dict[str, Any]:
