@@ -120,11 +120,8 @@ def expect_raises(what: str, function: Callable[..., Any], *args: Any, fix: str)
 
 
 def hyperparameter_names(cls: type) -> list[str]:
-    """Keyword arguments of ``cls.__init__`` (none for a class without its own constructor)."""
-    if cls.__init__ is object.__init__:
-        return []
-    params = list(inspect.signature(cls.__init__).parameters.values())[1:]
-    return [p.name for p in params]
+    """Keyword arguments of the constructor of ``cls`` (none for a class without one)."""
+    return list(inspect.signature(cls).parameters)
 
 
 def get_params(plugin: Any) -> dict[str, Any]:
@@ -150,9 +147,8 @@ def check_hyperparameters(plugin: Any, *_: Any) -> None:
     (Further arguments, such as an estimator check's problem factory, are ignored.)
     """
     cls = type(plugin)
-    if cls.__init__ is object.__init__:
-        return
-    for p in list(inspect.signature(cls.__init__).parameters.values())[1:]:
+    signature = inspect.signature(cls)
+    for p in signature.parameters.values():
         if p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
             fail(
                 f"__init__ takes {'*' if p.kind is p.VAR_POSITIONAL else '**'}{p.name}; every option "
@@ -168,7 +164,7 @@ def check_hyperparameters(plugin: Any, *_: Any) -> None:
                 "option unchanged under its own name (scikit-learn style)"
             )
     fresh = call(f"{cls.__name__}() with default options", cls)
-    for name, p in list(inspect.signature(cls.__init__).parameters.items())[1:]:
+    for name, p in signature.parameters.items():
         if not _same(getattr(fresh, name), p.default):
             fail(
                 f"{cls.__name__}() stores self.{name} = {getattr(fresh, name)!r} but the default is "

@@ -57,8 +57,7 @@ def make_problem(
 
     if robot is None:
         robot = registry.create("robot", "cylindrical")
-    if isinstance(cost, str):
-        cost = registry.create("cost", cost)
+    criterion = registry.create("cost", cost) if isinstance(cost, str) else cost
     truth = robot.nominal_params()
     if truth is None:
         lower, upper = robot.bounds()
@@ -69,7 +68,7 @@ def make_problem(
         tau = robot.inverse_dynamics(truth.to(torch.float64), q, qd, qdd)
     gen = torch.Generator().manual_seed(20260301)
     tau = tau * (1 + noise * (2 * torch.rand(tau.shape, generator=gen, dtype=torch.float64) - 1))
-    return Problem(robot, Samples(q, qd, qdd, tau), cost=cost, seed=seed, dtype=dtype)
+    return Problem(robot, Samples(q, qd, qdd, tau), cost=criterion, seed=seed, dtype=dtype)
 
 
 def _fit(estimator: Estimator, problem: Problem) -> Estimate:

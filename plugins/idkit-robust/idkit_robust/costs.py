@@ -43,7 +43,7 @@ class HuberCost(Cost):
         if not delta > 0:
             raise ValueError(f"huber: delta must be > 0, got {delta}")
         self.delta = delta
-        self.relative = relative  # per instance: shadows the Cost class default on purpose
+        self.relative = relative  # type: ignore[misc]  # an option here: shadows Cost's class default
         self.floor = floor
 
     def __call__(self, error: Tensor, measured: Tensor) -> Tensor:
@@ -74,7 +74,7 @@ class TrimmedCost(Cost):
         if not 0 <= trim < 1:
             raise ValueError(f"trimmed: trim must be in [0, 1), got {trim}")
         self.trim = trim
-        self.relative = relative  # per instance: shadows the Cost class default on purpose
+        self.relative = relative  # type: ignore[misc]  # an option here: shadows Cost's class default
         self.floor = floor
 
     def __call__(self, error: Tensor, measured: Tensor) -> Tensor:

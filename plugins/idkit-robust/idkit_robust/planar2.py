@@ -178,4 +178,5 @@ class Planar2Robot(Robot):
                 qd = qd + amplitude * k * w * torch.cos(angle)
                 qdd = qdd - amplitude * (k * w) ** 2 * torch.sin(angle)
             out.append((q, qd, qdd))
-        return tuple(torch.stack(x, dim=-1) for x in zip(*out, strict=True))  # type: ignore[return-value]
+        q, qd, qdd = (torch.stack(x, dim=-1) for x in zip(*out, strict=True))
+        return q, qd, qdd
