@@ -235,3 +235,19 @@ def test_null_space_of_base_map_does_not_move_the_torques(seed):
         rtol=0,
         atol=1e-10,
     )
+
+
+def test_batched_regressor_path_equals_newton_euler_and_sees_in_place_changes(kuka):
+    """Parameter batches go through the kept regressor; single sets on new states through the RNEA."""
+    q, qd, qdd = random_states(kuka, 30, seed=2)
+    gen = torch.Generator().manual_seed(3)
+    params = kuka.nominal_params() + 0.1 * torch.randn(3, kuka.n_params, generator=gen, dtype=torch.float64)
+    direct = torch.stack([kuka.inverse_dynamics(p, q, qd, qdd) for p in params])  # cache still empty
+    assert kuka._regressor_cache is None
+    batched = kuka.inverse_dynamics(params, q, qd, qdd)
+    assert kuka._regressor_cache is not None
+    torch.testing.assert_close(batched, direct, rtol=0, atol=1e-11 * direct.abs().max().item())
+    q.add_(0.3)  # in place: the kept regressor must not be reused
+    moved = torch.stack([kuka.inverse_dynamics(p, q, qd, qdd) for p in params])
+    torch.testing.assert_close(kuka.inverse_dynamics(params, q, qd, qdd), moved, rtol=0, atol=1e-9)
+    assert not torch.allclose(moved, direct)

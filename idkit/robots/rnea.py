@@ -36,9 +36,13 @@ from idkit.robots.urdf_model import KinematicTree
 
 
 def cross(u: Tensor, v: Tensor) -> Tensor:
-    """``u × v`` for component-major vectors ``[..., 3, N]`` (leading dimensions broadcast)."""
-    u, v = torch.broadcast_tensors(u, v)
-    return torch.linalg.cross(u, v, dim=-2)
+    """``u × v`` for component-major vectors ``[..., 3, N]`` (leading dimensions broadcast).
+
+    Written out by components: ``torch.linalg.cross`` on broadcast (expanded) inputs is several
+    times slower on a CPU.
+    """
+    (ux, uy, uz), (vx, vy, vz) = u.unbind(-2), v.unbind(-2)
+    return torch.stack([uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx], -2)
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -245,15 +249,12 @@ def rnea_regressor(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gravit
     """
     kin = forward_kinematics(tree, q, qd, qdd, gravity)
     nb = len(tree.parents)
-    y = q.new_zeros(q.shape[0], nb, nb, 10)
+    y = q.new_zeros(nb, nb, 10, q.shape[0])  # component-major while filling: contiguous writes
     ancestors: list[list[int]] = []
     lines: list[tuple[Tensor, Tensor]] = []  # per body: (l_m, l_f), each [c, 3, N]
     for k, (joint, parent) in enumerate(zip(tree.joints, tree.parents, strict=True)):
-        own_m, own_f = (
-            (joint.axis, torch.zeros_like(joint.axis))
-            if joint.revolute
-            else (torch.zeros_like(joint.axis), joint.axis)
-        )
+        zero = torch.zeros_like(joint.axis)
+        own_m, own_f = (joint.axis, zero) if joint.revolute else (zero, joint.axis)
         own_m, own_f = own_m.expand(1, 3, q.shape[0]), own_f.expand(1, 3, q.shape[0])
         if parent < 0:
             ancestors.append([k])
@@ -266,13 +267,15 @@ def rnea_regressor(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gravit
             line_m, line_f = torch.cat([m_k, own_m]), torch.cat([f_k, own_f])
         lines.append((line_m, line_f))
         w, dw, a = kin.w[k], kin.dw[k], kin.a[k]
-        coefficients = torch.cat(
-            [
-                (line_f * a).sum(-2, keepdim=True),
-                cross(line_f, dw) + cross(cross(line_f, w), w) + cross(a, line_m),
-                _symmetric_products(line_m, dw) + _symmetric_products(cross(line_m, w), w),
-            ],
-            -2,
-        )  # [c, 10, N]
-        y[:, ancestors[k], k, :] = coefficients.permute(2, 0, 1)
-    return y
+        rows = (
+            slice(ancestors[k][0], k + 1)
+            if ancestors[k] == list(range(ancestors[k][0], k + 1))
+            else ancestors[k]
+        )
+        block = y[rows, k]  # [c, 10, N]; a view when the ancestors are consecutive (chains)
+        block[:, 0] = (line_f * a).sum(-2)
+        block[:, 1:4] = cross(line_f, dw) + cross(cross(line_f, w), w) + cross(a, line_m)
+        block[:, 4:] = _symmetric_products(line_m, dw) + _symmetric_products(cross(line_m, w), w)
+        if not isinstance(rows, slice):
+            y[rows, k] = block
+    return y.permute(3, 0, 1, 2)

@@ -87,6 +87,7 @@ class URDFRobot(Robot):
             names += [f"{j}.offset" for j in self.joint_names]
         self.param_names = tuple(names)
         self._tensors: dict[tuple[torch.device, torch.dtype], TreeTensors] = {}
+        self._regressor_cache: tuple[tuple[Tensor, ...], tuple[int, ...], Tensor] | None = None
         self.base = self._find_base()
         self.base_map = torch.as_tensor(self.base.matrix)
         self._pinv = torch.as_tensor(np.linalg.pinv(self.base.matrix))
@@ -201,9 +202,20 @@ class URDFRobot(Robot):
                 )
 
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
-        """Torques ``tau[..., N, n]`` for ``params[..., P]`` by the batched Newton–Euler pass."""
+        """Torques ``tau[..., N, n]`` for ``params[..., P]``; exact on two paths.
+
+        One parameter set on new states runs the Newton–Euler recursion (:func:`rnea`). A batch of
+        parameter sets, or the states of the previous call again, uses the regressor form
+        ``tau = Y(q, qd, qdd) @ params``: ``Y`` shares the kinematics and the wrench regressors of
+        all sets, is built once per state batch and kept (one entry, keyed by tensor identity and
+        version; ``N * n * P`` floats). Optimisers evaluate thousands of parameter sets on the
+        same samples, so each of their evaluations is one matrix product.
+        """
         self._check_params(params)
         self._check_states(q, qd, qdd)
+        y = self._cached_regressor(q, qd, qdd, build=params.ndim > 1)
+        if y is not None:
+            return torch.einsum("snp,...p->...sn", y, params)
         nb = len(self.tree.bodies)
         inertials = params[..., : 10 * nb].unflatten(-1, (nb, 10))
         tau = rnea(self._tree_tensors(q), inertials, q, qd, qdd, self.gravity)
@@ -215,6 +227,27 @@ class URDFRobot(Robot):
         if self.offset:
             tau = tau + extra
         return tau
+
+    def _cached_regressor(self, q: Tensor, qd: Tensor, qdd: Tensor, build: bool) -> Tensor | None:
+        """The standard regressor of these exact state tensors if kept, else built when ``build``.
+
+        Not kept when a state tensor requires grad (the graph would be kept alive and reused).
+        """
+        states = (q, qd, qdd)
+        versions = tuple(x._version for x in states)
+        cache = self._regressor_cache
+        if (
+            cache is not None
+            and all(a is b for a, b in zip(cache[0], states, strict=True))
+            and cache[1] == versions
+        ):
+            return cache[2]
+        if not build:
+            return None
+        y = self.standard_regressor(q, qd, qdd)
+        if not any(x.requires_grad for x in states):
+            self._regressor_cache = (states, versions, y)
+        return y
 
     def standard_regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Regressor ``Y[N, n, P]`` of all standard parameters: ``tau = Y @ params``."""
