@@ -400,3 +400,17 @@ def test_importable_and_usable_without_pytest():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+class Expensive(RandomSearch):
+    conformance_options = {"candidates": 4}
+
+
+def test_conformance_options_are_used_by_build_for_checks_only(monkeypatch):
+    from idkit import registry
+    from idkit.testing import build_for_checks
+
+    monkeypatch.setattr(registry, "load", lambda kind, name: Expensive)
+    assert build_for_checks("estimator", "expensive").candidates == 4
+    assert build_for_checks("estimator", "expensive", candidates=9).candidates == 9  # explicit wins
+    assert Expensive().candidates == 64  # the plugin's real default is untouched
