@@ -118,7 +118,7 @@ class Kinematics:
 
     ``w``, ``dw``, ``a`` (each ``[3, N]``): angular velocity, angular acceleration and classical
     linear acceleration of the body origin (gravity included), in the body's coordinates.
-    ``sin``, ``cos`` (``[N]``, revolute joints) or ``offset`` (``[3, N]``, prismatic: the joint
+    ``sin``, ``versine = 1 - cos`` (``[N]``, revolute joints) or ``offset`` (``[3, N]``, prismatic: the joint
     origin in the parent frame) describe the body's pose in its parent.
     """
 
@@ -126,16 +126,16 @@ class Kinematics:
     dw: list[Tensor]
     a: list[Tensor]
     sin: list[Tensor | None]
-    cos: list[Tensor | None]
+    versine: list[Tensor | None]
     offset: list[Tensor | None]
 
 
-def _rotate(matrix: Tensor, sin: Tensor | None, cos: Tensor | None, vectors: Tensor) -> Tensor:
-    """Apply a joint rotation (``to_child`` or ``to_parent``) to ``vectors[..., 3, N]``."""
+def _rotate(matrix: Tensor, sin: Tensor | None, versine: Tensor | None, vectors: Tensor) -> Tensor:
+    """Apply a joint rotation (``to_child`` or ``to_parent``) to ``vectors[..., 3, N]`` (or ``[3, 1]``)."""
     if sin is None:
         return matrix @ vectors
     y0, y1, y2 = (matrix @ vectors).split(3, dim=-2)
-    return y0 + sin * y1 + (1.0 - cos) * y2
+    return y0 + sin * y1 + versine * y2
 
 
 def _origin_cross(joint: Joint, offset: Tensor | None, vectors: Tensor) -> Tensor:
@@ -147,25 +147,28 @@ def _origin_cross(joint: Joint, offset: Tensor | None, vectors: Tensor) -> Tenso
 
 def forward_kinematics(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gravity: float) -> Kinematics:
     """Forward Newton–Euler pass for states ``q, qd, qdd`` each ``[N, nb]``."""
-    q, qd, qdd = q.T, qd.T, qdd.T  # [nb, N]: one contiguous row per joint after .contiguous()
-    q, qd, qdd = q.contiguous(), qd.contiguous(), qdd.contiguous()
-    n_samples = q.shape[1]
-    zero = q.new_zeros(3, n_samples)
-    up = zero.clone()
-    up[2] = gravity
+    q, qd, qdd = q.T.contiguous(), qd.T.contiguous(), qdd.T.contiguous()  # [nb, N]: a row per joint
+    zero = q.new_zeros(3, q.shape[1])
+    up = q.new_tensor([[0.0], [0.0], [gravity]])  # the root's acceleration: gravity, as a column
     kin = Kinematics([], [], [], [], [], [])
     for k, (joint, parent) in enumerate(zip(tree.joints, tree.parents, strict=True)):
-        w_p, dw_p, a_p = (zero, zero, up) if parent < 0 else (kin.w[parent], kin.dw[parent], kin.a[parent])
-        sin = cos = offset = None
+        sin = versine = offset = None
         if joint.revolute:
-            sin, cos = torch.sin(q[k]), torch.cos(q[k])
+            sin, versine = torch.sin(q[k]), 1.0 - torch.cos(q[k])
         else:
             offset = joint.origin + joint.slide * q[k]
-        # Acceleration of the joint origin as a point of the parent: a + dw × p + w × (w × p).
-        p = joint.origin if offset is None else offset
-        a_origin = a_p - _origin_cross(joint, offset, dw_p) + w_p * (w_p * p).sum(0) - p * (w_p * w_p).sum(0)
-        w_in, dw, a = _rotate(joint.to_child, sin, cos, torch.stack([w_p, dw_p, a_origin])).unbind(0)
-        coriolis = -(joint.skew_axis @ w_in) * qd[k]  # w_in × (axis qd)
+        if parent < 0:  # on the fixed root: no parent motion, only gravity
+            w_in, dw, a = zero, zero, _rotate(joint.to_child, sin, versine, up)
+            coriolis = zero
+        else:
+            w_p, dw_p, a_p = kin.w[parent], kin.dw[parent], kin.a[parent]
+            # Acceleration of the joint origin as a point of the parent: a + dw × p + w × (w × p).
+            p = joint.origin if offset is None else offset
+            a_origin = (
+                a_p - _origin_cross(joint, offset, dw_p) + w_p * (w_p * p).sum(0) - p * (w_p * w_p).sum(0)
+            )
+            w_in, dw, a = _rotate(joint.to_child, sin, versine, torch.stack([w_p, dw_p, a_origin])).unbind(0)
+            coriolis = -(joint.skew_axis @ w_in) * qd[k]  # w_in × (axis qd)
         if joint.revolute:
             w = w_in + joint.axis * qd[k]
             dw = dw + joint.axis * qdd[k] + coriolis
@@ -173,7 +176,9 @@ def forward_kinematics(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gr
             w = w_in
             a = a + joint.axis * qdd[k] + 2.0 * coriolis
         for store, value in zip(
-            (kin.w, kin.dw, kin.a, kin.sin, kin.cos, kin.offset), (w, dw, a, sin, cos, offset), strict=True
+            (kin.w, kin.dw, kin.a, kin.sin, kin.versine, kin.offset),
+            (w, dw, a, sin, versine, offset),
+            strict=True,
         ):
             store.append(value)
     return kin
@@ -219,7 +224,7 @@ def rnea(tree: TreeTensors, inertials: Tensor, q: Tensor, qd: Tensor, qdd: Tenso
         parent = tree.parents[k]
         if parent >= 0:
             f_p, n_p = _rotate(
-                joint.to_parent, kin.sin[k], kin.cos[k], torch.stack([force[k], moment[k]], -3)
+                joint.to_parent, kin.sin[k], kin.versine[k], torch.stack([force[k], moment[k]], -3)
             ).unbind(-3)
             force[parent] = force[parent] + f_p
             moment[parent] = moment[parent] + n_p + _origin_cross(joint, kin.offset[k], f_p)
@@ -263,7 +268,7 @@ def rnea_regressor(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gravit
             ancestors.append([*ancestors[parent], k])
             m_p, f_p = lines[parent]
             stacked = torch.stack([m_p, f_p - _origin_cross(joint, kin.offset[k], m_p)])  # f + m × p
-            m_k, f_k = _rotate(joint.to_child, kin.sin[k], kin.cos[k], stacked).unbind(0)
+            m_k, f_k = _rotate(joint.to_child, kin.sin[k], kin.versine[k], stacked).unbind(0)
             line_m, line_f = torch.cat([m_k, own_m]), torch.cat([f_k, own_f])
         lines.append((line_m, line_f))
         w, dw, a = kin.w[k], kin.dw[k], kin.a[k]
