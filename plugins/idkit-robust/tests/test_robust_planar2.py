@@ -90,7 +90,7 @@ def lagrangian_torques(p: torch.Tensor, q: torch.Tensor, qd: torch.Tensor, qdd: 
     return mass @ qdd + mixed @ qd - d_q + torch.stack((fv1, fv2)) * qd
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=15, deadline=None)
 @given(
     st.lists(st.floats(-3, 3), min_size=6, max_size=6),
     st.lists(st.floats(0.05, 3), min_size=8, max_size=8),
