@@ -262,6 +262,7 @@ def run(
     dtype: str = "float64",
     progress: bool = True,
     checkpoint: str | Path | None = None,
+    checkpoint_every_s: float = 60.0,
 ) -> RobustnessStudy:
     """Run the Monte-Carlo study.
 
@@ -275,7 +276,8 @@ def run(
         baseline: label the others are compared with.
         optional: plugin names skipped (and reported) when not installed, e.g. third-party IRLS.
         seed: seed of the noise draws; trial ``i``'s estimators use ``seed + i``.
-        checkpoint: folder where the tables so far are saved after each scenario.
+        checkpoint: folder where the tables of the trials done so far are saved, every
+            ``checkpoint_every_s`` seconds (a long study that is interrupted still reports).
     """
     from tqdm import tqdm
 
@@ -292,44 +294,50 @@ def run(
     pso_obj = build("estimator", pso) if pso is not None and cost_objs else None
     focus = average_label(average_of) if pso_obj is not None and set(average_of) <= set(cost_names) else None
     truth = robot_obj.nominal_params().numpy()
-    params: dict[str, dict[str, list]] = {}
+    found: dict[str, dict[str, list]] = {scenario: {} for scenario in scenarios}
     fit_time: dict[str, float] = {}
-    bar = tqdm(total=trials * len(scenarios), desc="robustness", unit="trial", disable=not progress)
-    for scenario in scenarios:
-        batch = simulate_batch(robot_obj, scenario, trials=trials, seed=seed)
-        found: dict[str, list] = {}
-        for t in range(trials):
-            problem = Problem(robot_obj, batch[t], None, seed=seed + t, device=device, dtype=dtype)
-            estimates = []
-            for est in est_objs:
-                estimates.append(est.fit(problem))
-            if pso_obj is not None:
-                by_cost = pso_obj.fit_costs(problem, cost_objs)
-                estimates += by_cost
-            for e in estimates:
-                found.setdefault(e.estimator, []).append(list(e.params.values()))
-                fit_time[e.estimator] = fit_time.get(e.estimator, 0.0) + e.wall_time_s
-            if focus is not None:
-                chosen = [by_cost[cost_names.index(c)].params for c in average_of]
-                found.setdefault(focus, []).append(np.mean([list(p.values()) for p in chosen], axis=0))
-            bar.update()
-        params[scenario] = {label: np.asarray(v, dtype=float) for label, v in found.items()}
-        study = RobustnessStudy(
-            trials=trials,
+    batches = {s: simulate_batch(robot_obj, s, trials=trials, seed=seed) for s in scenarios}
+
+    def snapshot(done: int) -> RobustnessStudy:
+        return RobustnessStudy(
+            trials=done,
             seed=seed,
             param_names=list(robot_obj.param_names),
             truth=truth,
-            params=params,
+            params={s: {k: np.asarray(v, dtype=float) for k, v in by.items()} for s, by in found.items()},
             baseline=baseline,
             focus=focus,
             skipped=skipped,
             wall_time_s=time.perf_counter() - started,
-            fit_time_s={k: v / (trials * len(params)) for k, v in fit_time.items()},
+            fit_time_s={k: v / (done * len(scenarios)) for k, v in fit_time.items()},
         )
-        if checkpoint is not None:  # the scenarios done so far survive an interrupted study
-            study.save(checkpoint, make_plots=False)
+
+    saved = time.perf_counter()
+    bar = tqdm(total=trials * len(scenarios), desc="robustness", unit="trial", disable=not progress)
+    # Trial-major order: an interrupted study has the same number of trials in every scenario.
+    for t in range(trials):
+        for scenario in scenarios:
+            problem = Problem(
+                robot_obj, batches[scenario][t], None, seed=seed + t, device=device, dtype=dtype
+            )
+            estimates = [est.fit(problem) for est in est_objs]
+            if pso_obj is not None:
+                by_cost = pso_obj.fit_costs(problem, cost_objs)
+                estimates += by_cost
+            for e in estimates:
+                found[scenario].setdefault(e.estimator, []).append(list(e.params.values()))
+                fit_time[e.estimator] = fit_time.get(e.estimator, 0.0) + e.wall_time_s
+            if focus is not None:
+                chosen = [by_cost[cost_names.index(c)].params for c in average_of]
+                found[scenario].setdefault(focus, []).append(
+                    np.mean([list(p.values()) for p in chosen], axis=0)
+                )
+            bar.update()
+        if checkpoint is not None and time.perf_counter() - saved > checkpoint_every_s and t + 1 < trials:
+            snapshot(t + 1).save(checkpoint, make_plots=False)  # survives an interrupted study
+            saved = time.perf_counter()
     bar.close()
-    return study
+    return snapshot(trials)
 
 
 def run_config(cfg: Any, run_dir: Path) -> RobustnessStudy:
