@@ -57,6 +57,24 @@ class Robot(ABC):
         """Known parameters ``[P]`` (simulation truth or a-priori CAD values), or ``None``."""
         return None
 
+    def check_inputs(self, params: Tensor | None, *states: Tensor) -> None:
+        """Raise ``ValueError`` unless ``params`` is ``[..., P]`` and every state is ``[N, n]``.
+
+        Indexing ``params[..., i]`` or ``q[:, j]`` silently accepts too-wide inputs; call this at
+        the top of ``inverse_dynamics``/``regressor`` so a mix-up fails where it happens.
+        """
+        name = type(self).__name__
+        if params is not None and (params.ndim == 0 or params.shape[-1] != self.n_params):
+            raise ValueError(
+                f"{name}: params must be [..., {self.n_params}] ({', '.join(self.param_names)}), "
+                f"got shape {tuple(params.shape)}"
+            )
+        for label, state in zip(("q", "qd", "qdd"), states, strict=False):
+            if state.ndim != 2 or state.shape[1] != self.n_joints or state.shape != states[0].shape:
+                raise ValueError(
+                    f"{name}: {label} must be [N, {self.n_joints}] like q, got shape {tuple(state.shape)}"
+                )
+
     @abstractmethod
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Joint torques ``tau[..., N, n]`` for parameters ``params[..., P]`` and states ``[N, n]``."""
@@ -97,7 +115,8 @@ class Cost(ABC):
     is passed so that relative costs (eq. 27) can divide by it.
     """
 
-    relative: ClassVar[bool] = False
+    #: Whether the cost divides by the measured torques (eq. 27); a class constant or an option.
+    relative: bool = False
 
     @abstractmethod
     def __call__(self, error: Tensor, measured: Tensor) -> Tensor:

@@ -14,19 +14,7 @@ from idkit.registry import PluginLoadError
 from idkit.testing import build_for_checks, checks_for
 
 #: (kind, name, check) -> why it fails today. Strict xfail: once fixed, the XPASS says "remove me".
-KNOWN_FAILURES: dict[tuple[str, str, str], str] = {
-    ("robot", "cylindrical", "check_robot_rejects_bad_sizes"): (
-        "CylindricalRobot.inverse_dynamics reads params[..., 0:4] and q[:, 0:3] without checking "
-        "params.shape[-1] == 4 and q.shape[-1] == 3, so params[..., 5] or q[N, 4] pass silently"
-    ),
-    **{
-        ("cost", f"f{i}", "check_cost_rejects_bad_shapes"): (
-            "idkit.costs.relative.relative_error broadcasts measured[1, N] over the n joints instead "
-            "of checking measured.shape == error.shape[-2:]"
-        )
-        for i in range(9, 17)
-    },
-}
+KNOWN_FAILURES: dict[tuple[str, str, str], str] = {}
 
 
 def _cases() -> list[pytest.param]:

@@ -50,4 +50,9 @@ def relative_denominator(measured: Tensor, floor: float = DEFAULT_FLOOR) -> Tens
 
 def relative_error(error: Tensor, measured: Tensor, floor: float = DEFAULT_FLOOR) -> Tensor:
     """``E_rel[..., n, N] = error / T`` (eq. 27) under the near-zero policy above."""
+    if measured.shape != error.shape[-2:]:
+        raise ValueError(
+            f"relative error: measured torques must be [n, N] = {tuple(error.shape[-2:])} like the "
+            f"error's last two dimensions, got {tuple(measured.shape)}"
+        )
     return error / relative_denominator(measured, floor)

@@ -73,6 +73,7 @@ class CylindricalRobot(Robot):
 
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Eqs. (19)–(21): ``tau[..., N, 3]`` for ``params[..., 4]`` and states ``[N, 3]``."""
+        self.check_inputs(params, q, qd, qdd)
         m2, m3, s3z, inertia = (params[..., i, None] for i in range(4))  # each [..., 1]
         d3 = q[:, 2]
         th_d, d3_d = qd[:, 0], qd[:, 2]
@@ -91,6 +92,7 @@ class CylindricalRobot(Robot):
 
     def regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Eq. (23): ``Y[N, 3, 4]`` with ``tau = Y @ alpha``."""
+        self.check_inputs(None, q, qd, qdd)
         d3 = q[:, 2]
         th_d, d3_d = qd[:, 0], qd[:, 2]
         th_dd, d2_dd, d3_dd = qdd[:, 0], qdd[:, 1], qdd[:, 2]
