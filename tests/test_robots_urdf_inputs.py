@@ -136,3 +136,8 @@ def test_runs_on_cuda():
     torch.testing.assert_close(
         robot.regressor(q, qd, qdd) @ robot.base_params(params.cuda()), tau, rtol=0, atol=1e-10
     )
+
+
+def test_too_few_states_for_the_base_parameter_search():
+    with pytest.raises(ValueError, match="n_states=2 gives 6 regressor rows for 30 parameters"):
+        URDFRobot(chain(), n_states=2)

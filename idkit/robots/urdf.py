@@ -13,6 +13,11 @@ Base parameters (``alpha = K p``) come from :mod:`idkit.robots.base_params` on t
 over ``n_states`` random states; ``base_param_names`` names each after the standard parameter it is
 built on, with a trailing ``R`` when other parameters are regrouped into it (Khalil's convention);
 ``base_param_groups`` spells out every group.
+
+Supported: fixed-base kinematic trees (serial chains and branches) of revolute, continuous and
+prismatic joints; ``fixed`` joints are merged into their moving parent's inertial (dropped when
+welded to the root). Refused with an error naming the joint: ``floating``/``planar`` joints (no
+floating base), unknown types, ``<mimic>`` joints; closed loops are refused too.
 """
 
 from __future__ import annotations
@@ -120,6 +125,11 @@ class URDFRobot(Robot):
         return q, qd, qdd
 
     def _find_base(self) -> BaseParameters:
+        if self.n_states * self.n_joints <= self.n_params:
+            raise ValueError(
+                f"urdf: n_states={self.n_states} gives {self.n_states * self.n_joints} regressor rows for "
+                f"{self.n_params} parameters; use n_states > {self.n_params // self.n_joints} (default 200)"
+            )
         generator = torch.Generator().manual_seed(int(self.seed))
         states = self.random_states(self.n_states, generator)
         stacked = self.standard_regressor(*states).reshape(-1, self.n_params)
