@@ -81,5 +81,3 @@ def test_paper_final_estimate_is_the_mean_of_pso_f13_and_pso_f14(robot):
         float(paper.f14()(problem.error(x), samples.measured_matrix())), rel=1e-12
     )
     assert PaperFinalEstimate(**CHEAP_PSO).fit(Problem(robot, samples)).cost is None
-    with pytest.raises(ValueError, match="label"):
-        PaperFinalEstimate(label="mine")

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import torch
 
@@ -53,6 +53,8 @@ class AdamMultiStart(Estimator):
         space, use_regressor, threads, history, label: as for ``pso`` (``label`` default
             ``"Adam-<cost>"``).
     """
+
+    conformance_options: ClassVar[dict[str, Any]] = {"starts": 3, "steps": 20}
 
     def __init__(
         self,

@@ -11,13 +11,15 @@ f13 and f14 at the average are in ``details["costs_at_average"]``.
 from __future__ import annotations
 
 import time
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, ClassVar
 
 import torch
 
 from idkit.costs.paper import f13, f14
 from idkit.costs.relative import DEFAULT_FLOOR
 from idkit.estimate import Estimate
+from idkit.estimators.aggregate import KeepRule
 from idkit.estimators.objective import Objective, cost_label
 from idkit.estimators.pso import ParticleSwarm, make_estimate
 from idkit.interfaces import Estimator
@@ -29,23 +31,69 @@ class PaperFinalEstimate(Estimator):
 
     Args:
         floor: near-zero torque floor of the relative costs (``idkit.costs.relative``).
-        **pso_options: passed unchanged to ``ParticleSwarm`` (``preset``, ``runs``, ``threads`` …).
+        preset … history: passed unchanged to ``ParticleSwarm`` (see there).
     """
 
-    def __init__(self, floor: float = DEFAULT_FLOOR, **pso_options: Any) -> None:
+    conformance_options: ClassVar[dict[str, Any]] = {"runs": 3, "particles": 6, "iterations": 15}
+
+    def __init__(
+        self,
+        floor: float = DEFAULT_FLOOR,
+        preset: str = "default",
+        runs: int = 10,
+        particles: int | None = None,
+        iterations: int | None = None,
+        c1: float | None = None,
+        c2: float | None = None,
+        inertia: Sequence[float] | None = None,
+        boundary: str | None = None,
+        velocity_limit: float | None = None,
+        per_particle: bool | None = None,
+        keep: KeepRule | dict[str, Any] | str = "relative",
+        space: str | None = None,
+        use_regressor: bool | None = None,
+        threads: int | None = None,
+        history: bool = True,
+    ) -> None:
         self.floor = floor
-        self.pso_options = pso_options
-        for name, value in pso_options.items():  # scikit-learn style: options readable by name
-            setattr(self, name, value)
-        if "label" in pso_options:
-            raise ValueError("pso_f13_f14: 'label' is fixed (PSO-f13/f14); remove it from the options")
-        self._pso = ParticleSwarm(**pso_options)
+        self.preset = preset
+        self.runs = runs
+        self.particles = particles
+        self.iterations = iterations
+        self.c1 = c1
+        self.c2 = c2
+        self.inertia = inertia
+        self.boundary = boundary
+        self.velocity_limit = velocity_limit
+        self.per_particle = per_particle
+        self.keep = keep
+        self.space = space
+        self.use_regressor = use_regressor
+        self.threads = threads
+        self.history = history
+        self._pso = ParticleSwarm(
+            preset=preset,
+            runs=runs,
+            particles=particles,
+            iterations=iterations,
+            c1=c1,
+            c2=c2,
+            inertia=inertia,
+            boundary=boundary,
+            velocity_limit=velocity_limit,
+            per_particle=per_particle,
+            keep=keep,
+            space=space,
+            use_regressor=use_regressor,
+            threads=threads,
+            history=history,
+        )
 
     def fit(self, problem: Problem) -> Estimate:
         started = time.perf_counter()
         costs = [f13(self.floor), f14(self.floor)]
         parts = self._pso.fit_costs(problem, costs)
-        objective = Objective(problem, costs, space=self._pso.space, use_regressor=self._pso.use_regressor)
+        objective = Objective(problem, costs, space=self.space, use_regressor=self.use_regressor)
         robot = problem.robot
         names = robot.base_param_names if objective.space == "base" else robot.param_names
         source = "base_params" if objective.space == "base" else "params"

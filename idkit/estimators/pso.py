@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import torch
 
@@ -88,6 +88,8 @@ class ParticleSwarm(Estimator):
         history: keep each run's best cost per iteration in ``details["history"]``.
         label: estimator label; default ``"PSO-<cost>"`` (e.g. ``PSO-f13``).
     """
+
+    conformance_options: ClassVar[dict[str, Any]] = {"runs": 3, "particles": 6, "iterations": 15}
 
     def __init__(
         self,
