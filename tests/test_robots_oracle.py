@@ -109,3 +109,30 @@ def test_oracle_equals_pinocchio_on_cylindrical(rng):
         [pin.rnea(model, data, a, b, c) for a, b, c in zip(q.numpy(), qd.numpy(), qdd.numpy(), strict=True)]
     )
     np.testing.assert_allclose(oracle.inverse_dynamics(q, qd, qdd).numpy(), expected, rtol=0, atol=1e-9)
+
+
+TWO_LINKS_NO_AXIS = """<robot name="two">
+  <link name="base"/>
+  <link name="a"><inertial><origin xyz="0.1 0.2 0.3" rpy="0.3 -0.2 0.1"/><mass value="2.0"/>
+    <inertia ixx="0.3" ixy="0.01" ixz="-0.02" iyy="0.2" iyz="0.03" izz="0.1"/></inertial></link>
+  <link name="b"><inertial><origin xyz="0.4 0 -0.1"/><mass value="1.5"/>
+    <inertia ixx="0.05" ixy="0" ixz="0" iyy="0.06" iyz="0" izz="0.07"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
+    <origin xyz="0 0 0.5" rpy="0.1 0.2 0.3"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/>
+    <origin xyz="0.3 0.1 0" rpy="0 0.5 0"/><axis xyz="0 1 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
+  </joint>
+</robot>"""
+
+
+def test_missing_axis_means_x_as_in_the_urdf_spec(rng):
+    """pk defaults an absent <axis> to z; the URDF spec (and pinocchio) to x. The oracle follows the spec."""
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromXML(TWO_LINKS_NO_AXIS)
+    data = model.createData()
+    oracle = PKDynamics(TWO_LINKS_NO_AXIS)
+    q, qd, qdd = (torch.randn(20, 2, generator=rng, dtype=torch.float64) for _ in range(3))
+    expected = np.stack(
+        [pin.rnea(model, data, a, b, c) for a, b, c in zip(q.numpy(), qd.numpy(), qdd.numpy(), strict=True)]
+    )
+    np.testing.assert_allclose(oracle.inverse_dynamics(q, qd, qdd).numpy(), expected, rtol=0, atol=1e-9)
