@@ -18,7 +18,9 @@ Traps of pk 0.10 handled here:
   into pk's frames before the chain's flat tensors are built;
 * its joint order is its tree traversal, not necessarily the order wanted by the caller: columns of
   ``q`` follow ``joint_names`` and are mapped to pk's order by name;
-* its XML parser (lxml) rejects *text* with an encoding declaration: the URDF is always passed as bytes.
+* its XML parser (lxml) rejects *text* with an encoding declaration: the URDF is always passed as bytes;
+* it takes an absent ``<axis>`` as ``z``; the URDF specification (and pinocchio) as ``x`` — the
+  axes re-read from the XML follow the specification.
 
 Inertial parameters are read from the XML in float64 too (pk ignores them).
 """
