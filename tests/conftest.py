@@ -7,6 +7,10 @@ from pathlib import Path
 import pytest
 import torch
 
+# The suite runs many tiny tensor programs: on a 2-core machine torch's default intra-op threading
+# makes them slower and erratic (see bench/ for measured thread effects). Speed is not asserted here.
+torch.set_num_threads(1)
+
 REPO = Path(__file__).resolve().parents[1]
 KUKA_DIR = REPO.parent / "shared" / "data" / "kuka-lwr4"
 
