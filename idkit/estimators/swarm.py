@@ -18,8 +18,7 @@ particle for all dimensions instead.
 Boundary rules (what happens to a coordinate that left ``[lower, upper]``):
 
 - ``"clamp"``: put it on the wall and zero that velocity component. Simple, but a particle whose
-  personal and global bests lie on the wall stays there — the paper's swarms stall on the m2 = 0
-  or m3 = 0 face this way.
+  personal and global bests lie on the wall can stay there.
 - ``"reflect"``: mirror it back into the box (repeatedly, so any overshoot lands inside) and
   reverse that velocity component, so the particle keeps exploring.
 - ``"random"``: re-draw it uniformly between its previous position and the wall it crossed, and
