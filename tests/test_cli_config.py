@@ -106,6 +106,8 @@ def test_experiments_compose(hydra_compose):
     robust = hydra_compose("+experiment=robustness", "trials=7")
     assert robust.task == "robustness" and robust.trials == 7
     assert robust.robustness.baseline == "RLS-rel"
+    kuka = hydra_compose("+experiment=kuka", "kuka.stride=5", "kuka.data_dir=/data/kuka")
+    assert kuka.task == "kuka" and kuka.kuka.stride == 5 and kuka.kuka.data_dir == "/data/kuka"
 
 
 def test_third_party_plugin_is_a_config_without_yaml(tmp_path, monkeypatch, hydra_compose):
