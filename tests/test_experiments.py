@@ -145,3 +145,9 @@ def test_robustness_study_end_to_end(tmp_path):
     assert (tmp_path / "robustness_boxplot.png").stat().st_size > 0
     assert "PSO-f13/f14" in Path(written["markdown"]).read_text()
     assert not math.isnan(json.loads((tmp_path / "result.json").read_text())["wall_time_s"])
+    again = robustness.load(tmp_path)
+    assert again.rows() == study.rows()
+    other = robustness.RobustnessStudy(
+        **{**vars(again), "params": {"outliers": again.params["torque_noise"]}}
+    )
+    assert list(robustness.merge([again, other]).params) == ["torque_noise", "outliers"]

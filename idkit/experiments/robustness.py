@@ -223,6 +223,7 @@ class RobustnessStudy:
                 "seed": self.seed,
                 "baseline": self.baseline,
                 "focus": self.focus,
+                "truth": self.truth,
                 "metric": "mean over parameters of |estimate - truth| / |truth|",
                 "summary": rows,
                 "skipped": self.skipped,
@@ -231,6 +232,68 @@ class RobustnessStudy:
             },
         )
         return written
+
+
+def load(run_dir: str | Path) -> RobustnessStudy:
+    """Read a study back from its run directory (``result.json`` + ``robustness_trials.csv``).
+
+    Works on a checkpoint of an interrupted study too; use it to re-render tables and plots.
+    """
+    import csv
+    import json
+
+    run_dir = Path(run_dir)
+    meta = json.loads((run_dir / "result.json").read_text())
+    found: dict[str, dict[str, list]] = {}
+    with open(run_dir / "robustness_trials.csv", newline="") as handle:
+        reader = csv.reader(handle)
+        header = next(reader)
+        names = header[3:-1]
+        for row in reader:
+            found.setdefault(row[0], {}).setdefault(row[2], []).append([float(v) for v in row[3:-1]])
+    summary = meta.get("summary") or []
+    fit_time = {r["estimator"]: r["mean_fit_time_s"] for r in summary if r.get("mean_fit_time_s") is not None}
+    return RobustnessStudy(
+        trials=meta["trials"],
+        seed=meta["seed"],
+        param_names=names,
+        truth=np.asarray(meta["truth"], dtype=float),
+        params={s: {k: np.asarray(v, dtype=float) for k, v in by.items()} for s, by in found.items()},
+        baseline=meta["baseline"],
+        focus=meta["focus"],
+        skipped=meta.get("skipped", []),
+        wall_time_s=meta["wall_time_s"],
+        fit_time_s=fit_time,
+    )
+
+
+def merge(studies: Sequence[RobustnessStudy]) -> RobustnessStudy:
+    """One study from several that ran disjoint scenarios (e.g. in parallel processes).
+
+    Each scenario's draws depend only on the seed and the trial index, so the merge equals one
+    run over all scenarios when the seeds and trial counts agree (checked). ``wall_time_s`` is the
+    longest of the parts (they ran side by side).
+    """
+    first = studies[0]
+    for other in studies[1:]:
+        if (other.trials, other.seed, other.baseline) != (first.trials, first.seed, first.baseline):
+            raise ValueError("robustness.merge: the studies differ in trials, seed or baseline")
+        if set(other.params) & set(first.params):
+            raise ValueError("robustness.merge: the studies share a scenario")
+    params = {s: by for study in studies for s, by in study.params.items()}
+    fit_time = {k: v for study in studies for k, v in study.fit_time_s.items()}
+    return RobustnessStudy(
+        trials=first.trials,
+        seed=first.seed,
+        param_names=first.param_names,
+        truth=first.truth,
+        params=params,
+        baseline=first.baseline,
+        focus=first.focus,
+        skipped=first.skipped,
+        wall_time_s=max(study.wall_time_s for study in studies),
+        fit_time_s=fit_time,
+    )
 
 
 def _installed(kind: registry.Kind, spec: Any, optional: Sequence[str], skipped: list[str]) -> bool:
