@@ -279,7 +279,7 @@ class RobustLeastSquares(LinearEstimator):
         cvxpy_solver: conic solver for ``solver="cvxpy"`` (``None`` = Clarabel with tightened tolerances).
         polish: with ``solver="cvxpy"``, refine the solver's answer by Newton steps on the RLS
             objective (see ``newton_polish``); ``False`` gives the raw interior-point answer.
-        floor, max_cond: see ``LinearEstimator``.
+        floor, max_cond, threads: see ``LinearEstimator``.
 
     A cvxpy status other than optimal raises ``IdentificationError``; ``optimal_inaccurate`` gives
     an ``IdentificationWarning``.
@@ -296,8 +296,9 @@ class RobustLeastSquares(LinearEstimator):
         polish: bool = True,
         floor: float = DEFAULT_FLOOR,
         max_cond: float | None = None,
+        threads: int | None = None,
     ) -> None:
-        super().__init__(relative=relative, floor=floor, max_cond=max_cond)
+        super().__init__(relative=relative, floor=floor, max_cond=max_cond, threads=threads)
         if solver not in SOLVERS:
             raise ValueError(f"rls: unknown solver {solver!r}; use one of {', '.join(SOLVERS)}")
         if rho is not None and (not math.isfinite(rho) or rho < 0):
