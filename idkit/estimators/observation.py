@@ -119,9 +119,7 @@ def _null_directions(Vh: Tensor, S: Tensor, tol: float, names: tuple[str, ...]) 
     out = []
     for row in Vh[S <= tol].tolist():
         big = max(row, key=abs)
-        terms = [
-            f"{w / big:+.3g}*{name}" for w, name in zip(row, names) if abs(w) >= 0.05 * abs(big)
-        ]
+        terms = [f"{w / big:+.3g}*{name}" for w, name in zip(row, names) if abs(w) >= 0.05 * abs(big)]
         out.append(" ".join(terms))
     return out
 
