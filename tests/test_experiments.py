@@ -151,3 +151,16 @@ def test_robustness_study_end_to_end(tmp_path):
         **{**vars(again), "params": {"outliers": again.params["torque_noise"]}}
     )
     assert list(robustness.merge([again, other]).params) == ["torque_noise", "outliers"]
+
+
+def test_measured_data_have_no_truth(tmp_path, cylindrical):
+    from idkit.data import simulate
+
+    samples = simulate(cylindrical, "torque_noise", seed=1)
+    path = tmp_path / "recording.npz"
+    np.savez(path, **{k: getattr(samples, k).numpy() for k in ("q", "qd", "qdd", "tau")})
+    result = idkit.run(estimator="ls", cost=None, data=path, out_dir=tmp_path / "run")
+    data = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert data["truth"] is None and data["relative_error"] is None and data["data"] == {"file": str(path)}
+    same = idkit.run(estimator="ls", cost=None, scenario="torque_noise", seed=1)
+    assert result.estimate.params == pytest.approx(same.estimate.params, rel=1e-12)
