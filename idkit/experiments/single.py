@@ -102,9 +102,10 @@ class RunResult:
         source = (
             self.data.get("scenario", {}).get("name") if "scenario" in self.data else self.data.get("file")
         )
+        meta = self.plugins.get("robot") or {}
+        robot = meta.get("name") or meta.get("entry_point", "?")
         lines = [
-            f"{est.estimator} · robot {self.plugins['robot']['name'] if self.plugins.get('robot') else '?'}"
-            f" · data {source} · seed {self.seed}",
+            f"{est.estimator} · robot {robot} · data {source} · seed {self.seed}",
             f"{'parameter':<12}{'estimate':>12}{'true':>12}{'rel. error':>12}",
         ]
         for name, value in est.params.items():
