@@ -126,10 +126,10 @@ class LinearEstimator(Estimator):
         }
         return Estimate(
             estimator=self.name,
-            params=dict(zip(robot.param_names, params.tolist())),
+            params=dict(zip(robot.param_names, params.tolist(), strict=True)),
             cost=cost,
             wall_time_s=time.perf_counter() - start,
-            base_params=dict(zip(system.base_names, solution.alpha.tolist())),
+            base_params=dict(zip(system.base_names, solution.alpha.tolist(), strict=True)),
             details=jsonable(details),
         )
 
@@ -150,7 +150,7 @@ class LeastSquares(LinearEstimator):
 
     def solve(self, system: LinearSystem, conditioning: Conditioning) -> Solution:
         c = conditioning
-        alpha = (c.Vh.mT @ ((c.U.mT @ system.tau) / c.S)) / c.scale
+        alpha = (c.Vh.mT @ ((c.U.mT @ system.tau) / c.sigma)) / c.scale
         return Solution(
             alpha,
             "||tau_s - W alpha||_2 (eq. 10)",

@@ -102,24 +102,26 @@ def default_max_cond(dtype: torch.dtype) -> float:
 class Conditioning:
     """Diagnostics of ``W`` after scaling its columns to unit norm.
 
-    ``U[M, B]``, ``S[B]``, ``Vh[B, B]`` is the thin SVD of ``W / scale`` (``scale[B]`` the column
-    norms), kept so that LS can reuse it; ``cond = S[0] / S[-1]``.
+    ``U[M, B]``, ``sigma[B]``, ``Vh[B, B]`` is the thin SVD of ``W / scale`` (``scale[B]`` the
+    column norms), kept so that LS can reuse it; ``cond = sigma[0] / sigma[-1]``.
     """
 
     scale: Tensor
     U: Tensor
-    S: Tensor
+    sigma: Tensor
     Vh: Tensor
     rank: int
     cond: float
 
 
-def _null_directions(Vh: Tensor, S: Tensor, tol: float, names: tuple[str, ...]) -> list[str]:
+def _null_directions(Vh: Tensor, sigma: Tensor, tol: float, names: tuple[str, ...]) -> list[str]:
     """Human-readable null directions of the equilibrated ``W`` (terms with |weight| ≥ 0.05)."""
     out = []
-    for row in Vh[S <= tol].tolist():
+    for row in Vh[sigma <= tol].tolist():
         big = max(row, key=abs)
-        terms = [f"{w / big:+.3g}*{name}" for w, name in zip(row, names) if abs(w) >= 0.05 * abs(big)]
+        terms = [
+            f"{w / big:+.3g}*{name}" for w, name in zip(row, names, strict=True) if abs(w) >= 0.05 * abs(big)
+        ]
         out.append(" ".join(terms))
     return out
 
@@ -139,24 +141,24 @@ def check_conditioning(system: LinearSystem, max_cond: float | None = None) -> C
             f"({', '.join(system.base_names)}); give at least {B} equations"
         )
     scale = torch.linalg.vector_norm(W, dim=0)  # [B]
-    unexcited = [name for name, c in zip(system.base_names, scale.tolist()) if c == 0.0]
+    unexcited = [name for name, c in zip(system.base_names, scale.tolist(), strict=True) if c == 0.0]
     safe = torch.where(scale > 0, scale, torch.ones_like(scale))
-    U, S, Vh = torch.linalg.svd(W / safe, full_matrices=False)
+    U, sigma, Vh = torch.linalg.svd(W / safe, full_matrices=False)
     eps = torch.finfo(W.dtype).eps
-    tol = max(M, B) * eps * float(S[0]) if float(S[0]) > 0 else 0.0
-    rank = int((S > tol).sum())
+    tol = max(M, B) * eps * float(sigma[0]) if float(sigma[0]) > 0 else 0.0
+    rank = int((sigma > tol).sum())
     if rank < B:
         what = (
             f"not excited at all (zero columns): {', '.join(unexcited)}"
             if unexcited
             else "not separable by these samples: "
-            + "; ".join(_null_directions(Vh, S, tol, system.base_names))
+            + "; ".join(_null_directions(Vh, sigma, tol, system.base_names))
         )
         raise IdentificationError(
             f"{who}: observation matrix W ({M}×{B}) has numerical rank {rank} < {B}; base "
             f"parameter combinations {what}. Use samples that excite every base parameter."
         )
-    cond = float(S[0] / S[-1])
+    cond = float(sigma[0] / sigma[-1])
     limit = default_max_cond(W.dtype) if max_cond is None else max_cond
     if cond > limit:
         warnings.warn(
@@ -165,4 +167,4 @@ def check_conditioning(system: LinearSystem, max_cond: float | None = None) -> C
             IdentificationWarning,
             stacklevel=3,
         )
-    return Conditioning(scale, U, S, Vh, rank, cond)
+    return Conditioning(scale, U, sigma, Vh, rank, cond)

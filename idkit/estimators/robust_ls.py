@@ -80,7 +80,7 @@ class RLSSolution:
 def _secular_terms(mu: float, s2: list[float], p: list[float], b2: list[float]) -> tuple[float, float, float]:
     """``Σ pᵢ wᵢ² = ‖α‖²``, ``Σ bᵢ² wᵢ²`` and ``Σ pᵢ wᵢ³`` with ``wᵢ = 1/(sᵢ² + μ)``, ``pᵢ = sᵢ² bᵢ²``."""
     a2 = q2 = d3 = 0.0
-    for si2, pi, bi2 in zip(s2, p, b2):
+    for si2, pi, bi2 in zip(s2, p, b2, strict=True):
         w = 1.0 / (si2 + mu)
         w2 = w * w
         a2 += pi * w2
@@ -104,7 +104,7 @@ def secular_root(s: list[float], b: list[float], beta: float, rho: float) -> tup
     """
     s2 = [si * si for si in s]
     b2 = [bi * bi for bi in b]
-    p = [si2 * bi2 for si2, bi2 in zip(s2, b2)]
+    p = [si2 * bi2 for si2, bi2 in zip(s2, b2, strict=True)]
     norm_tau = math.sqrt(sum(b2) + beta * beta)
     if rho == 0.0 or norm_tau == 0.0:
         return 0.0, 0
