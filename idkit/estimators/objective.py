@@ -6,7 +6,7 @@
 - the search space: the robot's physical parameters in ``bounds()`` (the paper's way) or, for
   robots with ``search_space == "base"``, the base parameters in ``base_bounds()``;
 - the torque prediction: ``inverse_dynamics`` in general (``Problem.error``'s path); for a robot
-  with a regressor, ``E = T − base_params(x) @ Yᵀ`` as one ``addmm`` — exact up to rounding,
+  with a regressor, ``E = [base_params(x), 1] @ [−Yᵀ; T]`` as one matmul — exact up to rounding,
   because ``tau = Y(q, qd, qdd) · alpha`` defines the regressor (tests check both paths agree);
   for relative costs ``T`` and ``Y`` are divided by the denominator of eq. (27) once, so the
   product gives ``E_rel`` directly;
@@ -180,12 +180,12 @@ class Objective:
             # -Yᵀ as [B, n·N]: alpha[..., B] @ it is minus the prediction in the joints × samples layout.
             minus_yt = -y.permute(2, 1, 0).reshape(y.shape[-1], -1)
             self.absolute = (self.measured.reshape(-1), minus_yt.contiguous())
-            self.linear = []  # per cost: (T, -Yᵀ), divided by the relative denominator if any
+            # Per cost: [-Yᵀ; T] as [B + 1, n·N] (divided by the relative denominator if any), so
+            # that E = [alpha, 1] @ it is one matmul with no bias pass over the error tensor.
+            self.linear = []
             for denominator, _ in self.terms:
                 scale = 1.0 if denominator is None else denominator.reshape(-1)
-                self.linear.append(
-                    ((self.measured.reshape(-1) / scale).contiguous(), (minus_yt / scale).contiguous())
-                )
+                self.linear.append(torch.cat((minus_yt, self.measured.reshape(1, -1))) / scale)
 
     @property
     def dimension(self) -> int:
@@ -224,12 +224,12 @@ class Objective:
         if x.shape[0] != len(self.terms):
             raise ValueError(f"positions have {x.shape[0]} cost slices, the objective has {len(self.terms)}")
         if self.use_regressor:
-            alpha = self.base(x)
+            alpha = torch.nn.functional.pad(self.base(x), (0, 1), value=1.0)  # [C, ..., B + 1]
             batch = x.shape[1:-1]
-            values = []
-            for c, ((_, value), (t, minus_yt)) in enumerate(zip(self.terms, self.linear, strict=True)):
-                a = alpha[c].reshape(-1, alpha.shape[-1])
-                values.append(value(torch.addmm(t, a, minus_yt).view(*batch, *self.shape)))
+            values = [
+                value((alpha[c] @ linear).view(*batch, *self.shape))
+                for c, ((_, value), linear) in enumerate(zip(self.terms, self.linear, strict=True))
+            ]
         else:
             error = self.error(x)
             values = [

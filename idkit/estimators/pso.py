@@ -175,7 +175,8 @@ class ParticleSwarm(Estimator):
         objective = Objective(problem, costs, space=self.space, use_regressor=self.use_regressor)
         n, samples = objective.shape
         work = len(costs) * self.runs * settings["particles"] * n * samples
-        threads = resolve_threads(self.threads, work)
+        # Ops never see more than one chunk of runs, so the chunk's size decides the threads.
+        threads = resolve_threads(self.threads, min(work, CHUNK_ELEMENTS))
         with torch_threads(threads), torch.inference_mode():
             uniform = swarm.Uniform(problem.generator(), objective.lower)
             # Big batches run as consecutive chunks of runs whose tensors stay in the CPU cache
