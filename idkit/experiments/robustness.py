@@ -34,7 +34,7 @@ from idkit import registry
 from idkit.experiments import files, plots
 from idkit.experiments.build import Spec, build, plain, split
 from idkit.experiments.metrics import parameter_error
-from idkit.experiments.paper import average_label
+from idkit.experiments.paper import average_label, format_time
 
 log = logging.getLogger(__name__)
 
@@ -157,6 +157,7 @@ class RobustnessStudy:
             "90th pct",
             f"win rate vs {self.baseline} [95 % CI]",
             "sign test p",
+            "mean fit time",
         ]
         lines = [
             f"### Robustness: {self.trials} noise draws per scenario (seed {self.seed})",
@@ -164,7 +165,7 @@ class RobustnessStudy:
             "Parameter error = mean over parameters of |estimate − truth| / |truth|.",
             "",
             "| " + " | ".join(head) + " |",
-            "|---|---|---:|---:|---:|---:|",
+            "|---|---|---:|---:|---:|---:|---:|",
         ]
         for row in self.rows():
             win = (
@@ -173,9 +174,11 @@ class RobustnessStudy:
                 else f"{100 * row['win_rate']:.1f} % [{100 * row['ci_low']:.1f}, {100 * row['ci_high']:.1f}]"
             )
             p = "" if row["p_value"] is None else f"{row['p_value']:.2g}"
+            fit = row["mean_fit_time_s"]
+            fit_text = "" if fit is None else format_time(fit)
             lines.append(
                 f"| {row['scenario']} | {row['estimator']} | {100 * row['median']:.2f} % | "
-                f"{100 * row['p90']:.2f} % | {win} | {p} |"
+                f"{100 * row['p90']:.2f} % | {win} | {p} | {fit_text} |"
             )
         parts = ["\n".join(lines)]
         answer = self.answer()
