@@ -71,6 +71,14 @@ def numpy_system(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     return W, tau
 
 
+def numpy_relative(W: np.ndarray, tau: np.ndarray, n_joints: int, floor: float = 1e-3):
+    """Eqs. (36)-(37) with idkit's near-zero policy: |tau| < floor x joint RMS becomes ±floor x RMS."""
+    T = tau.reshape(-1, n_joints)
+    limit = floor * np.sqrt((T**2).mean(axis=0))
+    d = np.where(np.abs(T) < limit, np.where(T < 0, -1.0, 1.0) * limit, T).reshape(-1)
+    return W / d[:, None], tau / d
+
+
 def base_vector(estimate) -> np.ndarray:
     return np.array(list(estimate.base_params.values()))
 
@@ -150,10 +158,11 @@ def test_ls_matches_numpy_lstsq(seed, n, noise, relative):
     problem = problem_from_states(robot, *random_states(n, seed), noise=noise, seed=seed)
     W, tau = numpy_system(problem)
     if relative:
-        W, tau = W / tau[:, None], np.ones_like(tau)
+        W, tau = numpy_relative(W, tau, 3)
     expected = np.linalg.lstsq(W, tau, rcond=None)[0]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentificationWarning)
+        warnings.simplefilter("ignore", RelativeFloorWarning)
         got = base_vector(LeastSquares(relative=relative).fit(problem))
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
 
@@ -175,10 +184,11 @@ def test_tls_matches_numpy_svd_and_eq_15(seed, n, noise, relative):
     problem = problem_from_states(robot, *random_states(n, seed), noise=noise, seed=seed)
     W, tau = numpy_system(problem)
     if relative:
-        W, tau = W / tau[:, None], np.ones_like(tau)
+        W, tau = numpy_relative(W, tau, 3)
     expected, sigma = numpy_tls(W, tau)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentificationWarning)
+        warnings.simplefilter("ignore", RelativeFloorWarning)
         estimate = TotalLeastSquares(relative=relative).fit(problem)
     got = base_vector(estimate)
     np.testing.assert_allclose(got, expected, rtol=1e-8)
