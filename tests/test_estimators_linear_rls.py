@@ -89,7 +89,7 @@ def test_closed_form_is_stationary_and_agrees_with_cvxpy(problem):
     plain = plain_cvxpy(W, tau, rho)
     f = objective(W, tau, alpha, rho)
     assert f <= objective(W, tau, plain, rho) + 1e-12 * f
-    np.testing.assert_allclose(alpha, plain, rtol=0, atol=1e-3 * np.linalg.norm(alpha))
+    np.testing.assert_allclose(alpha, plain, rtol=0, atol=1e-2 * np.linalg.norm(alpha))  # IPM: ~1e-4
 
 
 @pytest.mark.parametrize("scenario", ["state_noise", "torque_noise", "all_noise", "outliers"])
