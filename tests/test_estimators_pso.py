@@ -65,9 +65,13 @@ def test_objective_calls_other_costs_unchanged(robot, noisy):
             return (error * torch.arange(1.0, 4.0, dtype=error.dtype)[:, None]).square().sum((-2, -1))
 
     problem = Problem(robot, noisy)
-    x = _positions(robot, (1, 4))
-    got = Objective(problem, [Weighted()])(x)
-    torch.testing.assert_close(got[0], Weighted()(problem.error(x[0]), None), rtol=1e-12, atol=0)
+    measured = noisy.measured_matrix()
+    for use_regressor in (True, False):
+        costs = [paper.f13(), Weighted(), paper.f1()]  # mixed with the fast norm products
+        x = _positions(robot, (3, 4))
+        got = Objective(problem, costs, use_regressor=use_regressor)(x)
+        for c, cost in enumerate(costs):
+            torch.testing.assert_close(got[c], cost(problem.error(x[c]), measured), rtol=1e-12, atol=0)
 
 
 @settings(max_examples=60, deadline=None)

@@ -10,7 +10,7 @@
   because ``tau = Y(q, qd, qdd) · alpha`` defines the regressor (tests check both paths agree);
   for relative costs ``T`` and ``Y`` are divided by the denominator of eq. (27) once, so the
   product gives ``E_rel`` directly;
-- the paper's norm-product costs (``idkit.costs.paper``) through ``fast_norm_product``: the
+- the paper's norm-product costs (``idkit.costs.paper``), all at once through ``NormProducts``: the
   same norms with fewer tensor ops (one ``|E|``, row and column sums from one matmul, the
   spectral norm in closed form). Values agree with the cost's own ``__call__`` to rounding
   (tests: 1e-12 relative); other costs are called as they are.
@@ -21,7 +21,7 @@ this module minimises. Estimators report the final cost through the cost's own `
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import torch
 from torch import Tensor
@@ -64,42 +64,63 @@ def spectral_norm_3(e: Tensor) -> Tensor:
     return value
 
 
-def fast_norm_product(names: Sequence[str], n: int, samples: int, like: Tensor) -> Callable[[Tensor], Tensor]:
-    """``e[..., n, N] → Π NORMS[name](e)`` with few ops; equal to the plain product up to rounding.
+class NormProducts:
+    """Several norm-product costs (``Π NORMS[name](E)`` each) of one stacked error, all at once.
 
-    ``"1"`` and ``"inf"`` (largest column / row absolute sum) come from one matmul of ``|e|``
-    with a 0/1 matrix that sums each column and each row; ``"2"`` uses ``spectral_norm_3`` when
-    ``n == 3``.
+    ``e[C, ..., n, N]`` → ``value[C, ...]``, slice ``c`` by the product ``norms[c]``. Each norm any
+    cost uses is computed once over the whole stack — a few tensor ops for all costs instead of a
+    few per cost, since per-op overhead dominates — then every cost multiplies its own. ``"1"``
+    and ``"inf"`` (largest column / row absolute sum) come from one matmul of ``|e|`` with a 0/1
+    matrix that sums each column and each row; ``"2"`` uses ``spectral_norm_3`` when ``n == 3``.
+    Equal to the plain products up to rounding.
     """
-    sums = None
-    if "1" in names or "inf" in names:
-        # [n·N, N + n]: column j of the first N sums sample j over joints, the last n sum each joint.
-        eye_n = torch.eye(n, dtype=like.dtype, device=like.device)
-        eye_s = torch.eye(samples, dtype=like.dtype, device=like.device)
-        sums = torch.cat(
-            (eye_s.repeat(n, 1), eye_n.repeat_interleave(samples, dim=0)), dim=1
-        )  # rows ordered joint-major, as e.reshape(..., n·N)
-    uses_abs = sums is not None or "max_abs" in names
 
-    def value(e: Tensor) -> Tensor:
-        a = e.abs() if uses_abs else e
-        s = (a.reshape(*a.shape[:-2], n * samples) @ sums) if sums is not None else None
-        out = None
-        for name in names:
+    def __init__(self, norms: Sequence[Sequence[str]], n: int, samples: int, like: Tensor) -> None:
+        self.n, self.samples = n, samples
+        self.used = sorted({name for names in norms for name in names})
+        unknown = set(self.used) - set(NORMS)
+        if unknown:
+            raise ValueError(f"unknown norm(s) {sorted(unknown)}; known: {', '.join(NORMS)}")
+        power = torch.tensor([[list(names).count(u) for u in self.used] for names in norms])
+        self.power = power.to(device=like.device, dtype=like.dtype)
+        self.all_once = bool((power == 1).all())  # every cost multiplies every used norm once
+        self.sums = None
+        if "1" in self.used or "inf" in self.used:
+            # [n·N, N + n]: column j < N sums sample j over the joints, column N + i sums joint i
+            # (rows ordered joint-major, as e.reshape(..., n·N)).
+            eye_n = torch.eye(n, dtype=like.dtype, device=like.device)
+            eye_s = torch.eye(samples, dtype=like.dtype, device=like.device)
+            self.sums = torch.cat((eye_s.repeat(n, 1), eye_n.repeat_interleave(samples, dim=0)), dim=1)
+
+    def __call__(self, e: Tensor) -> Tensor:
+        n, samples = self.n, self.samples
+        a = e.abs() if self.sums is not None or "max_abs" in self.used else None
+        s = a.reshape(*a.shape[:-2], n * samples) @ self.sums if self.sums is not None else None
+        square = e.square() if "fro" in self.used or "max_row_sq" in self.used else None
+        values = []
+        for name in self.used:
             if name == "1":
-                v = s[..., :samples].amax(-1)
+                values.append(s[..., :samples].amax(-1))
             elif name == "inf":
-                v = s[..., samples:].amax(-1)
+                values.append(s[..., samples:].amax(-1))
             elif name == "max_abs":
-                v = a.amax(dim=(-2, -1))
+                values.append(a.amax(dim=(-2, -1)))
+            elif name == "fro":
+                values.append(square.sum(dim=(-2, -1)).sqrt())
+            elif name == "max_row_sq":
+                values.append(square.sum(dim=-1).amax(dim=-1))
             elif name == "2" and n == 3:
-                v = spectral_norm_3(e)
+                values.append(spectral_norm_3(e))
             else:
-                v = NORMS[name](e)
-            out = v if out is None else out * v
-        return out
-
-    return value
+                values.append(NORMS[name](e))
+        if self.all_once:
+            out = values[0]
+            for v in values[1:]:
+                out = out * v
+            return out
+        stacked = torch.stack(values, dim=-1)  # [C, ..., U]
+        power = self.power.view(self.power.shape[0], *([1] * (stacked.ndim - 2)), -1)
+        return stacked.pow(power).prod(dim=-1)
 
 
 def is_norm_product(cost: Cost) -> bool:
@@ -165,27 +186,29 @@ class Objective:
         self.samples = s
         self.measured = s.measured_matrix()  # [n, N]
         self.shape = tuple(self.measured.shape)
-        self.terms = []  # per cost: (denominator or None, error → value)
-        for cost in self.costs:
-            if is_norm_product(cost):
-                denominator = None
-                if isinstance(cost, RelativeNormProductCost):
-                    denominator = relative_denominator(self.measured, cost.floor)
-                value = fast_norm_product(cost.norms, *self.shape, self.measured)
-            else:
-                denominator, value = None, (lambda error, cost=cost: cost(error, self.measured))
-            self.terms.append((denominator, value))
+        # Per cost, the divisor of the error: the relative denominator (eq. 27) for the paper's
+        # relative costs, 1 otherwise (other costs get the absolute error, as their contract says).
+        ones = torch.ones_like(self.measured)
+        self.fast = [c for c, cost in enumerate(self.costs) if is_norm_product(cost)]
+        self.others = [c for c in range(len(self.costs)) if c not in self.fast]
+        self.divisors = torch.stack(
+            [
+                relative_denominator(self.measured, cost.floor)
+                if c in self.fast and isinstance(cost, RelativeNormProductCost)
+                else ones
+                for c, cost in enumerate(self.costs)
+            ]
+        )  # [C, n, N]
+        self.products = NormProducts([self.costs[c].norms for c in self.fast], *self.shape, self.measured)
         if self.use_regressor:
             y = robot.regressor(s.q, s.qd, s.qdd)  # [N, n, B]
             # -Yᵀ as [B, n·N]: alpha[..., B] @ it is minus the prediction in the joints × samples layout.
             minus_yt = -y.permute(2, 1, 0).reshape(y.shape[-1], -1)
             self.absolute = (self.measured.reshape(-1), minus_yt.contiguous())
-            # Per cost: [-Yᵀ; T] as [B + 1, n·N] (divided by the relative denominator if any), so
-            # that E = [alpha, 1] @ it is one matmul with no bias pass over the error tensor.
-            self.linear = []
-            for denominator, _ in self.terms:
-                scale = 1.0 if denominator is None else denominator.reshape(-1)
-                self.linear.append(torch.cat((minus_yt, self.measured.reshape(1, -1))) / scale)
+            # Per cost, [-Yᵀ; T] / divisor as [B + 1, n·N], so that E = [alpha, 1] @ it is one
+            # batched matmul for all costs, with no extra pass over the error tensor.
+            augmented = torch.cat((minus_yt, self.measured.reshape(1, -1)))
+            self.linear = (augmented / self.divisors.reshape(len(self.costs), 1, -1)).contiguous()
 
     @property
     def dimension(self) -> int:
@@ -221,19 +244,23 @@ class Objective:
 
     def __call__(self, x: Tensor) -> Tensor:
         """``cost[C, ...]`` of positions ``x[C, ..., D]``: slice ``c`` by cost ``c``."""
-        if x.shape[0] != len(self.terms):
-            raise ValueError(f"positions have {x.shape[0]} cost slices, the objective has {len(self.terms)}")
+        count = len(self.costs)
+        if x.shape[0] != count:
+            raise ValueError(f"positions have {x.shape[0]} cost slices, the objective has {count}")
+        batch = x.shape[1:-1]
         if self.use_regressor:
-            alpha = torch.nn.functional.pad(self.base(x), (0, 1), value=1.0)  # [C, ..., B + 1]
-            batch = x.shape[1:-1]
-            values = [
-                value((alpha[c] @ linear).view(*batch, *self.shape))
-                for c, ((_, value), linear) in enumerate(zip(self.terms, self.linear, strict=True))
-            ]
+            alpha = torch.nn.functional.pad(self.base(x), (0, 1), value=1.0).reshape(
+                count, -1, self.linear.shape[1]
+            )
+            error = torch.bmm(alpha, self.linear).view(count, *batch, *self.shape)  # already / divisor
         else:
-            error = self.error(x)
-            values = [
-                value(e if d is None else e / d)
-                for (d, value), e in zip(self.terms, error.unbind(0), strict=True)
-            ]
-        return values[0].unsqueeze(0) if len(values) == 1 else torch.stack(values)
+            error = self.error(x) / self.divisors.view(count, *([1] * len(batch)), *self.shape)
+        if not self.others:
+            return self.products(error)
+        out = error.new_empty((count, *batch))
+        if self.fast:
+            index = torch.tensor(self.fast, device=error.device)
+            out[index] = self.products(error[index])
+        for c in self.others:
+            out[c] = self.costs[c](error[c], self.measured)
+        return out
