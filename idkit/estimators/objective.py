@@ -6,7 +6,7 @@
 - the search space: the robot's physical parameters in ``bounds()`` (the paper's way) or, for
   robots with ``search_space == "base"``, the base parameters in ``base_bounds()``;
 - the torque prediction: ``inverse_dynamics`` in general (``Problem.error``'s path); for a robot
-  with a regressor, ``E = [base_params(x), 1] @ [−Yᵀ; T]`` as one matmul — exact up to rounding,
+  with a regressor, ``E = T − base_params(x) @ Yᵀ`` as one ``baddbmm`` — exact up to rounding,
   because ``tau = Y(q, qd, qdd) · alpha`` defines the regressor (tests check both paths agree);
   for relative costs ``T`` and ``Y`` are divided by the denominator of eq. (27) once, so the
   product gives ``E_rel`` directly;
@@ -21,7 +21,7 @@ this module minimises. Estimators report the final cost through the cost's own `
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import torch
 from torch import Tensor
@@ -33,9 +33,6 @@ from idkit.interfaces import Cost
 from idkit.problem import Problem
 
 SPACES = ("physical", "base")
-
-#: Gram entries (i, j) of a 3-row matrix, in the order G00, G11, G22, G01, G02, G12.
-_GRAM_ROWS = ((0, 1, 2, 0, 0, 1), (0, 1, 2, 1, 2, 2))
 
 
 def spectral_norm_3(e: Tensor) -> Tensor:
@@ -51,9 +48,9 @@ def spectral_norm_3(e: Tensor) -> Tensor:
     search (minimising a largest singular value tends to make it double, so this case is common
     near the optimum of f2-type costs); estimates report costs by the cost's own ``__call__``.
     """
-    rows = torch.tensor(_GRAM_ROWS, device=e.device)
-    g = (e.index_select(-2, rows[0]) * e.index_select(-2, rows[1])).sum(-1)  # [..., 6]
-    g00, g11, g22, g01, g02, g12 = g.unbind(-1)
+    g00, g11, g22 = e.square().sum(-1).unbind(-1)
+    g01, g12, g20 = (e * e.roll(-1, dims=-2)).sum(-1).unbind(-1)  # rows (0·1, 1·2, 2·0)
+    g02 = g20
     q = (g00 + g11 + g22) / 3
     x, y, z = g00 - q, g11 - q, g22 - q
     off = g01.square() + g02.square() + g12.square()
@@ -66,67 +63,78 @@ def spectral_norm_3(e: Tensor) -> Tensor:
     return top.clamp_min(0).sqrt()
 
 
-class NormProducts:
-    """Several norm-product costs (``Π NORMS[name](E)`` each) of one stacked error, all at once.
+def norm_product(names: Sequence[str], n: int, samples: int, like: Tensor) -> Callable[[Tensor], Tensor]:
+    """``e[..., n, N] → Π NORMS[name](e)`` with few ops; equal to the plain product up to rounding.
 
-    ``e[C, ..., n, N]`` → ``value[C, ...]``, slice ``c`` by the product ``norms[c]``. Each norm any
-    cost uses is computed once over the whole stack — a few tensor ops for all costs instead of a
-    few per cost, since per-op overhead dominates — then every cost multiplies its own. ``"1"``
-    and ``"inf"`` (largest column / row absolute sum) come from one matmul of ``|e|`` with a 0/1
-    matrix that sums each column and each row; ``"2"`` uses ``spectral_norm_3`` when ``n == 3``.
-    Equal to the plain products up to rounding.
+    ``"1"`` and ``"inf"`` (largest column / row absolute sum) come from one matmul of ``|e|`` with
+    a 0/1 matrix that sums each column and each row; ``"2"`` uses ``spectral_norm_3`` when
+    ``n == 3``; ``|e|`` and ``e²`` are computed once for all the norms that need them.
+    """
+    unknown = set(names) - set(NORMS)
+    if unknown:
+        raise ValueError(f"unknown norm(s) {sorted(unknown)}; known: {', '.join(NORMS)}")
+    sums = None
+    if "1" in names or "inf" in names:
+        # [n·N, N + n]: column j < N sums sample j over the joints, column N + i sums joint i
+        # (rows ordered joint-major, as e.reshape(..., n·N)).
+        eye_n = torch.eye(n, dtype=like.dtype, device=like.device)
+        eye_s = torch.eye(samples, dtype=like.dtype, device=like.device)
+        sums = torch.cat((eye_s.repeat(n, 1), eye_n.repeat_interleave(samples, dim=0)), dim=1)
+    uses_abs = sums is not None or "max_abs" in names
+    uses_square = "fro" in names or "max_row_sq" in names
+
+    def value(e: Tensor) -> Tensor:
+        a = e.abs() if uses_abs else None
+        s = a.reshape(*a.shape[:-2], n * samples) @ sums if sums is not None else None
+        square = e.square() if uses_square else None
+        out = None
+        for name in names:
+            if name == "1":
+                v = s[..., :samples].amax(-1)
+            elif name == "inf":
+                v = s[..., samples:].amax(-1)
+            elif name == "max_abs":
+                v = a.amax(dim=(-2, -1))
+            elif name == "fro":
+                v = square.sum(dim=(-2, -1)).sqrt()
+            elif name == "max_row_sq":
+                v = square.sum(dim=-1).amax(dim=-1)
+            elif name == "2" and n == 3:
+                v = spectral_norm_3(e)
+            else:
+                v = NORMS[name](e)
+            out = v if out is None else out * v
+        return out
+
+    return value
+
+
+class NormProducts:
+    """Several norm-product costs of one stacked error: ``e[C, ..., n, N] → value[C, ...]``.
+
+    Costs with the same norms (the paper's f_k and f_{k+8} differ only in the error matrix, which
+    the caller has already divided) form one group, evaluated by one ``norm_product`` on its
+    slices: a few tensor ops per group instead of per cost (per-op overhead dominates), and each
+    norm computed only for the costs that use it.
     """
 
     def __init__(self, norms: Sequence[Sequence[str]], n: int, samples: int, like: Tensor) -> None:
-        self.n, self.samples = n, samples
-        self.used = sorted({name for names in norms for name in names})
-        unknown = set(self.used) - set(NORMS)
-        if unknown:
-            raise ValueError(f"unknown norm(s) {sorted(unknown)}; known: {', '.join(NORMS)}")
-        power = torch.tensor([[list(names).count(u) for u in self.used] for names in norms])
-        self.power = power.to(device=like.device, dtype=like.dtype)
-        self.mask = (power > 0).to(like.device)
-        self.all_once = bool((power == 1).all())  # every cost multiplies every used norm once
-        self.at_most_once = bool((power <= 1).all())  # the paper's products: a 0/1 mask suffices
-        self.sums = None
-        if "1" in self.used or "inf" in self.used:
-            # [n·N, N + n]: column j < N sums sample j over the joints, column N + i sums joint i
-            # (rows ordered joint-major, as e.reshape(..., n·N)).
-            eye_n = torch.eye(n, dtype=like.dtype, device=like.device)
-            eye_s = torch.eye(samples, dtype=like.dtype, device=like.device)
-            self.sums = torch.cat((eye_s.repeat(n, 1), eye_n.repeat_interleave(samples, dim=0)), dim=1)
+        groups: dict[tuple[str, ...], list[int]] = {}
+        for c, names in enumerate(norms):
+            groups.setdefault(tuple(names), []).append(c)
+        self.count = len(norms)
+        self.groups = [
+            (torch.tensor(members, device=like.device), norm_product(names, n, samples, like))
+            for names, members in groups.items()
+        ]
 
     def __call__(self, e: Tensor) -> Tensor:
-        n, samples = self.n, self.samples
-        a = e.abs() if self.sums is not None or "max_abs" in self.used else None
-        s = a.reshape(*a.shape[:-2], n * samples) @ self.sums if self.sums is not None else None
-        square = e.square() if "fro" in self.used or "max_row_sq" in self.used else None
-        values = []
-        for name in self.used:
-            if name == "1":
-                values.append(s[..., :samples].amax(-1))
-            elif name == "inf":
-                values.append(s[..., samples:].amax(-1))
-            elif name == "max_abs":
-                values.append(a.amax(dim=(-2, -1)))
-            elif name == "fro":
-                values.append(square.sum(dim=(-2, -1)).sqrt())
-            elif name == "max_row_sq":
-                values.append(square.sum(dim=-1).amax(dim=-1))
-            elif name == "2" and n == 3:
-                values.append(spectral_norm_3(e))
-            else:
-                values.append(NORMS[name](e))
-        if self.all_once:
-            out = values[0]
-            for v in values[1:]:
-                out = out * v
-            return out
-        stacked = torch.stack(values, dim=-1)  # [C, ..., U]
-        shape = (self.power.shape[0], *([1] * (stacked.ndim - 2)), -1)
-        if self.at_most_once:
-            return torch.where(self.mask.view(shape), stacked, 1.0).prod(dim=-1)
-        return stacked.pow(self.power.view(shape)).prod(dim=-1)
+        if len(self.groups) == 1:
+            return self.groups[0][1](e)
+        out = e.new_empty(e.shape[:-2])
+        for members, value in self.groups:
+            out.index_copy_(0, members, value(e.index_select(0, members)))
+        return out
 
 
 def is_norm_product(cost: Cost) -> bool:
@@ -211,10 +219,10 @@ class Objective:
             # -Yᵀ as [B, n·N]: alpha[..., B] @ it is minus the prediction in the joints × samples layout.
             minus_yt = -y.permute(2, 1, 0).reshape(y.shape[-1], -1)
             self.absolute = (self.measured.reshape(-1), minus_yt.contiguous())
-            # Per cost, [-Yᵀ; T] / divisor as [B + 1, n·N], so that E = [alpha, 1] @ it is one
-            # batched matmul for all costs, with no extra pass over the error tensor.
-            augmented = torch.cat((minus_yt, self.measured.reshape(1, -1)))
-            self.linear = (augmented / self.divisors.reshape(len(self.costs), 1, -1)).contiguous()
+            # Per cost, -Yᵀ / divisor and T / divisor, so that E (already divided) is one baddbmm.
+            divisors = self.divisors.reshape(len(self.costs), 1, -1)
+            self.linear = (minus_yt / divisors).contiguous()  # [C, B, n·N]
+            self.offset = (self.measured.reshape(1, -1) / divisors).contiguous()  # [C, 1, n·N]
 
     @property
     def dimension(self) -> int:
@@ -255,10 +263,9 @@ class Objective:
             raise ValueError(f"positions have {x.shape[0]} cost slices, the objective has {count}")
         batch = x.shape[1:-1]
         if self.use_regressor:
-            alpha = torch.nn.functional.pad(self.base(x), (0, 1), value=1.0).reshape(
-                count, -1, self.linear.shape[1]
-            )
-            error = torch.bmm(alpha, self.linear).view(count, *batch, *self.shape)  # already / divisor
+            alpha = self.base(x).reshape(count, -1, self.linear.shape[1])
+            error = torch.baddbmm(self.offset, alpha, self.linear)  # T/d − alpha·Yᵀ/d, one op
+            error = error.view(count, *batch, *self.shape)
         else:
             error = self.error(x) / self.divisors.view(count, *([1] * len(batch)), *self.shape)
         if not self.others:

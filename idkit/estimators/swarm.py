@@ -96,7 +96,8 @@ def _update_bests(state: SwarmState, position: Tensor, cost: Tensor) -> SwarmSta
     best_cost = torch.where(better, cost, state.best_cost)
     best_position = torch.where(better.unsqueeze(-1), position, state.best_position)
     global_cost, index = best_cost.min(dim=-1)
-    global_position = best_position.take_along_dim(index[..., None, None], dim=-2).squeeze(-2)
+    index = index[..., None, None].expand(*index.shape, 1, position.shape[-1])
+    global_position = best_position.gather(-2, index).squeeze(-2)
     return SwarmState(position, state.velocity, best_position, best_cost, global_position, global_cost)
 
 
