@@ -321,3 +321,13 @@ def test_default_preset_reaches_the_ls_optimum_in_95_percent_of_runs(robot):
     hits = np.array(est.details["run_costs"]) <= 1.001 * target
     assert hits.mean() >= 0.95
     np.testing.assert_allclose(est.vector(), ls.vector(), rtol=0.05)  # PSO-f1 ≈ LS (the paper's remark)
+
+
+@pytest.mark.parametrize("scenario", ["state_noise", "torque_noise", "all_noise", "outliers"])
+def test_pso_f1_is_ls_and_pso_f9_is_ls_rel(robot, scenario):
+    """The paper: "PSO-f1 and PSO-f9 would result in approximately the same estimates as LS and
+    LS-rel" — f1 and f9 are the (relative) least-squares criteria searched in physical space."""
+    problem = Problem(robot, simulate(robot, scenario, seed=0), seed=0)
+    f1, f9 = ParticleSwarm(history=False).fit_costs(problem, [paper.f1(), paper.f9()])
+    np.testing.assert_allclose(f1.vector(), LeastSquares().fit(problem).vector(), rtol=1e-2)
+    np.testing.assert_allclose(f9.vector(), LeastSquares(relative=True).fit(problem).vector(), rtol=1e-3)
