@@ -215,7 +215,10 @@ class RobustnessStudy:
             errors = {s: {label: self.errors(s, label) for label in by} for s, by in self.params.items()}
             written["boxplot"] = str(
                 plots.boxplots(
-                    errors, out / "robustness_boxplot.png", f"parameter error over {self.trials} noise draws"
+                    errors,
+                    out / "robustness_boxplot.png",
+                    f"parameter error over {self.trials} noise draws"
+                    " (boxes: quartiles; whiskers: 5th-95th percentile)",
                 )
             )
         files.write_json(
