@@ -32,8 +32,8 @@ import torch
 
 from idkit.estimate import Estimate
 from idkit.estimators.aggregate import KeepRule, aggregate
-from idkit.estimators.objective import Objective, cost_label
-from idkit.estimators.pso import make_estimate
+from idkit.estimators.objective import Objective
+from idkit.estimators.search_result import common_details, per_cost_estimates
 from idkit.estimators.swarm import Uniform
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
@@ -131,42 +131,18 @@ class AdamMultiStart(Estimator):
                 position = lower + width * u.detach()
                 mean, kept = aggregate(position, final, self._keep)
                 values = [objective.exact(c, mean[c]) for c in range(len(costs))]
-        total = time.perf_counter() - started
-        common = {
-            "starts": self.starts,
-            "steps": self.steps,
-            "lr": self.lr,
-            "lr_final": self.lr_final,
-            "keep_rule": self._keep.describe(),
-            "space": objective.space,
-            "use_regressor": objective.use_regressor,
-            "threads": threads,
-            "device": str(problem.device),
-            "dtype": str(problem.torch_dtype).removeprefix("torch."),
-            "seed": problem.seed,
-            "batched_costs": [cost_label(c) for c in costs],
-            "batch_wall_time_s": total,
-        }
-        estimates = []
-        for c, cost in enumerate(costs):
-            details = dict(common)
-            details.update(
-                run_costs=final[c],
-                run_params=objective.params(position[c]),
-                kept=kept[c],
-                n_kept=int(kept[c].sum()),
-            )
-            if self.history:
-                details["history"] = torch.stack(history)[:, c].T  # [R, steps], cost before each step
-            estimates.append(
-                make_estimate(
-                    problem,
-                    objective,
-                    self.label or f"Adam-{cost_label(cost)}",
-                    mean[c],
-                    float(values[c]),
-                    total / len(costs),
-                    details,
-                )
-            )
-        return estimates
+        common = common_details(problem, objective, costs, self._keep, threads, time.perf_counter() - started)
+        common.update(starts=self.starts, steps=self.steps, lr=self.lr, lr_final=self.lr_final)
+        return per_cost_estimates(
+            problem,
+            objective,
+            costs,
+            self.label or "Adam-{cost}",
+            position,
+            final,
+            kept,
+            mean,
+            values,
+            torch.stack(history) if self.history else None,  # [steps, C, R], cost before each step
+            common,
+        )

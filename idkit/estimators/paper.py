@@ -21,7 +21,8 @@ from idkit.costs.relative import DEFAULT_FLOOR
 from idkit.estimate import Estimate
 from idkit.estimators.aggregate import KeepRule
 from idkit.estimators.objective import Objective, cost_label
-from idkit.estimators.pso import ParticleSwarm, make_estimate
+from idkit.estimators.pso import ParticleSwarm
+from idkit.estimators.search_result import make_estimate
 from idkit.interfaces import Estimator
 from idkit.problem import Problem
 

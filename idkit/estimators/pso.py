@@ -36,10 +36,11 @@ from typing import Any, ClassVar
 
 import torch
 
-from idkit.estimate import Estimate, jsonable
+from idkit.estimate import Estimate
 from idkit.estimators import swarm
 from idkit.estimators.aggregate import KeepRule, aggregate
-from idkit.estimators.objective import Objective, cost_label
+from idkit.estimators.objective import Objective
+from idkit.estimators.search_result import common_details, per_cost_estimates
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.runtime import resolve_threads, torch_threads
@@ -200,67 +201,22 @@ class ParticleSwarm(Estimator):
             history = torch.cat([h for _, h in parts], dim=2)  # [iterations, C, R]
             mean, kept = aggregate(position, run_costs, self._keep)
             values = [objective.exact(c, mean[c]) for c in range(len(costs))]
-        total = time.perf_counter() - started
-        common = {
-            "preset": self.preset,
-            "settings": settings,
-            "evaluations_per_run": settings["particles"] * settings["iterations"],
-            "keep_rule": self._keep.describe(),
-            "space": objective.space,
-            "use_regressor": objective.use_regressor,
-            "threads": threads,
-            "device": str(problem.device),
-            "dtype": str(problem.torch_dtype).removeprefix("torch."),
-            "seed": problem.seed,
-            "batched_costs": [cost_label(c) for c in costs],
-            "batch_wall_time_s": total,
-        }
-        estimates = []
-        for c, cost in enumerate(costs):
-            details = dict(common)
-            details.update(
-                run_costs=run_costs[c],
-                run_params=objective.params(position[c]),
-                kept=kept[c],
-                n_kept=int(kept[c].sum()),
-            )
-            if self.history:
-                details["history"] = history[:, c].T  # [R, iterations]
-            estimates.append(
-                make_estimate(
-                    problem,
-                    objective,
-                    self.label or f"PSO-{cost_label(cost)}",
-                    mean[c],
-                    float(values[c]),
-                    total / len(costs),
-                    details,
-                )
-            )
-        return estimates
-
-
-def make_estimate(
-    problem: Problem,
-    objective: Objective,
-    label: str,
-    position: torch.Tensor,
-    cost: float | None,
-    wall_time_s: float,
-    details: dict[str, Any],
-) -> Estimate:
-    """An ``Estimate`` from a search position ``[D]``: physical and (where defined) base params."""
-    robot = problem.robot
-    params = objective.params(position)
-    base = None
-    if robot.has_regressor:
-        alpha = objective.base(position)
-        base = dict(zip(robot.base_param_names, (float(v) for v in alpha), strict=True))
-    return Estimate(
-        estimator=label,
-        params=dict(zip(robot.param_names, (float(v) for v in params), strict=True)),
-        cost=cost,
-        wall_time_s=wall_time_s,
-        base_params=base,
-        details=jsonable(details),
-    )
+        common = common_details(problem, objective, costs, self._keep, threads, time.perf_counter() - started)
+        common.update(
+            preset=self.preset,
+            settings=settings,
+            evaluations_per_run=settings["particles"] * settings["iterations"],
+        )
+        return per_cost_estimates(
+            problem,
+            objective,
+            costs,
+            self.label or "PSO-{cost}",
+            position,
+            run_costs,
+            kept,
+            mean,
+            values,
+            history if self.history else None,
+            common,
+        )

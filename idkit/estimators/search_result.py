@@ -1,0 +1,102 @@
+"""Turning one batched multi-start search (PSO swarms, Adam starts) into one ``Estimate`` per cost.
+
+Both search estimators end with the same tensors — each run's final position and cost, the kept
+runs, their mean and its exact cost — so they share how those become estimates and what the
+per-run record in ``Estimate.details`` holds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import torch
+from torch import Tensor
+
+from idkit.estimate import Estimate, jsonable
+from idkit.estimators.aggregate import KeepRule
+from idkit.estimators.objective import Objective, cost_label
+from idkit.interfaces import Cost
+from idkit.problem import Problem
+
+
+def common_details(
+    problem: Problem, objective: Objective, costs: Sequence[Cost], keep: KeepRule, threads: int, wall: float
+) -> dict[str, Any]:
+    """What every estimate of one batched call records besides its own runs."""
+    return {
+        "keep_rule": keep.describe(),
+        "space": objective.space,
+        "use_regressor": objective.use_regressor,
+        "threads": threads,
+        "device": str(problem.device),
+        "dtype": str(problem.torch_dtype).removeprefix("torch."),
+        "seed": problem.seed,
+        "batched_costs": [cost_label(c) for c in costs],
+        "batch_wall_time_s": wall,
+    }
+
+
+def per_cost_estimates(
+    problem: Problem,
+    objective: Objective,
+    costs: Sequence[Cost],
+    label: str,
+    position: Tensor,
+    run_costs: Tensor,
+    kept: Tensor,
+    mean: Tensor,
+    values: Sequence[float],
+    history: Tensor | None,
+    common: dict[str, Any],
+) -> list[Estimate]:
+    """One estimate per cost.
+
+    Args:
+        label: ``"<prefix>-{cost}"`` format string, e.g. ``"PSO-{cost}"``, or a fixed label.
+        position: ``[C, R, D]`` each run's final search position; ``run_costs``, ``kept``: ``[C, R]``.
+        mean: ``[C, D]`` the reported positions; ``values``: their exact costs.
+        history: ``[T, C, R]`` best cost per iteration, or ``None``.
+        common: ``common_details(...)`` plus estimator-specific settings.
+    """
+    wall = common["batch_wall_time_s"] / len(costs)
+    estimates = []
+    for c, cost in enumerate(costs):
+        details = dict(common)
+        details.update(
+            run_costs=run_costs[c],
+            run_params=objective.params(position[c]),
+            kept=kept[c],
+            n_kept=int(kept[c].sum()),
+        )
+        if history is not None:
+            details["history"] = history[:, c].T  # [R, T]
+        name = label.format(cost=cost_label(cost))
+        estimates.append(make_estimate(problem, objective, name, mean[c], float(values[c]), wall, details))
+    return estimates
+
+
+def make_estimate(
+    problem: Problem,
+    objective: Objective,
+    label: str,
+    position: torch.Tensor,
+    cost: float | None,
+    wall_time_s: float,
+    details: dict[str, Any],
+) -> Estimate:
+    """An ``Estimate`` from a search position ``[D]``: physical and (where defined) base params."""
+    robot = problem.robot
+    params = objective.params(position)
+    base = None
+    if robot.has_regressor:
+        alpha = objective.base(position)
+        base = dict(zip(robot.base_param_names, (float(v) for v in alpha), strict=True))
+    return Estimate(
+        estimator=label,
+        params=dict(zip(robot.param_names, (float(v) for v in params), strict=True)),
+        cost=cost,
+        wall_time_s=wall_time_s,
+        base_params=base,
+        details=jsonable(details),
+    )
