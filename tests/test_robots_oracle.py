@@ -120,7 +120,8 @@ TWO_LINKS_NO_AXIS = """<robot name="two">
   <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
     <origin xyz="0 0 0.5" rpy="0.1 0.2 0.3"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
   <joint name="j2" type="revolute"><parent link="a"/><child link="b"/>
-    <origin xyz="0.3 0.1 0" rpy="0 0.5 0"/><axis xyz="0 1 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
+    <origin xyz="0.3 0.1 0" rpy="0 0.5 0"/><axis xyz="0 1 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/>
   </joint>
 </robot>"""
 
