@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 import zipfile
 
-import pytest
 import tomllib
 from conftest import REPO
 
@@ -19,17 +19,27 @@ def test_package_list_covers_every_subpackage():
     assert on_disk == listed
 
 
-@pytest.mark.slow
 def test_wheel_ships_configs_and_assets(tmp_path):
+    """Editable installs hide missing package data; build the real wheel and look inside.
+
+    Built from a copy of the sources, so no stale ``build/`` folder can leak into (or out of) it.
+    """
+    source = tmp_path / "src"
+    for folder in ("idkit", "conf"):
+        shutil.copytree(REPO / folder, source / folder, ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(REPO / name, source / name)
     subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q"]
-        + ["-w", str(tmp_path), str(REPO)],
+        + ["-w", str(tmp_path), str(source)],
         check=True,
     )
     names = zipfile.ZipFile(next(tmp_path.glob("robot_idkit-*.whl"))).namelist()
     yaml_on_disk = {f"idkit/conf/{p.relative_to(REPO / 'conf')}" for p in (REPO / "conf").rglob("*.yaml")}
     assert yaml_on_disk and yaml_on_disk <= set(names)
     assert "idkit/py.typed" in names
+    assert "idkit/robots/assets/cylindrical.urdf" in names
+    assert "idkit/experiments/data/paper-tables.csv" in names
 
 
 def test_help_does_not_import_torch():
