@@ -115,7 +115,9 @@ def history_table(history: Any) -> tuple[list[str], list[list[Any]]] | None:
 
 def _check_numbers(where: str, values: Any) -> None:
     if not isinstance(values, list):
-        raise HistoryError(f'details["history"]: {where} must be a list of numbers, got {type(values).__name__}')
+        raise HistoryError(
+            f'details["history"]: {where} must be a list of numbers, got {type(values).__name__}'
+        )
     for i, value in enumerate(values):
         if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
             raise HistoryError(

@@ -74,7 +74,9 @@ class _Rejected(Exception):
 # --- the public functions ----------------------------------------------------------------------
 
 
-def check_options(kind: str, name: str, factory: Callable[..., Any], options: Mapping[str, Any]) -> dict[str, Any]:
+def check_options(
+    kind: str, name: str, factory: Callable[..., Any], options: Mapping[str, Any]
+) -> dict[str, Any]:
     """The options of plugin ``kind``/``name`` checked against ``factory``'s signature, converted.
 
     Args:
@@ -136,7 +138,9 @@ def describe(annotation: Any, article: bool = True) -> str:
     if origin in _SEQUENCES:
         return f"a list of {describe(args[0], False)}" if args else "a list"
     if origin in _MAPPINGS:
-        return f"a mapping of {describe(args[0], False)} to {describe(args[1], False)}" if args else "a mapping"
+        return (
+            f"a mapping of {describe(args[0], False)} to {describe(args[1], False)}" if args else "a mapping"
+        )
     if annotation is bool and article:
         return "a bool (true/false, yes/no or 1/0)"
     if annotation in (int, float, str) and article:
@@ -323,6 +327,11 @@ def _to_int(value: Any) -> int:
         return value  # type: ignore[return-value]
     if not isinstance(value, (str, numbers.Real)):
         raise _Rejected()
+    if isinstance(value, str):
+        try:
+            return int(value.strip())  # exact for any size, where a float would round
+        except ValueError:
+            pass
     number = _to_float(value)
     if not (math.isfinite(number) and float(number).is_integer()):
         raise _Rejected("not a whole number")

@@ -38,7 +38,14 @@ DEFAULT_KEYS: Mapping[str, str] = {name: name for name in SAMPLE_ARRAYS}
 ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
 #: Array kinds (``numpy.dtype.kind``) read as samples: signed, unsigned integers and floats.
 NUMERIC_KINDS = "iuf"
-_KIND_NAMES = {"U": "text", "S": "bytes", "b": "booleans", "c": "complex numbers", "M": "dates", "m": "time spans"}
+_KIND_NAMES = {
+    "U": "text",
+    "S": "bytes",
+    "b": "booleans",
+    "c": "complex numbers",
+    "M": "dates",
+    "m": "time spans",
+}
 #: The FloBaRoID recordings, e.g. ``shared/data/kuka-lwr4/measurements_1.npz``.
 FLOBAROID_KEYS: Mapping[str, str] = {
     "q": "positions",
@@ -113,7 +120,9 @@ def _read_npz(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:
         raise ValueError(f"{path}: a damaged .npz archive ({type(exc).__name__}: {exc})") from None
     with archive as data:
         if not data.files:
-            raise ValueError(f"{path}: the .npz archive contains no arrays; expected {', '.join(names.values())}")
+            raise ValueError(
+                f"{path}: the .npz archive contains no arrays; expected {', '.join(names.values())}"
+            )
         missing = [v for v in names.values() if v not in data.files]
         if missing:
             raise ValueError(
@@ -141,7 +150,6 @@ def _numeric_array(path: Path, data: np.lib.npyio.NpzFile, key: str, name: str) 
             "expected numbers (int or float)"
         )
     return array
-
 
 
 def _read_csv(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:

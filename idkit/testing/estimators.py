@@ -218,7 +218,9 @@ def check_estimator_too_few_equations(
     except ValueError:
         return
     except Exception as exc:
-        fail(f"{what} raised {type(exc).__name__}: {exc}; raise ValueError (problem.check_identifiable() does)")
+        fail(
+            f"{what} raised {type(exc).__name__}: {exc}; raise ValueError (problem.check_identifiable() does)"
+        )
     fail(
         f"{what} returned an estimate (cost {estimate.cost!r}) instead of raising ValueError; "
         "call problem.check_identifiable() at the top of fit"
