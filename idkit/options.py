@@ -170,7 +170,7 @@ def _annotations(factory: Callable[..., Any]) -> dict[str, Any]:
     function = factory.__init__ if isinstance(factory, type) else factory
     function = inspect.unwrap(function)
     raw = getattr(function, "__annotations__", {})
-    namespace = dict(getattr(function, "__globals__", {}))
+    namespace = getattr(function, "__globals__", {})
     hints: dict[str, Any] = {}
     for key, annotation in raw.items():
         if key == "return":
