@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -30,7 +32,8 @@ class Estimate:
 
     ``cost`` is the final value of the criterion the estimator minimised; ``details`` carries the
     per-run record (each run's parameters and cost, which runs were kept and why, convergence
-    history, threads, device) that an estimator chooses to keep.
+    history, threads, device) that an estimator chooses to keep. ``details["history"]``, if present,
+    follows the format of ``history_table``.
     """
 
     estimator: str
@@ -57,3 +60,67 @@ class Estimate:
     @classmethod
     def from_json(cls, text: str) -> Estimate:
         return cls.from_dict(json.loads(text))
+
+
+class HistoryError(ValueError):
+    """``details["history"]`` does not follow the documented format (see ``history_table``)."""
+
+
+def history_table(history: Any) -> tuple[list[str], list[list[Any]]] | None:
+    """Convergence history as a table ``(header, rows)``, one row per iteration; ``None`` if empty.
+
+    The format of ``Estimate.details["history"]`` (tensors and numpy arrays are read as lists):
+
+    - a list of numbers ``[iterations]``: one run → columns ``iteration, best_cost``;
+    - a list of equal-length lists ``[runs][iterations]`` → ``iteration, run_0, run_1, …``;
+    - a mapping of names to equal-length lists of numbers → ``iteration, <name>, …``.
+
+    Numbers are ints or floats; ``None`` stands for a non-finite value (as ``jsonable`` writes it).
+    Validated here, before a file is written, so a bad history is reported as one message instead
+    of breaking a run's output after the fit.
+
+    Raises:
+        HistoryError: another shape (runs of unequal length, nested deeper, non-numbers), naming
+            the run or column and the iteration.
+    """
+    history = jsonable(history)
+    if history is None or (isinstance(history, (list, dict)) and not history):
+        return None
+    # (header name, what to call it in a message, values)
+    if isinstance(history, Mapping):
+        columns = [(str(name), f"column {name!r}", values) for name, values in history.items()]
+    elif isinstance(history, list) and all(isinstance(run, list) for run in history):
+        columns = [(f"run_{r}", f"run {r}", values) for r, values in enumerate(history)]
+    elif isinstance(history, list):
+        columns = [("best_cost", "the history", history)]
+    else:
+        raise HistoryError(
+            'details["history"] must be a list, a list of lists [runs][iterations] or a mapping of '
+            f"names to lists, got {type(history).__name__}"
+        )
+    for _, where, values in columns:
+        _check_numbers(where, values)
+    (_, first, reference), *others = columns
+    for _, where, values in others:
+        if len(values) != len(reference):
+            raise HistoryError(
+                f'details["history"]: {where} has {len(values)} iterations but {first} has '
+                f"{len(reference)}; every run (column) must have the same number of iterations"
+            )
+    if not reference:
+        return None
+    header = ["iteration", *(name for name, _, _ in columns)]
+    return header, [[i, *row] for i, row in enumerate(zip(*(v for _, _, v in columns), strict=True))]
+
+
+def _check_numbers(where: str, values: Any) -> None:
+    if not isinstance(values, list):
+        raise HistoryError(
+            f'details["history"]: {where} must be a list of numbers, got {type(values).__name__}'
+        )
+    for i, value in enumerate(values):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
+            raise HistoryError(
+                f'details["history"]: {where} has {value!r} ({type(value).__name__}) at iteration {i}; '
+                "expected a number (a list of lists [runs][iterations] nests one level only)"
+            )

@@ -124,7 +124,23 @@ class Cost(ABC):
 
 
 class Estimator(ABC):
-    """Identifies a robot's parameters from one ``Problem``."""
+    """Identifies a robot's parameters from one ``Problem``.
+
+    ``fit`` starts with ``problem.check_identifiable()``: with fewer equations (samples × joints)
+    than parameters any criterion has an arbitrary minimiser of near-zero cost, so the fit must fail
+    instead. Options are checked against the constructor's annotations before it is called
+    (``idkit.options``), so annotate them precisely (``int``, ``bool``, ``Literal[...]``).
+
+    ``Estimate.details["history"]`` is optional; if kept it is the convergence record, one value per
+    iteration (``None`` for a non-finite one), in one of three shapes:
+
+    - a list of numbers ``[iterations]`` (one run);
+    - a list of equal-length lists ``[runs][iterations]`` (e.g. PSO's best cost of each swarm);
+    - a mapping of names to equal-length lists (named columns, e.g. ``{"cost": [...], "lr": [...]}``).
+
+    ``idkit.estimate.history_table`` turns it into a table and names what breaks the format;
+    ``idkit.testing.check_estimator`` checks it.
+    """
 
     @abstractmethod
     def fit(self, problem: Problem) -> Estimate:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -17,14 +19,66 @@ SAMPLE_ARRAYS = ("q", "qd", "qdd", "tau")
 DTYPES = {"float64": torch.float64, "float32": torch.float32}
 
 
+class IdentificationError(ValueError):
+    """The data cannot identify the parameters (too few equations, rank deficiency, ...)."""
+
+
 def resolve_dtype(dtype: str | torch.dtype) -> torch.dtype:
-    """Accept ``"float64"``/``"float32"`` (config-friendly) or a ``torch.dtype``."""
-    if isinstance(dtype, torch.dtype):
+    """Accept ``"float64"``/``"float32"`` (config-friendly) or one of those ``torch.dtype``s."""
+    if isinstance(dtype, torch.dtype) and dtype in DTYPES.values():
         return dtype
     try:
-        return DTYPES[dtype]
-    except KeyError:
-        raise ValueError(f"unknown dtype {dtype!r}; use one of {', '.join(DTYPES)}") from None
+        return DTYPES[dtype]  # type: ignore[index]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown dtype {dtype!r} (option dtype); use one of {', '.join(DTYPES)}") from None
+
+
+def available_devices() -> list[str]:
+    """The devices this torch build can compute on here: ``cpu``, then ``cuda:i`` and ``mps`` if present."""
+    devices = ["cpu"]
+    if torch.cuda.is_available():
+        devices += [f"cuda:{i}" for i in range(torch.cuda.device_count())]
+    mps = getattr(torch.backends, "mps", None)
+    if mps is not None and mps.is_available():
+        devices.append("mps")
+    return devices
+
+
+def check_device(device: str | torch.device) -> torch.device:
+    """The ``torch.device`` for a ``device`` option, or a ``ValueError`` naming what is available.
+
+    Checked before any tensor moves, so ``device=cuda`` on a machine without CUDA fails with one line
+    instead of a traceback from deep inside torch.
+    """
+    try:
+        parsed = torch.device(device)
+    except (RuntimeError, TypeError):
+        raise ValueError(
+            f"device {device!r} is not a torch device name (option device); available here: "
+            f"{', '.join(available_devices())}"
+        ) from None
+    if parsed.type == "cuda":
+        if not torch.cuda.is_available():
+            build = f"CUDA {torch.version.cuda}" if torch.version.cuda else "a CPU-only build"
+            raise ValueError(
+                f"device {device!r} requested but CUDA is not available (torch.cuda.is_available() "
+                f"is False; torch {torch.__version__} is {build}); available here: "
+                f"{', '.join(available_devices())}"
+            )
+        if parsed.index is not None and parsed.index >= torch.cuda.device_count():
+            raise ValueError(
+                f"device {device!r} requested but there are {torch.cuda.device_count()} CUDA device(s); "
+                f"available here: {', '.join(available_devices())}"
+            )
+    elif parsed.type != "cpu" and str(parsed) not in available_devices():
+        try:
+            torch.empty(0, device=parsed)
+        except (RuntimeError, AssertionError):
+            raise ValueError(
+                f"device {device!r} requested but this torch build cannot use it; available here: "
+                f"{', '.join(available_devices())}"
+            ) from None
+    return parsed
 
 
 def _check_finite(name: str, array: Tensor) -> None:
@@ -110,6 +164,36 @@ class Problem:
             raise ValueError(
                 f"samples have {self.samples.n_joints} joints but robot "
                 f"{type(self.robot).__name__} has {self.robot.n_joints} ({', '.join(self.robot.joint_names)})"
+            )
+        if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
+            raise ValueError(f"seed must be an int, got {self.seed!r} ({type(self.seed).__name__})")
+        resolve_dtype(self.dtype)
+        check_device(self.device)
+
+    @property
+    def n_identifiable(self) -> int:
+        """How many parameters the data must determine: the robot's base parameters ``B`` if it
+        declares them, else all ``P`` physical parameters (an upper bound)."""
+        return len(self.robot.base_param_names) or self.robot.n_params
+
+    def check_identifiable(self) -> None:
+        """Raise ``IdentificationError`` if the samples give fewer equations than parameters.
+
+        Every sample gives one equation per joint, so ``N · n`` equations must be at least the
+        ``n_identifiable`` parameters. With fewer, any estimator can drive its cost to about zero
+        with an arbitrary estimate (the least-squares family would meet a rank-deficient system;
+        PSO and Adam would return a random point of the solution set), so every estimator calls this
+        at the top of ``fit``. It checks counts only: whether the trajectory excites every base
+        parameter is the rank test of ``idkit.estimators.observation``.
+        """
+        n_samples, n_joints = self.samples.n_samples, self.samples.n_joints
+        equations, needed = n_samples * n_joints, self.n_identifiable
+        if equations < needed:
+            kind = "base parameters" if self.robot.base_param_names else "parameters"
+            raise IdentificationError(
+                f"robot {type(self.robot).__name__}: {n_samples} sample{'s' * (n_samples != 1)} × "
+                f"{n_joints} joint{'s' * (n_joints != 1)} = {equations} equations < {needed} {kind}; "
+                f"give at least {math.ceil(needed / n_joints)} samples"
             )
 
     @property

@@ -15,6 +15,9 @@ from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any, Literal
 
+from idkit.options import OptionError as OptionError  # re-exported: registry.create raises it
+from idkit.options import check_options
+
 Kind = Literal["robot", "estimator", "cost"]
 
 GROUPS: dict[str, str] = {
@@ -104,12 +107,15 @@ def info(kind: Kind, name: str) -> PluginInfo:
 def _lookup(kind: str, name: str) -> tuple[EntryPoint, PluginInfo]:
     eps = _entry_points(kind)
     if name not in eps:
-        names = sorted(eps, key=_natural)
-        close = difflib.get_close_matches(name, names, n=len(names), cutoff=0.0)
-        raise UnknownPluginError(
-            f"unknown {kind} {name!r}; available {kind}s (closest first): {', '.join(close)}"
-        )
+        raise UnknownPluginError(unknown_name_message(kind, name, list(eps)))
     return eps[name]
+
+
+def unknown_name_message(kind: str, name: object, names: list[str]) -> str:
+    """One line: the unknown name and the available ones, closest first (for the registry and CLI)."""
+    close = difflib.get_close_matches(str(name), sorted(names, key=_natural), n=len(names), cutoff=0.0)
+    listed = ", ".join(close) if close else "none installed"
+    return f"unknown {kind} {name!r}; available {kind}s (closest first): {listed}"
 
 
 @functools.cache
@@ -127,12 +133,18 @@ def load(kind: Kind, name: str) -> Any:
 
 
 def create(kind: Kind, name: str, /, **options: Any) -> Any:
-    """Build a plugin instance; ``options`` are its constructor's keyword arguments."""
+    """Build a plugin instance; ``options`` are its constructor's keyword arguments.
+
+    The options are checked against the constructor's signature and annotations first
+    (``idkit.options``: unknown keys and wrong types raise ``OptionError``; strings that spell a
+    value of the annotated type, as a command line passes them, are converted).
+    """
     factory = load(kind, name)
+    checked = check_options(kind, name, factory, options)
     try:
-        return factory(**options)
+        return factory(**checked)
     except TypeError as exc:
-        raise TypeError(f"{kind} {name!r} rejected options {options}: {exc}") from exc
+        raise TypeError(f"{kind} {name!r} rejected options {checked}: {exc}") from exc
 
 
 def refresh() -> None:

@@ -14,7 +14,11 @@ from idkit.registry import PluginLoadError
 from idkit.testing import build_for_checks, checks_for
 
 #: (kind, name, check) -> why it fails today. Strict xfail: once fixed, the XPASS says "remove me".
-KNOWN_FAILURES: dict[tuple[str, str, str], str] = {}
+_CALL_CHECK = "fit does not call problem.check_identifiable() yet (estimators are edited in another branch)"
+KNOWN_FAILURES: dict[tuple[str, str, str], str] = {
+    ("estimator", name, "check_estimator_too_few_equations"): _CALL_CHECK
+    for name in ("pso", "adam", "pso_f13_f14")
+}
 
 
 def _cases() -> list[pytest.param]:

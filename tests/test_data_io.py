@@ -132,3 +132,75 @@ def test_kuka_recording_loads(kuka_dir):
     assert (s.n_samples, s.n_joints) == (5027, 7)
     with np.load(kuka_dir / "measurements_1.npz") as raw:
         np.testing.assert_array_equal(s.tau.numpy(), raw["torques"])
+
+
+# --- files that are not what their name says ---------------------------------------------------
+
+
+def test_directory_is_refused_and_its_data_files_listed(tmp_path):
+    write_npz(tmp_path / "run1.npz")
+    with pytest.raises(ValueError) as err:
+        load_samples(tmp_path)
+    assert (
+        str(err.value)
+        == f"{tmp_path} is a directory, not a samples file (.npz or .csv); data files in it: run1.npz"
+    )
+
+
+def test_npz_that_is_not_an_archive_is_refused_without_pickle_advice(tmp_path):
+    (tmp_path / "empty.npz").write_bytes(b"")
+    (tmp_path / "text.npz").write_text(HEADER + "0,1,2,3,4,5,6,7,8\n")
+    (tmp_path / "broken.npz").write_bytes(b"PK\x03\x04 truncated")
+    not_zip = "not a NumPy .npz archive (a zip of arrays, as numpy.savez writes) but"
+    cases = {
+        "empty.npz": f"{not_zip} an empty file",
+        "text.npz": f"{not_zip} a file starting with b't,q1'",
+        "broken.npz": "a damaged .npz archive (BadZipFile",
+    }
+    for name, message in cases.items():
+        with pytest.raises(ValueError) as err:
+            load_samples(tmp_path / name)
+        assert str(err.value).startswith(f"{tmp_path / name}: {message}")
+        assert "allow_pickle=True" not in str(err.value)
+
+
+def test_npz_without_arrays(tmp_path):
+    np.savez(tmp_path / "none.npz")
+    with pytest.raises(
+        ValueError, match=r"none\.npz: the \.npz archive contains no arrays; expected q, qd, qdd, tau$"
+    ):
+        load_samples(tmp_path / "none.npz")
+
+
+def test_text_bool_and_object_arrays_name_the_array(tmp_path):
+    with pytest.raises(ValueError, match=r"s\.npz: array 'qdd' has dtype <U1 \(text\); expected numbers"):
+        load_samples(write_npz(tmp_path / "s.npz", qdd=np.full((5, 2), "a")))
+    with pytest.raises(
+        ValueError, match=r"b\.npz: array 'velocities' \(for qd\) has dtype bool \(booleans\)"
+    ):
+        data = {v: np.ones((5, 2)) for v in FLOBAROID_KEYS.values()} | {"velocities": np.ones((5, 2), bool)}
+        np.savez(tmp_path / "b.npz", **data)
+        load_samples(tmp_path / "b.npz", keys=FLOBAROID_KEYS)
+    objects = np.empty((5, 2), dtype=object)
+    with pytest.raises(
+        ValueError,
+        match=r"o\.npz: array 'tau' holds Python objects \(dtype object\), which idkit never loads",
+    ):
+        load_samples(write_npz(tmp_path / "o.npz", tau=objects))
+
+
+def test_integer_arrays_are_read_as_float64(tmp_path):
+    loaded = load_samples(write_npz(tmp_path / "i.npz", q=np.arange(10).reshape(5, 2)))
+    assert loaded.q.dtype == torch.float64 and loaded.q[4, 1].item() == 9.0
+
+
+def test_csv_that_is_not_text(tmp_path):
+    (tmp_path / "bin.csv").write_bytes(b"\x89PNG\r\n\x1a\n")
+    with pytest.raises(ValueError, match=r"bin\.csv: not a UTF-8 text CSV file \(byte 0 cannot be decoded\)"):
+        load_samples(tmp_path / "bin.csv")
+
+
+def test_csv_with_byte_order_mark_loads(tmp_path):
+    path = tmp_path / "bom.csv"
+    path.write_bytes(("\ufeff" + HEADER + "0,1,2,3,4,5,6,7,8\n").encode("utf-8"))
+    assert load_samples(path).q.tolist() == [[1.0, 2.0]]  # 't' is column 0

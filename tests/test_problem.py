@@ -11,7 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from idkit.estimate import Estimate
-from idkit.problem import Problem, Samples, resolve_dtype
+from idkit.interfaces import Robot
+from idkit.problem import IdentificationError, Problem, Samples, resolve_dtype
 
 
 def samples(n: int = 5, joints: int = 3) -> dict[str, torch.Tensor]:
@@ -88,3 +89,64 @@ def test_estimate_json_round_trip(params, cost, history):
     assert back.params == finite and back.cost == cost
     assert back.details["history"] == history
     json.loads(estimate.to_json())  # strict JSON: no NaN/Infinity tokens
+
+
+# --- options checked when a Problem is built ---------------------------------------------------
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="needs a machine without CUDA")
+def test_cuda_without_cuda_names_the_option_and_what_is_available(cylindrical):
+    for device in ("cuda", "cuda:1"):
+        with pytest.raises(ValueError) as err:
+            Problem(cylindrical, Samples(**samples()), device=device)
+        message = str(err.value)
+        assert message.startswith(f"device {device!r} requested but CUDA is not available")
+        assert "torch.cuda.is_available() is False" in message and message.endswith("available here: cpu")
+
+
+def test_bad_device_dtype_and_seed_are_named(cylindrical):
+    data = Samples(**samples())
+    with pytest.raises(ValueError, match=r"^device 'gpu' is not a torch device name \(option device\)"):
+        Problem(cylindrical, data, device="gpu")
+    with pytest.raises(ValueError, match=r"^unknown dtype 'float16' \(option dtype\); use one of float64"):
+        Problem(cylindrical, data, dtype="float16")
+    with pytest.raises(ValueError, match=r"unknown dtype torch.int64"):
+        Problem(cylindrical, data, dtype=torch.int64)
+    with pytest.raises(ValueError, match=r"^seed must be an int, got 'abc' \(str\)$"):
+        Problem(cylindrical, data, seed="abc")  # type: ignore[arg-type]
+    typed = Problem(cylindrical, data, device=torch.device("cpu"), dtype=torch.float32)
+    assert typed.torch_dtype == torch.float32
+
+
+def test_too_few_equations_names_counts_and_remedy(cylindrical):
+    problem = Problem(cylindrical, Samples(**samples(n=1)))  # building it is fine
+    with pytest.raises(IdentificationError) as err:
+        problem.check_identifiable()
+    assert str(err.value) == (
+        "robot CylindricalRobot: 1 sample × 3 joints = 3 equations < 4 base parameters; "
+        "give at least 2 samples"
+    )
+    Problem(cylindrical, Samples(**samples(n=2))).check_identifiable()  # 6 equations >= 4
+
+
+@given(st.integers(1, 6), st.integers(1, 12))
+@settings(max_examples=40, deadline=None)
+def test_identifiable_exactly_when_equations_cover_parameters(n_joints, n_params):
+    class Toy(Robot):
+        joint_names = tuple(f"j{i}" for i in range(n_joints))
+        param_names = tuple(f"p{i}" for i in range(n_params))
+
+        def bounds(self):
+            return torch.zeros(n_params), torch.ones(n_params)
+
+        def inverse_dynamics(self, params, q, qd, qdd):
+            return q
+
+    for n in range(1, n_params + 2):
+        problem = Problem(Toy(), Samples(**samples(n=n, joints=n_joints)))
+        if n * n_joints >= n_params:
+            problem.check_identifiable()
+        else:
+            needed = math.ceil(n_params / n_joints)
+            with pytest.raises(IdentificationError, match=f"give at least {needed} samples"):
+                problem.check_identifiable()

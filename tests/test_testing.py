@@ -87,6 +87,10 @@ class RandomSearch(Estimator):
         return lower + u * (upper - lower)
 
     def fit(self, problem):
+        problem.check_identifiable()
+        return self.search(problem)
+
+    def search(self, problem):
         start = time.perf_counter()
         if problem.cost is None:
             raise ValueError("random search needs problem.cost")
@@ -198,6 +202,12 @@ class StoresModified(Pendulum):
         self.g = -g
 
 
+class MisAnnotated(Pendulum):
+    def __init__(self, g: float = 9.81, steps: int = 0.5) -> None:  # type: ignore[assignment]
+        self.g = g
+        self.steps = steps
+
+
 class Kwargs(Pendulum):
     def __init__(self, **options) -> None:
         self.g = options.get("g", 9.81)
@@ -219,6 +229,7 @@ ROBOT_CASES = [
     (ForgetsOption(), check_hyperparameters, "not stored as attribute self.scale"),
     (StoresModified(), check_hyperparameters, "stores self.g = -9.81"),
     (Kwargs(), check_hyperparameters, "takes **options"),
+    (MisAnnotated(), check_hyperparameters, "option 'steps' must be an int, got 0.5"),
 ]
 
 
@@ -359,6 +370,18 @@ class Float64Only(RandomSearch):
         return super().fit(problem)
 
 
+class UnequalHistory(RandomSearch):
+    def fit(self, problem):
+        estimate = super().fit(problem)
+        estimate.details["history"] = [[3.0, 2.0, 1.0], [3.0, 2.0]]  # a run that stopped early
+        return estimate
+
+
+class IgnoresFewEquations(RandomSearch):
+    def fit(self, problem):
+        return self.search(problem)  # no problem.check_identifiable()
+
+
 ESTIMATOR_CASES = [
     (GlobalRandom(), est_checks.check_estimator_deterministic, "problem.generator()"),
     (RemembersFits(), est_checks.check_estimator_deterministic, "two fits with seed 7 differ"),
@@ -368,6 +391,8 @@ ESTIMATOR_CASES = [
     (MutatesSamples(), est_checks.check_estimator_leaves_problem_unchanged, "problem.samples.tau"),
     (CrashesWithoutCost(), est_checks.check_estimator_unsupported_problem, "problem.cost = None"),
     (Float64Only(), est_checks.check_estimator_float32, "Estimate.params (float32 problem)"),
+    (UnequalHistory(), est_checks.check_estimator_history, "run 1 has 2 iterations but run 0 has 3"),
+    (IgnoresFewEquations(), est_checks.check_estimator_too_few_equations, "2 equations for 3 parameters"),
 ]
 
 

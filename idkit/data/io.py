@@ -12,13 +12,18 @@ Formats:
     float64 (``nan``/``inf`` parse, and are then rejected).
 
 Validation reuses ``Samples`` (2-D, equal shapes, finite) and adds where the problem is: the file,
-the file's array or column name, and the sample (for CSV also the line).
+the file's array or column name, and the sample (for CSV also the line). A path that is a directory,
+an ``.npz`` that is not a NumPy archive (a text file renamed, an empty file), an archive without
+arrays, text or object arrays, and a CSV that is not text are each refused with one message naming
+the file. Object arrays are never loaded (that would need ``allow_pickle=True``, which lets a data
+file run code).
 """
 
 from __future__ import annotations
 
 import csv
 import re
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -29,6 +34,18 @@ from idkit.problem import SAMPLE_ARRAYS, Samples
 
 #: Default file names of the four arrays (and CSV column prefixes).
 DEFAULT_KEYS: Mapping[str, str] = {name: name for name in SAMPLE_ARRAYS}
+#: First bytes of a zip archive (an ``.npz``); ``PK\x05\x06`` starts an empty one.
+ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+#: Array kinds (``numpy.dtype.kind``) read as samples: signed, unsigned integers and floats.
+NUMERIC_KINDS = "iuf"
+_KIND_NAMES = {
+    "U": "text",
+    "S": "bytes",
+    "b": "booleans",
+    "c": "complex numbers",
+    "M": "dates",
+    "m": "time spans",
+}
 #: The FloBaRoID recordings, e.g. ``shared/data/kuka-lwr4/measurements_1.npz``.
 FLOBAROID_KEYS: Mapping[str, str] = {
     "q": "positions",
@@ -61,11 +78,16 @@ def load_samples(path: str | Path, keys: Mapping[str, str] | None = None) -> Sam
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: unknown suffix, missing arrays/columns (the message lists those present),
-            non-numeric or non-finite values, inconsistent shapes — naming file, array and sample.
+        ValueError: a directory, unknown suffix, a file that is not of its suffix's format, missing
+            arrays/columns (the message lists those present), non-numeric or non-finite values,
+            inconsistent shapes — naming file, array and sample.
     """
     path = Path(path)
     names = _resolve_keys(keys)
+    if path.is_dir():
+        found = sorted(p.name for p in path.iterdir() if p.suffix.lower() in (".npz", ".csv"))
+        inside = f"; data files in it: {', '.join(found[:5])}{' …' * (len(found) > 5)}" if found else ""
+        raise ValueError(f"{path} is a directory, not a samples file (.npz or .csv){inside}")
     if not path.is_file():
         raise FileNotFoundError(f"samples file not found: {path}")
     suffix = path.suffix.lower()
@@ -84,19 +106,58 @@ def load_samples(path: str | Path, keys: Mapping[str, str] | None = None) -> Sam
 
 
 def _read_npz(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:
-    with np.load(path, allow_pickle=False) as data:
+    with path.open("rb") as handle:
+        head = handle.read(4)
+    if head not in ZIP_MAGIC:
+        what = "an empty file" if not head else f"a file starting with {head!r}"
+        raise ValueError(
+            f"{path}: not a NumPy .npz archive (a zip of arrays, as numpy.savez writes) but {what}; "
+            "text data go in a .csv file (see idkit.data.io)"
+        )
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+        raise ValueError(f"{path}: a damaged .npz archive ({type(exc).__name__}: {exc})") from None
+    with archive as data:
+        if not data.files:
+            raise ValueError(
+                f"{path}: the .npz archive contains no arrays; expected {', '.join(names.values())}"
+            )
         missing = [v for v in names.values() if v not in data.files]
         if missing:
             raise ValueError(
                 f"{path}: missing array(s) {missing}; the file has {sorted(data.files)} "
                 f"(map other names with keys={{'q': ..., ...}}, e.g. FLOBAROID_KEYS for FloBaRoID/KUKA files)"
             )
-        return {k: np.asarray(data[v]) for k, v in names.items()}
+        return {k: _numeric_array(path, data, v, k) for k, v in names.items()}
+
+
+def _numeric_array(path: Path, data: np.lib.npyio.NpzFile, key: str, name: str) -> np.ndarray:
+    """Array ``key`` of an open archive if it holds numbers; else a ValueError naming file and array."""
+    label = f"array {key!r}" + (f" (for {name})" if key != name else "")
+    try:
+        array = np.asarray(data[key])
+    except ValueError:  # numpy refuses object arrays without allow_pickle
+        raise ValueError(
+            f"{path}: {label} holds Python objects (dtype object), which idkit never loads (that would "
+            "need allow_pickle=True, which lets the file run code); save numeric arrays"
+        ) from None
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+        raise ValueError(f"{path}: {label} cannot be read ({type(exc).__name__}: {exc})") from None
+    if array.dtype.kind not in NUMERIC_KINDS:
+        raise ValueError(
+            f"{path}: {label} has dtype {array.dtype} ({_KIND_NAMES.get(array.dtype.kind, 'not numbers')}); "
+            "expected numbers (int or float)"
+        )
+    return array
 
 
 def _read_csv(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:
-    with path.open(newline="") as handle:
-        rows = list(csv.reader(handle))
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as handle:
+            rows = list(csv.reader(handle))
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a UTF-8 text CSV file (byte {exc.start} cannot be decoded)") from None
     if not rows:
         raise ValueError(f"{path}: empty file; expected a header line q1..qn, qd1.., qdd1.., tau1..")
     header = [cell.strip() for cell in rows[0]]

@@ -29,7 +29,9 @@ batched calls equal stacked single calls; regressor consistency (``Y @ base_para
 inverse_dynamics(p)``, ``base_params(params_from_base(a)) == a``); well-formed bounds; finite
 outputs and gradients on valid input; wrong trailing sizes raise instead of broadcasting;
 estimators are deterministic under a seed, report ``Estimate.cost`` on ``problem.cost``, give
-strict-JSON estimates, work in float32, and fail clearly on problems they cannot handle.
+strict-JSON estimates, work in float32, keep ``details["history"]`` in the documented format
+(``idkit.estimate.history_table``), refuse problems with fewer equations than parameters, and fail
+clearly on problems they cannot handle.
 """
 
 from __future__ import annotations

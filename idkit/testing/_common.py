@@ -15,6 +15,8 @@ from typing import Any, NoReturn, TypeVar
 import torch
 from torch import Tensor
 
+from idkit.options import OptionError, check_options
+
 #: Leading batch shapes every batched method must accept (BoTorch's mix-ins use the same three).
 BATCH_SHAPES: tuple[tuple[int, ...], ...] = ((), (2,), (2, 3))
 
@@ -143,7 +145,8 @@ def check_hyperparameters(plugin: Any, *_: Any) -> None:
     """Constructor options are explicit keyword arguments with defaults, stored unchanged.
 
     This is what lets a config section (and the command line, ``estimator.weight=tukey``) map
-    one-to-one onto a constructor call, and what lets a run be rebuilt from its record.
+    one-to-one onto a constructor call, and what lets a run be rebuilt from its record. Defaults
+    and the plugin's values must fit the options' annotations, which the registry enforces.
     (Further arguments, such as an estimator check's problem factory, are ignored.)
     """
     cls = type(plugin)
@@ -171,6 +174,15 @@ def check_hyperparameters(plugin: Any, *_: Any) -> None:
                 f"{p.default!r}; store options unchanged (derive other values in other attributes)"
             )
     params = get_params(plugin)
+    defaults = {name: p.default for name, p in signature.parameters.items()}
+    for what, values in (("default", defaults), ("configured value", params)):
+        try:
+            check_options("plugin", cls.__name__, cls, values)
+        except OptionError as exc:
+            fail(
+                f"a {what} does not fit its own annotation, so the registry would refuse it: {exc}; "
+                "annotate options with the types they take (idkit.options)"
+            )
     clone = call(f"{cls.__name__}(**get_params(plugin))", cls, **params)
     for name, value in get_params(clone).items():
         if not _same(value, params[name]):

@@ -14,12 +14,13 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any, Protocol
 
 import torch
 from torch import Tensor
 
-from idkit.estimate import Estimate
+from idkit.estimate import Estimate, HistoryError, history_table
 from idkit.interfaces import Cost, Estimator, Robot
 from idkit.problem import Problem, Samples
 from idkit.testing._common import call, check_hyperparameters, conformance_check, expect_close, fail
@@ -184,6 +185,48 @@ def check_estimator_leaves_problem_unchanged(
             fail(f"fit modified problem.samples.{name} in place")
 
 
+@conformance_check
+def check_estimator_history(estimator: Estimator, problem_factory: ProblemFactory = make_problem) -> None:
+    """``details["history"]``, if kept, has the documented format (``idkit.estimate.history_table``):
+    a list of numbers, a list of equal-length lists ``[runs][iterations]``, or a mapping of
+    equal-length named lists — so it can be written as a table after the fit."""
+    est = _fit(estimator, problem_factory(dtype="float64", seed=0))
+    try:
+        history_table(est.details.get("history"))
+    except HistoryError as exc:
+        fail(str(exc))
+
+
+@conformance_check
+def check_estimator_too_few_equations(
+    estimator: Estimator, problem_factory: ProblemFactory = make_problem
+) -> None:
+    """With fewer equations (samples × joints) than parameters to identify, ``fit`` raises
+    ValueError instead of returning an arbitrary estimate of near-zero cost; calling
+    ``problem.check_identifiable()`` at the top of ``fit`` does it."""
+    problem = problem_factory(dtype="float64", seed=0)
+    n_samples = math.ceil(problem.n_identifiable / problem.robot.n_joints) - 1
+    if n_samples < 1:  # one sample already gives enough equations: nothing to check
+        return
+    s = problem.samples
+    few = Samples(s.q[:n_samples], s.qd[:n_samples], s.qdd[:n_samples], s.tau[:n_samples])
+    variant = replace(problem, samples=few)
+    equations = n_samples * problem.robot.n_joints
+    what = f"fit on {n_samples} sample(s) ({equations} equations for {problem.n_identifiable} parameters)"
+    try:
+        estimate = estimator.fit(variant)
+    except ValueError:
+        return
+    except Exception as exc:
+        fail(
+            f"{what} raised {type(exc).__name__}: {exc}; raise ValueError (problem.check_identifiable() does)"
+        )
+    fail(
+        f"{what} returned an estimate (cost {estimate.cost!r}) instead of raising ValueError; "
+        "call problem.check_identifiable() at the top of fit"
+    )
+
+
 class _WithoutRegressor(Robot):
     """A robot that hides its regressor: what an estimator meets with, e.g., a URDF-less plugin."""
 
@@ -239,4 +282,6 @@ ESTIMATOR_CHECKS: tuple[Callable[..., None], ...] = (
     check_estimator_float32,
     check_estimator_leaves_problem_unchanged,
     check_estimator_unsupported_problem,
+    check_estimator_history,
+    check_estimator_too_few_equations,
 )

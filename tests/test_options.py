@@ -1,0 +1,174 @@
+"""Plugin options and plain settings are checked against annotations before anything is built."""
+
+from __future__ import annotations
+
+import enum
+import inspect
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Literal
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from idkit import registry
+from idkit.options import OptionError, check_options, check_setting
+
+if TYPE_CHECKING:
+    from idkit.interfaces import Cost
+
+
+def test_wrong_types_name_plugin_option_value_and_type():
+    cases = [
+        ("estimator", "pso", "particles", "abc", "must be an int or None, got 'abc' (str); not a number"),
+        ("estimator", "pso", "particles", 1.5, "must be an int or None, got 1.5 (float); not a whole number"),
+        ("estimator", "pso", "particles", True, "must be an int or None, got True (bool)"),
+        ("robot", "cylindrical", "g", "abc", "must be a float, got 'abc' (str); not a number"),
+        ("estimator", "ls", "relative", "maybe", "must be a bool (true/false, yes/no or 1/0), got 'maybe'"),
+        ("estimator", "adam", "betas", "0.9", "must be a list of float, got '0.9' (str)"),
+        ("estimator", "pso", "inertia", [0.7, "x", 3], "must be a list of float or None, got [0.7, 'x', 3]"),
+    ]
+    for kind, name, option, value, expected in cases:
+        with pytest.raises(OptionError) as err:
+            registry.create(kind, name, **{option: value})
+        assert str(err.value).startswith(f"{kind} {name!r} option {option!r} {expected}"), str(err.value)
+
+
+def test_unambiguous_strings_are_converted():
+    pso = registry.create("estimator", "pso", particles="40", iterations=30.0, inertia=["0.7", "0.5", 3])
+    assert (pso.particles, type(pso.particles)) == (40, int)
+    assert (pso.iterations, type(pso.iterations)) == (30, int)
+    assert pso.inertia == [0.7, 0.5, 3]
+    with pytest.raises(OptionError, match=r"; item 1 = 'x' is not float \(not a number\)$"):
+        registry.create("estimator", "pso", inertia=[0.7, "x", 3])
+    assert registry.create("robot", "cylindrical", g="9.5").g == 9.5
+    for text, value in (("yes", True), ("No", False), ("1", True), ("0", False), ("TRUE", True)):
+        assert registry.create("estimator", "ls", relative=text).relative is value
+
+
+def test_literal_choices_are_listed_closest_first():
+    with pytest.raises(OptionError) as err:
+        registry.create("estimator", "rls", solver="cvx")
+    assert str(err.value) == (
+        "estimator 'rls' option 'solver' must be 'closed_form' or 'cvxpy', got 'cvx' (str); "
+        "closest: 'cvxpy', 'closed_form'"
+    )
+
+
+def test_unknown_option_lists_valid_keys_closest_first_on_one_line():
+    with pytest.raises(OptionError) as err:
+        registry.create("estimator", "pso", particle=40)
+    message = str(err.value)
+    assert message.startswith(
+        "estimator 'pso' has no option 'particle'; its options (closest first): particles, "
+    )
+    assert "\n" not in message
+    listed = message.split("(closest first): ")[1].split(", ")
+    assert set(listed) == set(inspect.signature(registry.load("estimator", "pso")).parameters)
+    assert isinstance(err.value, TypeError)  # callers that caught the constructor's TypeError still do
+
+
+def test_unknown_plugin_name_is_one_line_closest_first():
+    with pytest.raises(registry.UnknownPluginError) as err:
+        registry.create("estimator", "psoo")
+    message = str(err.value)
+    assert "\n" not in message
+    assert message.startswith("unknown estimator 'psoo'; available estimators (closest first): pso, ")
+
+
+def test_plain_settings():
+    assert check_setting("seed", "7", int) == 7
+    assert check_setting("plots", "no", bool) is False
+    with pytest.raises(
+        OptionError, match=r"^setting 'seed' must be an int, got 'abc' \(str\); not a number$"
+    ):
+        check_setting("seed", "abc", int)
+    with pytest.raises(OptionError, match=r"^setting 'plots' must be a bool .*got 'maybe' \(str\)"):
+        check_setting("plots", "maybe", bool)
+    with pytest.raises(OptionError, match="got 2 \\(int\\)"):
+        check_setting("plots", 2, bool)
+
+
+def test_nan_is_never_an_option():
+    with pytest.raises(OptionError, match="NaN is never a valid option"):
+        check_setting("g", "nan", float)
+    with pytest.raises(OptionError, match="NaN"):
+        check_setting("g", math.nan, float)
+    assert check_setting("max_cond", "inf", float) == math.inf
+
+
+class Color(enum.Enum):
+    RED = "r"
+    BLUE = "b"
+
+
+def toy(
+    count: int = 1,
+    name: str = "x",
+    either: int | str = 0,
+    optional: float | None = None,
+    pair: tuple[int, float] = (1, 2.0),
+    table: dict[str, int] | None = None,
+    mode: Literal["a", "b"] = "a",
+    color: Color = Color.RED,
+    sloppy: float = None,  # type: ignore[assignment]  # the common slip: None default, no Optional
+    costs: Sequence[Cost] = (),  # names a TYPE_CHECKING-only import: left unchecked
+):
+    return locals()
+
+
+def check(**options):
+    return check_options("estimator", "toy", toy, options)
+
+
+def test_unions_keep_a_value_that_already_fits():
+    assert check(either="1") == {"either": "1"}  # a str member: no conversion to int
+    assert check(either=1) == {"either": 1}
+    assert check(optional=None, sloppy=None) == {"optional": None, "sloppy": None}
+    assert check(name=2024) == {"name": "2024"}  # a command line reads label=2024 as a number
+
+
+def test_containers_enums_and_unresolvable_annotations():
+    assert check(pair=["3", "0.5"]) == {"pair": [3, 0.5]}
+    with pytest.raises(OptionError, match=r"needs 2 items, got 3"):
+        check(pair=[1, 2, 3])
+    with pytest.raises(OptionError, match=r"option 'table' .*entry 'k': 'v' is not int"):
+        check(table={"k": "v"})
+    assert check(color="BLUE") == {"color": Color.BLUE}
+    assert check(color="r") == {"color": Color.RED}
+    with pytest.raises(OptionError, match="the choices are RED, BLUE"):
+        check(color="green")
+    with pytest.raises(OptionError, match="must be 'a' or 'b', got 'c'"):
+        check(mode="c")
+    assert check(costs="anything") == {"costs": "anything"}
+
+
+def test_keyword_catch_all_accepts_unknown_keys():
+    def open_factory(alpha: float = 1.0, **rest):
+        return rest
+
+    assert check_options("cost", "open", open_factory, {"alpha": "2", "beta": "x"}) == {
+        "alpha": 2.0,
+        "beta": "x",
+    }
+
+
+@given(st.integers())
+def test_int_round_trips_through_its_string(n):
+    assert check_setting("n", str(n), int) == n
+
+
+@given(st.floats(allow_nan=False))
+def test_float_round_trips_through_its_repr(x):
+    assert check_setting("x", repr(x), float) == x
+
+
+@given(st.one_of(st.integers(), st.text(max_size=5), st.floats(allow_nan=False), st.booleans()))
+def test_conversion_is_idempotent(value):
+    for annotation in (int, float, bool, str, int | None):
+        try:
+            once = check_setting("v", value, annotation)
+        except OptionError:
+            continue
+        assert check_setting("v", once, annotation) == once
