@@ -19,13 +19,19 @@ def _bounds(args: argparse.Namespace) -> int:
 
 
 def _oracle(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
     import torch
 
     from idkit.robots.urdf import URDFRobot
+    from idkit.robots.urdf_model import ASSETS
     from idkit.verify.oracle import PKDynamics
 
-    robot = URDFRobot(args.urdf)
-    oracle = PKDynamics(args.urdf, joint_names=robot.joint_names)
+    path = Path(args.urdf)
+    if not path.is_file() and (ASSETS / f"{args.urdf}.urdf").is_file():
+        path = ASSETS / f"{args.urdf}.urdf"
+    robot = URDFRobot(str(path))
+    oracle = PKDynamics(path, joint_names=robot.joint_names)
     gen = torch.Generator().manual_seed(args.seed)
     n = robot.n_joints
     q, qd, qdd = (torch.randn(args.samples, n, generator=gen, dtype=torch.float64) for _ in range(3))
@@ -44,7 +50,12 @@ def _cylindrical(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m idkit.verify", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m idkit.verify",
+        description="Independent references that check idkit's models (see idkit.verify).",
+        epilog=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     sub = parser.add_subparsers(dest="tool", required=True)
     bounds = sub.add_parser("bounds", help="where eq. (39) leaves the bounds (38)")
     bounds.add_argument("--points", type=int, default=10001, help="grid points over 0..10 s")

@@ -1,6 +1,7 @@
 """The real ``idkit`` command in a subprocess: the issue's command, plugins, errors, sweeps.
 
-Each subprocess pays the torch import, so there are few of them and each checks several things.
+Each subprocess pays the torch import, so there are few of them and each checks several things; all
+but the issue's command and ``--help`` are ``integration`` tests (``make test-all``, CI).
 """
 
 from __future__ import annotations
@@ -71,6 +72,7 @@ def test_the_issue_command_writes_the_documented_results(tmp_path):
     assert Path.cwd() != run_dir  # hydra.job.chdir=False: the process stayed where it started
 
 
+@pytest.mark.integration
 def test_bad_input_fails_with_a_clear_message(tmp_path):
     unknown = idkit("estimator=psoo", cwd=tmp_path)
     assert unknown.returncode != 0
@@ -88,6 +90,7 @@ def test_bad_input_fails_with_a_clear_message(tmp_path):
     assert "give either data= (measured samples) or scenario= (a simulation), not both" in both.stderr
 
 
+@pytest.mark.integration
 def test_a_third_party_distribution_is_selectable_by_name(tmp_path):
     site = tmp_path / "site"
     info = site / "toy_dist-1.2.dist-info"
@@ -129,6 +132,7 @@ def test_a_third_party_distribution_is_selectable_by_name(tmp_path):
     assert data["payload"]["estimate"]["params"] == {"m2": 2.5, "m3": 2.5, "s3z": -0.5, "I": 2.5}
 
 
+@pytest.mark.integration
 @pytest.mark.filterwarnings("ignore")
 def test_joblib_sweep_keeps_finished_jobs_when_one_fails(tmp_path):
     out = idkit(

@@ -137,3 +137,19 @@ def test_missing_axis_means_x_as_in_the_urdf_spec(rng):
         [pin.rnea(model, data, a, b, c) for a, b, c in zip(q.numpy(), qd.numpy(), qdd.numpy(), strict=True)]
     )
     np.testing.assert_allclose(oracle.inverse_dynamics(q, qd, qdd).numpy(), expected, rtol=0, atol=1e-9)
+
+
+def test_oracle_command_checks_the_urdf_robot(capsys):
+    """``python -m idkit.verify oracle cylindrical``: the generic URDF robot agrees with the oracle."""
+    from idkit.verify.__main__ import main
+
+    assert main(["oracle", "cylindrical", "--samples", "20"]) == 0
+    assert "max |tau_urdf - tau_oracle|" in capsys.readouterr().out
+    assert main(["oracle", "cylindrical", "--samples", "20", "--tolerance", "-1"]) == 1
+
+
+def test_cylindrical_urdf_command_renders_given_parameters(capsys):
+    from idkit.verify.__main__ import main
+
+    assert main(["cylindrical-urdf", "4", "2", "0.1", "1"]) == 0
+    assert capsys.readouterr().out == cylindrical_urdf([4.0, 2.0, 0.1, 1.0])
