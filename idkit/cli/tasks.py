@@ -43,6 +43,8 @@ TASKS: dict[str, Task] = {
 
 #: Top-level keys read by the command line itself, not by a study.
 COMMAND_KEYS = ("task", "plots")
+#: Study arguments the command line supplies itself (never from the config).
+SUPPLIED = ("progress", "checkpoint")
 
 
 def get_task(name: str) -> Task:
@@ -71,24 +73,20 @@ def arguments(name: str, config: Mapping[str, Any], takes: Mapping[str, inspect.
         ValueError: a set top-level key the study does not take, or an unknown section key.
     """
     task = get_task(name)
+    options = ", ".join(k for k in takes if k not in SUPPLIED)
     section = dict(config.get(task.section) or {}) if task.section else {}
     for key in section:
-        if key not in takes:
-            raise ValueError(
-                f"{task.section}.{key} is not an option of the {name} task; its options: "
-                f"{', '.join(k for k in takes if k in section or k not in config)}"
-            )
+        if key not in takes or key in SUPPLIED:
+            raise ValueError(f"{task.section}.{key} is not an option of the {name} task; it takes {options}")
     kwargs = dict(section)
     for key, value in config.items():
         if key in COMMAND_KEYS or key == task.section:
             continue
-        if key in takes:
+        if key in takes and key not in SUPPLIED:
             if key in section:
                 raise ValueError(f"{key} is set both at the top level and as {task.section}.{key}; keep one")
             kwargs[key] = value
         elif value is not None:
-            raise ValueError(
-                f"the {name} task takes no {key} (got {key}={_describe(value)}); "
-                f"it takes {', '.join(k for k in takes if k not in ('progress', 'checkpoint'))}"
-            )
+            got = f"{key}={_describe(value)}"
+            raise ValueError(f"the {name} task takes no {key} (got {got}); it takes {options}")
     return kwargs

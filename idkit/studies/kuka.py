@@ -258,7 +258,10 @@ def run(
         label="kuka held-out torques",
         seed=seed,
         data={"dir": str(data_dir), "train": train, "test": list(test), "stride": stride},
-        plugins={"robot": describe("robot", "urdf"), "cost": describe("cost", search_cost)},
+        plugins={
+            "robot": describe("robot", {"_name_": "urdf", "urdf": str(urdf)}),
+            "cost": describe("cost", search_cost),
+        },
         requested=len(models),
         done=0,
         unit="model variant",
