@@ -160,6 +160,7 @@ def test_joblib_sweep_keeps_finished_jobs_when_one_fails(tmp_path):
 def test_ctrl_c_leaves_a_partial_study_and_one_line(tmp_path):
     """SIGINT during a robustness study: exit 130, one line naming the folder, files marked partial."""
     import signal
+    import threading
     import time
 
     process = subprocess.Popen(
@@ -167,17 +168,21 @@ def test_ctrl_c_leaves_a_partial_study_and_one_line(tmp_path):
          "estimator.runs=2", "estimator.iterations=10", "plots=false"],
         cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
-    deadline = time.monotonic() + 120
-    while not list((tmp_path / "outputs").glob("*/*/.hydra")) and time.monotonic() < deadline:
+    stderr: list[str] = []
+    reader = threading.Thread(target=lambda: stderr.extend(iter(lambda: process.stderr.read(64), "")))
+    reader.start()
+    deadline = time.monotonic() + 240
+    while "trial/s" not in "".join(stderr) and time.monotonic() < deadline:  # tqdm: trials are running
         time.sleep(0.2)
-    time.sleep(3.0)  # some trials done
     process.send_signal(signal.SIGINT)
-    _, stderr = process.communicate(timeout=120)
-    assert process.returncode == 130, stderr
+    process.wait(timeout=120)
+    reader.join(timeout=10)
+    text = "".join(stderr)
+    assert process.returncode == 130, text[-2000:]
     run_dir = only(list((tmp_path / "outputs").glob("*/*")))
-    lines = [line for line in stderr.splitlines() if line.startswith("idkit:")]
-    assert lines == [lines[0]] and f"in {run_dir}" in lines[0] and "partial results" in lines[0]
-    assert "Traceback" not in stderr
+    lines = [line for line in text.replace("\r", "\n").splitlines() if line.startswith("idkit:")]
+    assert len(lines) == 1 and f"in {run_dir}" in lines[0] and "partial results" in lines[0]
+    assert "Traceback" not in text
     document = json.loads((run_dir / "result.json").read_text())
     assert document["status"] == "partial" and document["progress"]["requested"] == 100000
     assert 0 <= document["progress"]["done"] < 100000
