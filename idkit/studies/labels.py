@@ -93,11 +93,11 @@ def unique_labels(specs: Sequence[tuple[Spec, Spec | None, bool]], where: str) -
     Raises:
         ValueError: two specs are the same estimator with the same options and cost.
     """
-    labels = [estimator_label(e, c, with_cost=w) for e, c, w in specs]
-    for i, label in enumerate(labels):
-        if labels.count(label) > 1:
-            e, c, w = specs[i]
-            labels[i] = estimator_label(e, c, with_cost=w, all_options=True)
+    short = [estimator_label(e, c, with_cost=w) for e, c, w in specs]
+    labels = [
+        estimator_label(e, c, with_cost=w, all_options=short.count(label) > 1)
+        for (e, c, w), label in zip(specs, short, strict=True)
+    ]
     seen: set[str] = set()
     for label in labels:
         if label in seen:

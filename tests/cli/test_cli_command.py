@@ -46,6 +46,7 @@ def test_help_lists_the_registry_without_importing_torch(tmp_path):
     )
     assert "torch imported: False" in out.stdout
     assert "estimator: " in out.stdout and "pso" in out.stdout and "f13" in out.stdout
+    assert "scenario: all_noise, clean, outliers, state_noise, torque_noise" in out.stdout  # from the presets
     assert not (tmp_path / "outputs").exists()
 
 

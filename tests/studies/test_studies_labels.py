@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from idkit.studies.labels import cost_label, estimator_label, unique_labels
 
@@ -32,3 +34,30 @@ def test_collisions_are_told_apart_by_the_estimators_options_or_refused():
     assert unique_labels(specs, where="test") == ["PSO(runs=4)-f1", "PSO-f1"]
     with pytest.raises(ValueError, match="test: two estimators would both be labelled 'PSO-f1'"):
         unique_labels([("pso", "f1", True), ("pso", "f1", True)], where="test")
+
+
+SPECS = st.sampled_from(
+    [
+        ("pso", "f13", True),
+        ("pso", "huber", True),
+        ("pso", {"_name_": "huber", "relative": True}, True),
+        ("pso", {"_name_": "huber", "delta": 2.0}, True),
+        ({"_name_": "pso", "runs": 3}, "f13", True),
+        ("ls", None, False),
+        ({"_name_": "ls", "relative": True}, None, False),
+        ({"_name_": "rls", "solver": "cvxpy"}, None, False),
+    ]
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(SPECS, min_size=1, max_size=6))
+def test_labels_are_unique_or_the_specs_are_identical(specs):
+    """Distinct specs always get distinct labels; only a repeated spec is refused."""
+    repeated = len({repr(s) for s in specs}) < len(specs)
+    if repeated:
+        with pytest.raises(ValueError, match="would both be labelled"):
+            unique_labels(specs, where="test")
+    else:
+        labels = unique_labels(specs, where="test")
+        assert len(set(labels)) == len(labels)
