@@ -19,7 +19,7 @@ _LAZY = {
     "Samples": "idkit.problem",
     "Estimate": "idkit.estimate",
     "registry": "idkit.registry",
-    "run": "idkit.experiments.single",
+    "run": "idkit.api",
 }
 
 __all__ = sorted(_LAZY)

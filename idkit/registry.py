@@ -20,6 +20,12 @@ from idkit.options import check_options
 
 Kind = Literal["robot", "estimator", "cost"]
 
+#: Key naming the plugin in a config mapping: ``{"_name_": "pso", "particles": 40}``. Shared by the
+#: command line's config nodes and the library's builders, so it lives below both.
+NAME_KEY = "_name_"
+#: OmegaConf's mandatory-value marker: a constructor argument without a default, to be given.
+MISSING = "???"
+
 GROUPS: dict[str, str] = {
     "robot": "idkit.robots",
     "estimator": "idkit.estimators",

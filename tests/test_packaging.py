@@ -39,7 +39,7 @@ def test_wheel_ships_configs_and_assets(tmp_path):
     assert yaml_on_disk and yaml_on_disk <= set(names)
     assert "idkit/py.typed" in names
     assert "idkit/robots/assets/cylindrical.urdf" in names
-    assert "idkit/experiments/data/paper-tables.csv" in names
+    assert "idkit/studies/data/paper-tables.csv" in names
 
 
 def test_help_does_not_import_torch():

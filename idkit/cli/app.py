@@ -1,13 +1,15 @@
 """The Hydra application behind ``idkit``.
 
 ``setup()`` must run before Hydra composes anything (``main`` calls it; tests using Hydra's compose
-API call it too): it registers the ``idkit://`` config source that turns the plugin registry into
-config groups and the ``${idkit.uid:}`` resolver that keeps run directories unique.
+API call it too): it registers the ``idkit://`` config source that turns the plugin registry and the
+scenario presets into config groups, and the ``${idkit.uid:}`` resolver that keeps run directories
+unique. ``task`` runs the study named by ``cfg.task`` with its config section as arguments
+(:mod:`idkit.cli.tasks`), then its report into Hydra's output directory.
 """
 
 from __future__ import annotations
 
-import importlib
+import inspect
 import sys
 import uuid
 from pathlib import Path
@@ -21,20 +23,16 @@ from omegaconf import DictConfig, OmegaConf
 
 from idkit import registry
 from idkit.cli.source import RegistryConfigSource, RegistrySearchPath
-
-#: ``task`` key of the composed config → function ``(cfg, run_dir) -> result`` (imported on use).
-TASKS = {
-    "single": "idkit.experiments.single:run_config",
-    "paper": "idkit.experiments.paper:run_config",
-    "robustness": "idkit.experiments.robustness:run_config",
-    "kuka": "idkit.experiments.kuka_task:run_config",
-}
+from idkit.cli.tasks import arguments, get_task
 
 HELP_FLAGS = ("--help", "-h", "--hydra-help")
 
 #: Errors caused by what the user asked for: reported as one clear message and exit status 1,
 #: not as a traceback (HYDRA_FULL_ERROR=1 still shows the traceback).
-USER_ERRORS = (registry.PluginError, ValueError, TypeError, FileNotFoundError)
+USER_ERRORS = (registry.PluginError, ValueError, TypeError, FileNotFoundError, FileExistsError, LookupError)
+
+#: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
+INTERRUPTED = 130
 
 
 def _uid() -> str:
@@ -57,20 +55,49 @@ def setup(names_only: bool = False) -> None:
     Plugins.instance().register(RegistrySearchPath)
 
 
-def _resolve_task(name: str) -> Any:
-    if name not in TASKS:
-        raise ValueError(f"unknown task {name!r}; the tasks are {', '.join(TASKS)}")
-    module, _, attr = TASKS[name].partition(":")
-    return getattr(importlib.import_module(module), attr)
+def _run(cfg: DictConfig, run_dir: Path) -> Any:
+    """Study, then report: the arguments are the config (``idkit.cli.tasks.arguments``)."""
+    from idkit.studies.result import StudyInterrupted
+
+    task = get_task(cfg.task)
+    study = task.study_function()
+    report = task.report_module()
+    resolved = OmegaConf.to_container(cfg, resolve=True)
+    takes = inspect.signature(study).parameters
+    kwargs = arguments(cfg.task, resolved, takes)
+    if "checkpoint" in takes:  # a long study saves its partial report as it goes
+        kwargs["checkpoint"] = lambda partial: _write(report, partial, resolved, run_dir, plots=False)
+    try:
+        result = study(**kwargs)
+    except StudyInterrupted as stop:
+        _write(report, stop.partial, resolved, run_dir, plots=False)
+        p = stop.partial.provenance
+        print(
+            f"idkit: interrupted; partial results ({p.done} of {p.requested} {p.unit}s) in {run_dir}",
+            file=sys.stderr,
+        )
+        sys.exit(INTERRUPTED)
+    written = _write(report, result, resolved, run_dir, plots=cfg.plots)
+    print(report.text(result))
+    print(f"results: {written['result']}")
+    return result
+
+
+def _write(report: Any, result: Any, config: dict, run_dir: Path, plots: bool) -> dict[str, str]:
+    result.provenance.config = config
+    return report.write(result, run_dir, plots=plots)
 
 
 def task(cfg: DictConfig) -> Any:
-    """Run the experiment named by ``cfg.task`` in Hydra's output directory."""
+    """Run the task named by ``cfg.task`` in Hydra's output directory."""
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     try:
-        return _resolve_task(cfg.task)(cfg, run_dir)
+        return _run(cfg, run_dir)
     except USER_ERRORS as exc:
         raise CompactHydraException(f"idkit: {exc}") from exc
+    except KeyboardInterrupt:
+        print(f"idkit: interrupted; nothing was written to {run_dir}", file=sys.stderr)
+        sys.exit(INTERRUPTED)
 
 
 def main() -> None:

@@ -56,25 +56,40 @@ def _job_number(path: Path) -> tuple[int, str]:
     return (int(path.name), "") if path.name.isdigit() else (1 << 30, path.name)
 
 
+def _row_from_result(document: dict[str, Any], params: list[str]) -> dict[str, Any]:
+    """Envelope keys of any task's ``result.json``; a single fit adds its estimate and errors."""
+    progress = document.get("progress") or {}
+    row: dict[str, Any] = {
+        "status": document.get("status"),
+        "task": document.get("task"),
+        "label": document.get("label"),
+        "progress": f"{progress.get('done')}/{progress.get('requested')}" if progress else None,
+    }
+    payload = document.get("payload") or {}
+    estimate = payload.get("estimate") or {}
+    for name, value in (estimate.get("params") or {}).items():
+        row[name] = value
+        if name not in params:
+            params.append(name)
+    cost = payload.get("cost") or {}
+    row.update(
+        parameter_error=payload.get("parameter_error"),
+        cost_name=cost.get("name"),
+        cost=cost.get("value"),
+        wall_time_s=estimate.get("wall_time_s", payload.get("wall_time_s")),
+    )
+    return row
+
+
 def summary_rows(sweep_dir: Path) -> tuple[list[str], list[dict[str, Any]]]:
-    """One row per job folder: status, overrides, estimator, estimate, errors, cost, time."""
+    """One row per job folder: status, overrides, task, label, parameters, errors, cost, time."""
     rows: list[dict[str, Any]] = []
     params: list[str] = []
     for job_dir in sorted((p for p in sweep_dir.iterdir() if p.is_dir()), key=_job_number):
         result, error = job_dir / "result.json", job_dir / ERROR_FILE
         row: dict[str, Any] = {"job": job_dir.name, "overrides": _overrides(job_dir)}
         if result.exists():
-            data = json.loads(result.read_text())
-            row.update(status="ok", estimator=data.get("estimator"))
-            for name, value in (data.get("estimate") or {}).items():
-                row[name] = value
-                if name not in params:
-                    params.append(name)
-            row.update(
-                parameter_error=data.get("parameter_error"),
-                cost=data.get("cost"),
-                wall_time_s=data.get("wall_time_s"),
-            )
+            row.update(_row_from_result(json.loads(result.read_text()), params))
         elif error.exists():
             row.update(status="failed", error=json.loads(error.read_text()).get("error"))
         else:
@@ -84,9 +99,12 @@ def summary_rows(sweep_dir: Path) -> tuple[list[str], list[dict[str, Any]]]:
         "job",
         "status",
         "overrides",
-        "estimator",
+        "task",
+        "label",
+        "progress",
         *params,
         "parameter_error",
+        "cost_name",
         "cost",
         "wall_time_s",
         "error",
@@ -94,23 +112,15 @@ def summary_rows(sweep_dir: Path) -> tuple[list[str], list[dict[str, Any]]]:
     return header, rows
 
 
-def _fmt(value: Any) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, float):
-        return f"{value:.6g}"
-    return str(value).replace("|", "\\|").replace("\n", " ")
-
-
 def write_summary(sweep_dir: Path) -> None:
     """Rebuild ``summary.csv`` and ``summary.md`` in ``sweep_dir`` from its job folders."""
-    from idkit.experiments import files
+    from idkit.reports import files
+    from idkit.reports.tables import markdown_table
 
     header, rows = summary_rows(sweep_dir)
-    files.write_csv(sweep_dir / SUMMARY_CSV, header, ([row.get(k) for k in header] for row in rows))
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(_fmt(row.get(k)) for k in header) + " |" for row in rows]
-    files.write_text(sweep_dir / SUMMARY_MD, "\n".join(lines) + "\n")
+    table = [[row.get(k) for k in header] for row in rows]
+    files.write_csv(sweep_dir / SUMMARY_CSV, header, table)
+    files.write_text(sweep_dir / SUMMARY_MD, markdown_table(header, table) + "\n")
 
 
 class MultirunSummary(Callback):
@@ -119,7 +129,7 @@ class MultirunSummary(Callback):
     def on_job_end(self, config: DictConfig, job_return: JobReturn, **kwargs: Any) -> None:
         from hydra.types import RunMode
 
-        from idkit.experiments import files
+        from idkit.reports import files
 
         hydra_cfg = config.hydra
         job_dir = Path(hydra_cfg.runtime.output_dir)

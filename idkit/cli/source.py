@@ -1,10 +1,15 @@
-"""A Hydra config source that serves the plugin registry as the groups ``robot``, ``estimator``, ``cost``.
+"""A Hydra config source serving the plugin registry (``robot``, ``estimator``, ``cost``) and the
+scenario presets (``scenario``) as config groups.
 
 Hydra asks a config source three things: which groups and options exist (answered from installed
 metadata, :func:`idkit.registry.available`, no import) and the content of one option (answered by
 importing that plugin only and reading its constructor, :func:`idkit.cli.nodes.plugin_node`). So a
 run imports just the plugins it selects, and a distribution installed tomorrow is selectable by
 name with no YAML. YAML files in ``conf/<group>/`` come earlier on the search path and win.
+
+The ``scenario`` group is :data:`idkit.data.presets.SCENARIOS` (torch-free): ``+scenario=outliers``
+is the node ``{name: outliers, state_noise: 0.05, ...}`` with the preset's values, each
+overridable (``scenario.torque_noise=0.1``); the number of samples is the top-level ``n_samples``.
 """
 
 from __future__ import annotations
@@ -23,7 +28,26 @@ from idkit.cli.nodes import plugin_node
 
 SCHEME = "idkit"
 SEARCH_PATH = f"{SCHEME}://registry"
-GROUPS: tuple[registry.Kind, ...] = ("robot", "estimator", "cost")
+PLUGIN_GROUPS: tuple[registry.Kind, ...] = ("robot", "estimator", "cost")
+SCENARIO_GROUP = "scenario"
+GROUPS = (*PLUGIN_GROUPS, SCENARIO_GROUP)
+#: Scenario fields not in the config node: the label, and ``n_samples`` (the top-level knob).
+SCENARIO_HIDDEN = ("description", "n_samples")
+
+
+def _options(group: str) -> list[str]:
+    if group == SCENARIO_GROUP:
+        from idkit.data.presets import SCENARIOS
+
+        return list(SCENARIOS)
+    return list(registry.available(group))  # type: ignore[arg-type]
+
+
+def scenario_node(name: str) -> dict[str, object]:
+    """The config node of a scenario preset: its fields and values, but for ``SCENARIO_HIDDEN``."""
+    from idkit.data.presets import SCENARIOS
+
+    return {k: v for k, v in SCENARIOS[name].as_dict().items() if k not in SCENARIO_HIDDEN}
 
 
 class RegistryConfigSource(ConfigSource):
@@ -53,7 +77,7 @@ class RegistryConfigSource(ConfigSource):
 
     def is_config(self, config_path: str) -> bool:
         group, name = self._split(config_path)
-        return group in GROUPS and "/" not in name and name in registry.available(group)
+        return group in GROUPS and "/" not in name and name in _options(group)
 
     def list(self, config_path: str, results_filter: ObjectType | None) -> list[str]:
         group, name = self._split(config_path)
@@ -62,13 +86,16 @@ class RegistryConfigSource(ConfigSource):
         if group == "":
             return list(GROUPS) if results_filter in (None, ObjectType.GROUP) else []
         if group in GROUPS and results_filter in (None, ObjectType.CONFIG):
-            return sorted(registry.available(group))
+            return sorted(_options(group))
         return []
 
     def load_config(self, config_path: str) -> ConfigResult:
         group, name = self._split(config_path)
         try:
-            node = plugin_node(group, name, names_only=self.names_only)  # type: ignore[arg-type]
+            if group == SCENARIO_GROUP:
+                node = scenario_node(name)
+            else:
+                node = plugin_node(group, name, names_only=self.names_only)  # type: ignore[arg-type]
         except registry.PluginError as exc:
             raise ConfigCompositionException(str(exc)) from exc
         return ConfigResult(

@@ -1,32 +1,36 @@
-"""Samples for identification: the paper's trajectory, simulated noise scenarios, user data files."""
+"""Samples for identification: the paper's trajectory, simulated noise scenarios, user data files.
 
-from idkit.data.io import FLOBAROID_KEYS, load_samples, save_samples
-from idkit.data.scenarios import (
-    SCENARIOS,
-    SampleBatch,
-    Scenario,
-    UnknownScenarioError,
-    clean_samples,
-    get_scenario,
-    simulate,
-    simulate_batch,
-)
-from idkit.data.trajectory import check_bounds, fourier_excitation, paper_trajectory, sample_times
+Attributes are imported lazily, so that ``idkit.data.presets`` (the scenario presets, torch-free)
+serves the command line's ``--help`` without importing torch.
+"""
 
-__all__ = [
-    "FLOBAROID_KEYS",
-    "SCENARIOS",
-    "SampleBatch",
-    "Scenario",
-    "UnknownScenarioError",
-    "check_bounds",
-    "clean_samples",
-    "fourier_excitation",
-    "get_scenario",
-    "load_samples",
-    "paper_trajectory",
-    "sample_times",
-    "save_samples",
-    "simulate",
-    "simulate_batch",
-]
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_LAZY = {
+    "FLOBAROID_KEYS": "idkit.data.io",
+    "load_samples": "idkit.data.io",
+    "save_samples": "idkit.data.io",
+    "PAPER_SCENARIOS": "idkit.data.presets",
+    "SCENARIOS": "idkit.data.presets",
+    "Scenario": "idkit.data.presets",
+    "UnknownScenarioError": "idkit.data.presets",
+    "SampleBatch": "idkit.data.scenarios",
+    "clean_samples": "idkit.data.scenarios",
+    "get_scenario": "idkit.data.scenarios",
+    "simulate": "idkit.data.scenarios",
+    "simulate_batch": "idkit.data.scenarios",
+    "fourier_excitation": "idkit.data.trajectory",
+    "paper_trajectory": "idkit.data.trajectory",
+    "sample_times": "idkit.data.trajectory",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _LAZY:
+        raise AttributeError(f"module 'idkit.data' has no attribute {name!r}")
+    return getattr(importlib.import_module(_LAZY[name]), name)

@@ -65,13 +65,14 @@ def _resolve_keys(keys: Mapping[str, str] | None) -> dict[str, str]:
     return merged
 
 
-def load_samples(path: str | Path, keys: Mapping[str, str] | None = None) -> Samples:
+def load_samples(path: str | Path, keys: Mapping[str, str] | None = None, stride: int = 1) -> Samples:
     """Read samples from ``path`` (``.npz`` or ``.csv``, see the module docstring).
 
     Args:
         path: the file.
         keys: file name of each array (``.npz`` key or CSV column prefix) for those that differ
             from ``q``, ``qd``, ``qdd``, ``tau``.
+        stride: keep every ``stride``-th sample (e.g. thin a densely logged recording).
 
     Returns:
         Validated ``Samples`` (float64, CPU).
@@ -84,6 +85,8 @@ def load_samples(path: str | Path, keys: Mapping[str, str] | None = None) -> Sam
     """
     path = Path(path)
     names = _resolve_keys(keys)
+    if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
+        raise ValueError(f"load_samples: stride must be an integer >= 1, got {stride!r}")
     if path.is_dir():
         found = sorted(p.name for p in path.iterdir() if p.suffix.lower() in (".npz", ".csv"))
         inside = f"; data files in it: {', '.join(found[:5])}{' …' * (len(found) > 5)}" if found else ""
@@ -98,7 +101,7 @@ def load_samples(path: str | Path, keys: Mapping[str, str] | None = None) -> Sam
     else:
         raise ValueError(f"{path}: unsupported file type {path.suffix!r}; use .npz or .csv")
     try:
-        return Samples(*(torch.as_tensor(arrays[k], dtype=torch.float64) for k in SAMPLE_ARRAYS))
+        return Samples(*(torch.as_tensor(arrays[k][::stride], dtype=torch.float64) for k in SAMPLE_ARRAYS))
     except ValueError as exc:
         renamed = {k: v for k, v in names.items() if k != v}
         note = f" (file names: {', '.join(f'{k}={v!r}' for k, v in renamed.items())})" if renamed else ""

@@ -6,7 +6,7 @@ paper's tables print ``-s3z``. Eqs. (19)–(21) assume link 1 is a point and lin
 rods with no sideways centre-of-mass offset; friction is omitted, as in the paper.
 
 A matching URDF ships as ``idkit/robots/assets/cylindrical.urdf`` (Table I read as standard DH;
-``idkit.robots.cylindrical_urdf`` renders it for any parameters), and the tests check eqs. (19)–(21)
+``idkit.verify.cylindrical_urdf`` renders it for any parameters), and the tests check eqs. (19)–(21)
 against a pytorch-kinematics Lagrangian oracle and pinocchio on it to 1e-9. They are the *exact*
 rigid-body dynamics of that robot only under these assumptions:
 

@@ -1,0 +1,92 @@
+"""The command line's tasks: each is one study function, one report module and one config section.
+
+The config maps onto the study's signature one to one: a task's arguments are the keys of its
+section (``paper.costs`` → ``paper.run(costs=...)``) and the top-level keys its signature names
+(``robot``, ``estimator``, ``cost``, ``scenario``, ``seed``, ``trials`` ...). A top-level key that is
+set but not in the signature — ``idkit +experiment=kuka cost=f13`` — is an error, as is a section
+key the study does not take. Adding a task = a study function, a report module (``text``,
+``write``), a config section and one line in :data:`TASKS`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import ModuleType
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Task:
+    """Where a task's study and report live, and its config section (``None``: top level only)."""
+
+    study: str
+    report: str
+    section: str | None = None
+
+    def study_function(self) -> Callable[..., Any]:
+        module, _, attr = self.study.partition(":")
+        return getattr(importlib.import_module(module), attr)
+
+    def report_module(self) -> ModuleType:
+        return importlib.import_module(self.report)
+
+
+TASKS: dict[str, Task] = {
+    "single": Task("idkit.studies.single:run", "idkit.reports.single"),
+    "paper": Task("idkit.studies.paper:run", "idkit.reports.paper", "paper"),
+    "robustness": Task("idkit.studies.robustness:run", "idkit.reports.robustness", "robustness"),
+    "kuka": Task("idkit.studies.kuka:run", "idkit.reports.kuka", "kuka"),
+}
+
+#: Top-level keys read by the command line itself, not by a study.
+COMMAND_KEYS = ("task", "plots")
+#: Study arguments the command line supplies itself (never from the config).
+SUPPLIED = ("progress", "checkpoint")
+
+
+def get_task(name: str) -> Task:
+    if name not in TASKS:
+        raise ValueError(f"unknown task {name!r}; the tasks are {', '.join(TASKS)}")
+    return TASKS[name]
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, Mapping) and "_name_" in value:
+        return str(value["_name_"])
+    if isinstance(value, Mapping) and "name" in value:
+        return str(value["name"])
+    return repr(value)
+
+
+def arguments(name: str, config: Mapping[str, Any], takes: Mapping[str, inspect.Parameter]) -> dict[str, Any]:
+    """The keyword arguments of task ``name``'s study from a resolved config (plain dict).
+
+    Args:
+        name: the task.
+        config: the resolved config without ``hydra``.
+        takes: the study's parameters (``inspect.signature(study).parameters``).
+
+    Raises:
+        ValueError: a set top-level key the study does not take, or an unknown section key.
+    """
+    task = get_task(name)
+    options = ", ".join(k for k in takes if k not in SUPPLIED)
+    section = dict(config.get(task.section) or {}) if task.section else {}
+    for key in section:
+        if key not in takes or key in SUPPLIED:
+            raise ValueError(f"{task.section}.{key} is not an option of the {name} task; it takes {options}")
+    kwargs = dict(section)
+    for key, value in config.items():
+        if key in COMMAND_KEYS or key == task.section:
+            continue
+        if key in takes and key not in SUPPLIED:
+            if key in section:
+                raise ValueError(f"{key} is set both at the top level and as {task.section}.{key}; keep one")
+            kwargs[key] = value
+        elif value is not None:
+            got = f"{key}={_describe(value)}"
+            raise ValueError(f"the {name} task takes no {key} (got {got}); it takes {options}")
+    return kwargs

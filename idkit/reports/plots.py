@@ -1,0 +1,111 @@
+"""PNG plots for the run directory (matplotlib, headless ``Agg`` backend).
+
+Plots are where people would rather look than read: convergence (best cost vs iteration), the
+estimates against the truth, and the robustness study's error distributions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from idkit.reports.files import save_figure
+
+if TYPE_CHECKING:
+    import numpy as np
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def convergence(header: Sequence[str], rows: Sequence[Sequence[float]], title: str, path: Path) -> Path:
+    """Best cost vs iteration, one line per history column, log scale when all values are > 0."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    iterations = [row[0] for row in rows]
+    positive = True
+    for j, name in enumerate(header[1:], start=1):
+        values = [row[j] for row in rows]
+        positive = positive and all(v is not None and v > 0 for v in values)
+        ax.plot(iterations, values, lw=1, label=name)
+    if positive:
+        ax.set_yscale("log")
+    ax.set(xlabel="iteration", ylabel="best cost", title=title)
+    if len(header) > 2:
+        ax.legend(fontsize="small", ncol=2)
+    return save_figure(fig, path)
+
+
+def estimates_vs_truth(
+    estimates: Mapping[str, Mapping[str, float]], truth: Mapping[str, float], title: str, path: Path
+) -> Path:
+    """Per parameter, each method's estimate divided by the truth (1 = exact)."""
+    plt = _pyplot()
+    names = [n for n in truth if truth[n] != 0]
+    fig, ax = plt.subplots(figsize=(max(5, 0.35 * len(estimates) + 3), 3.8))
+    markers = "os^Dv<>pP*"
+    for j, name in enumerate(names):
+        xs, ys = [], []
+        for i, params in enumerate(estimates.values()):
+            xs.append(i + (j - (len(names) - 1) / 2) * 0.12)
+            ys.append(params[name] / truth[name])
+        ax.scatter(xs, ys, s=18, marker=markers[j % len(markers)], label=name)
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_xticks(range(len(estimates)), list(estimates), rotation=60, ha="right", fontsize="small")
+    ax.set(ylabel="estimate / true value", title=title)
+    ax.legend(fontsize="small")
+    return save_figure(fig, path)
+
+
+def boxplots(errors: Mapping[str, Mapping[str, Sequence[float]]], path: Path, title: str) -> Path:
+    """One panel per scenario: the distribution of each estimator's parameter error (log scale)."""
+    plt = _pyplot()
+    import numpy as np
+
+    scenarios = list(errors)
+    n_methods = max(len(v) for v in errors.values())
+    fig, axes = plt.subplots(
+        1, len(scenarios), figsize=(max(4, 0.45 * n_methods + 1.5) * len(scenarios), 4), squeeze=False
+    )
+    for ax, scenario in zip(axes[0], scenarios, strict=True):
+        labels = list(errors[scenario])
+        data = [np.clip(np.asarray(errors[scenario][m], dtype=float), 1e-6, 1e6) for m in labels]
+        ax.boxplot(data, whis=(5, 95), showfliers=False)
+        ax.set_xticks(range(1, len(labels) + 1), labels, rotation=60, ha="right", fontsize="small")
+        ax.set_yscale("log")
+        ax.set_title(scenario)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0][0].set_ylabel("mean |relative parameter error|")
+    fig.suptitle(title)
+    return save_figure(fig, path)
+
+
+def traces(
+    times: np.ndarray,
+    measured: np.ndarray,
+    predicted: Mapping[str, np.ndarray],
+    title: str,
+    path: Path,
+    ylabel: str = "joint {j} (N·m)",
+) -> Path:
+    """One panel per joint: a measured signal ``[N, n]`` against predictions ``[N, n]`` over ``times[N]``."""
+    plt = _pyplot()
+    n = measured.shape[1]
+    fig, axes = plt.subplots(n, 1, figsize=(10, 2.0 * n), sharex=True, squeeze=False)
+    for j, ax in enumerate(axes[:, 0]):
+        ax.plot(times, measured[:, j], "k", lw=2.0, label="measured")
+        for label, values in predicted.items():
+            ax.plot(times, values[:, j], lw=1.0, label=label.format(j=j + 1))
+        ax.set_ylabel(ylabel.format(j=j + 1))
+        ax.legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, path)

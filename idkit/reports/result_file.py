@@ -1,0 +1,63 @@
+"""The one writer of ``result.json``: the common envelope plus the task's payload, atomically.
+
+Every task's report calls :func:`claim` before it writes anything and :func:`write_result` last, so
+a folder never ends up holding a mix of two runs' files: a folder whose ``result.json`` belongs to
+another run (another ``run_id``) is refused before a single file is replaced. The same result saved
+twice (or a study's checkpoints) replaces its own files.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+from pathlib import Path
+from typing import Any
+
+import idkit
+from idkit.reports import files
+from idkit.studies.result import Provenance
+
+RESULT_FILE = "result.json"
+
+
+def claim(out_dir: str | Path, provenance: Provenance) -> Path:
+    """Check that ``out_dir`` is empty of other runs' results; returns it as a ``Path``.
+
+    Raises:
+        FileExistsError: ``out_dir/result.json`` belongs to another run.
+    """
+    out = Path(out_dir)
+    existing = out / RESULT_FILE
+    if existing.is_file():
+        try:
+            other = json.loads(existing.read_text()).get("run_id")
+        except (ValueError, AttributeError):
+            other = None
+        if other != provenance.run_id:
+            raise FileExistsError(
+                f"{out} already holds the result of another run ({existing}); save into an empty "
+                "folder (its files would otherwise mix with this run's)"
+            )
+    return out
+
+
+def document(provenance: Provenance, payload: dict[str, Any], written: dict[str, str]) -> dict[str, Any]:
+    """The ``result.json`` content: envelope, version, creation time, files and payload."""
+    return {
+        **provenance.envelope(),
+        "idkit_version": idkit.__version__,
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "files": written,
+        "payload": payload,
+    }
+
+
+def write_result(
+    out_dir: str | Path, provenance: Provenance, payload: dict[str, Any], written: dict[str, str]
+) -> dict[str, str]:
+    """Write ``result.json`` into ``out_dir`` (after :func:`claim`); returns ``written`` + its path."""
+    out = claim(out_dir, provenance)
+    path = out / RESULT_FILE
+    written = {**written, "result": str(path)}
+    files.write_json(path, document(provenance, payload, written))
+    return written

@@ -1,0 +1,191 @@
+"""One identification run: data → problem → estimate (the ``single`` task).
+
+``run``'s signature is the command line's config: ``idkit estimator=pso cost=f13 +scenario=outliers
+seed=1 n_samples=40`` calls ``run(robot=..., estimator=..., cost=..., scenario=..., seed=1,
+n_samples=40, ...)``. From Python, ``idkit.run(...)`` calls it and writes the report::
+
+    import idkit
+    result = idkit.run(estimator="pso", cost="f13", scenario="outliers", seed=0)
+    print(result.table())
+    result.estimate.params            # {"m2": ..., "m3": ..., "s3z": ..., "I": ...}
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from idkit.estimate import Estimate
+from idkit.studies.build import Spec, build, describe, plain
+from idkit.studies.labels import cost_label, estimator_label, searches_cost
+from idkit.studies.metrics import mean_abs_relative_error, relative_errors
+from idkit.studies.result import Provenance
+
+
+@dataclass
+class RunResult:
+    """An estimate with everything needed to judge and reproduce it.
+
+    Attributes:
+        estimate: what the estimator returned, labelled from the specs (``PSO-f13``).
+        truth: the parameters the data were simulated with (``None`` for measured data).
+        cost_name: which cost ``estimate.cost`` is: the problem's cost (``f13``) or, without one,
+            the estimator's own criterion (``LS criterion``).
+        provenance: the envelope (task, seed, data, plugins, config, run id).
+    """
+
+    estimate: Estimate
+    truth: dict[str, float] | None
+    cost_name: str
+    provenance: Provenance
+
+    @property
+    def seed(self) -> int:
+        return self.provenance.seed
+
+    @property
+    def data(self) -> dict[str, Any] | None:
+        return self.provenance.data
+
+    @property
+    def plugins(self) -> dict[str, Any]:
+        return self.provenance.plugins
+
+    @property
+    def relative_error(self) -> dict[str, float | None] | None:
+        """Signed ``(estimate − truth) / |truth|`` per parameter (see ``idkit.studies.metrics``)."""
+        return None if self.truth is None else relative_errors(self.estimate.params, self.truth)
+
+    @property
+    def parameter_error(self) -> float | None:
+        """Mean absolute relative error over the parameters."""
+        rel = self.relative_error
+        return None if rel is None else mean_abs_relative_error(rel)
+
+    def payload(self) -> dict[str, Any]:
+        """The task's part of ``result.json``: the estimate, the truth and the errors."""
+        return {
+            "estimate": self.estimate.to_dict(),
+            "truth": self.truth,
+            "relative_error": self.relative_error,
+            "parameter_error": self.parameter_error,
+            "cost": {"name": self.cost_name, "value": self.estimate.cost},
+        }
+
+    # Conveniences for Python users; the formatting lives in idkit.reports.single.
+    def table(self) -> str:
+        """The report's text table (``idkit.reports.single.text``)."""
+        from idkit.reports import single
+
+        return single.text(self)
+
+    def save(self, out_dir: str | Path, make_plots: bool = True) -> dict[str, str]:
+        """Write the report into ``out_dir`` (``idkit.reports.single.write``); returns the files."""
+        from idkit.reports import single
+
+        return single.write(self, out_dir, plots=make_plots)
+
+
+def _scenario_spec(scenario: Any) -> Any:
+    """Config nodes may list a Scenario field as ``null``, meaning "the preset's value"."""
+    scenario = plain(scenario)
+    if isinstance(scenario, Mapping):
+        return {k: v for k, v in scenario.items() if v is not None}
+    return scenario
+
+
+def load_data(
+    robot: Any,
+    scenario: Any = None,
+    *,
+    seed: int = 0,
+    data: Any = None,
+    n_samples: int | None = None,
+    params: Any = None,
+) -> tuple[Any, dict[str, float] | None, dict[str, Any]]:
+    """``(samples, truth, description)``: measured ``data`` (a path or ``Samples``) or a simulation.
+
+    Raises:
+        ValueError: both ``scenario`` and ``data`` given (which one was meant?), or ``n_samples``
+            with ``data`` (a file has the samples it has).
+    """
+    from idkit.problem import Samples
+
+    if data is not None:
+        if scenario is not None:
+            raise ValueError(
+                f"give either data= (measured samples) or scenario= (a simulation), not both: "
+                f"data={os.fspath(data) if not isinstance(data, Samples) else 'Samples'}, "
+                f"scenario={_scenario_spec(scenario)}"
+            )
+        if n_samples is not None:
+            raise ValueError(f"n_samples={n_samples} applies to a simulated scenario, not to data=")
+        if isinstance(data, Samples):
+            return data, None, {"file": None}
+        from idkit.data.io import load_samples
+
+        return load_samples(os.fspath(data)), None, {"file": os.fspath(data)}
+    import torch
+
+    from idkit.data.scenarios import get_scenario, simulate
+
+    sc = get_scenario(_scenario_spec(scenario if scenario is not None else "clean"), n_samples=n_samples)
+    samples = simulate(robot, sc, seed=seed, params=params)
+    true = torch.as_tensor(params, dtype=torch.float64) if params is not None else robot.nominal_params()
+    truth = dict(zip(robot.param_names, true.tolist(), strict=True))
+    return samples, truth, {"scenario": sc.as_dict()}
+
+
+def run(
+    robot: Spec = "cylindrical",
+    estimator: Spec = "pso",
+    cost: Spec | None = "f13",
+    scenario: Any = None,
+    *,
+    seed: int = 0,
+    data: Any = None,
+    n_samples: int | None = None,
+    params: Any = None,
+    device: str = "cpu",
+    dtype: str = "float64",
+) -> RunResult:
+    """Identify a robot's parameters once.
+
+    Args:
+        robot, estimator, cost: a registry name (``"pso"``), a config mapping
+            (``{"_name_": "pso", "particles": 40}``) or a ready object. ``cost=None`` for
+            estimators with a fixed criterion (LS, TLS, RLS).
+        scenario: noise scenario name, ``Scenario`` or mapping (``idkit.data.scenarios``);
+            ``None`` means ``"clean"`` unless ``data`` is given. Not together with ``data``.
+        seed: seeds the noise draw and the estimator.
+        data: measured samples instead of a simulation: a ``.npz``/``.csv`` path or ``Samples``.
+        n_samples: the scenario's number of samples (``None``: the scenario's own).
+        params: true parameters ``[P]`` to simulate with (default ``robot.nominal_params()``).
+        device, dtype: where and in which precision the estimator computes.
+    """
+    from idkit.problem import Problem
+
+    robot_obj = build("robot", robot)
+    samples, truth, source = load_data(
+        robot_obj, scenario, seed=seed, data=data, n_samples=n_samples, params=params
+    )
+    cost_obj = build("cost", cost)
+    estimator_obj = build("estimator", estimator)
+    problem = Problem(robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype)
+    fitted = estimator_obj.fit(problem)
+    label = estimator_label(estimator, cost, with_cost=searches_cost(estimator_obj))
+    cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
+    provenance = Provenance(
+        task="single",
+        label=label,
+        seed=seed,
+        data=source,
+        plugins={
+            kind: describe(kind, spec)
+            for kind, spec in (("robot", robot), ("estimator", estimator), ("cost", cost))
+        },
+    )
+    return RunResult(replace(fitted, estimator=label), truth, cost_name, provenance)

@@ -1,0 +1,114 @@
+"""The robustness study: statistics against scipy, verdicts, end to end, load/merge, interruption."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.stats import binomtest
+
+from idkit.reports import robustness as report
+from idkit.studies import robustness
+from idkit.studies.metrics import parameter_error
+from idkit.studies.result import StudyInterrupted
+
+TINY_PSO = {"_name_": "pso", "runs": 2, "particles": 6, "iterations": 15}
+SMALL = {
+    "estimator": TINY_PSO,
+    "scenarios": ["torque_noise"],
+    "estimators": [{"_name_": "ls", "relative": True}, {"_name_": "rls", "relative": True}],
+    "pso_costs": ["f13", "f14"],
+    "optional": ["huber"],
+    "progress": False,
+}
+
+
+def test_comparison_matches_scipy_and_counts_ties():
+    errors = np.array([1.0, 2.0, 3.0, 0.5, 2.0, 0.1])
+    base = np.array([2.0, 1.0, 4.0, 1.0, 2.0, 0.2])
+    cmp = robustness.Comparison.of(errors, base)
+    assert (cmp.wins, cmp.losses, cmp.ties) == (4, 1, 1)
+    test = binomtest(4, 5, 0.5)
+    ci = test.proportion_ci(0.95, method="wilson")
+    assert (cmp.p_value, cmp.ci_low, cmp.ci_high) == (test.pvalue, ci.low, ci.high)
+    assert cmp.verdict == "undecided"
+
+
+@settings(max_examples=200, deadline=None)
+@given(wins=st.integers(0, 60), losses=st.integers(0, 60))
+def test_verdict_is_undecided_whenever_the_interval_straddles_one_half(wins, losses):
+    """Never "worse" (or "better") unless the interval excludes 1/2 and the sign test rejects."""
+    cmp = robustness.Comparison.of(np.r_[np.zeros(wins), np.ones(losses)], np.full(wins + losses, 0.5))
+    if wins + losses == 0:
+        assert cmp.verdict == "undecided"
+        return
+    straddles = cmp.ci_low <= 0.5 <= cmp.ci_high
+    significant = binomtest(wins, wins + losses, 0.5).pvalue < 0.05
+    if straddles or not significant:
+        assert cmp.verdict == "undecided"
+    else:
+        assert cmp.verdict == ("better" if wins > losses else "worse")
+
+
+def test_conclusion_agrees_with_the_verdicts():
+    assert robustness.conclusion(["better", "better"]) == "holds"
+    assert robustness.conclusion(["better", "undecided"]) == "undecided"
+    assert robustness.conclusion(["undecided", "worse"]) == "does not hold"
+    assert robustness.conclusion([]) == "undecided"
+
+
+def test_robustness_study_end_to_end(tmp_path):
+    study = robustness.run(trials=6, **SMALL)
+    by = study.params["torque_noise"]
+    assert set(by) == {"LS-rel", "RLS-rel", "PSO-f13", "PSO-f14", "PSO-f13/f14"}
+    np.testing.assert_allclose(by["PSO-f13/f14"], (by["PSO-f13"] + by["PSO-f14"]) / 2)
+    row = next(r for r in study.rows() if r["estimator"] == "LS-rel")
+    err = parameter_error(by["LS-rel"], study.truth)
+    assert row["median"] == pytest.approx(np.median(err))
+    assert row["wins"] + row["losses"] + row["ties"] == 6
+    written = report.write(study, tmp_path, plots=True)
+    assert (tmp_path / "robustness_boxplot.png").stat().st_size > 0
+    assert "PSO-f13/f14" in Path(written["markdown"]).read_text()
+    document = json.loads((tmp_path / "result.json").read_text())
+    assert document["status"] == "complete" and document["progress"]["done"] == 6
+    assert not math.isnan(document["payload"]["wall_time_s"])
+    again = robustness.load(tmp_path)
+    assert again.rows() == study.rows()
+    other = robustness.RobustnessStudy(
+        **{**vars(again), "params": {"outliers": again.params["torque_noise"]}}
+    )
+    assert list(robustness.merge([again, other]).params) == ["torque_noise", "outliers"]
+
+
+def test_interrupted_study_keeps_whole_trials_and_says_partial(tmp_path, monkeypatch):
+    """Ctrl-C in trial 3 of 5: the partial result has 2 trials everywhere and is marked partial."""
+    from idkit.estimators.least_squares import LeastSquares
+
+    calls = {"n": 0}
+    fit = LeastSquares.fit
+
+    def interrupting_fit(self, problem):
+        calls["n"] += 1
+        if calls["n"] == 5:  # 2 estimators per trial: the 5th fit is in trial 3
+            raise KeyboardInterrupt
+        return fit(self, problem)
+
+    monkeypatch.setattr(LeastSquares, "fit", interrupting_fit)
+    with pytest.raises(StudyInterrupted) as stop:
+        robustness.run(trials=5, **{**SMALL, "estimators": [{"_name_": "ls", "relative": True}, "ls"]})
+    partial = stop.value.partial
+    assert (partial.provenance.done, partial.provenance.requested) == (2, 5)
+    assert {len(v) for v in partial.params["torque_noise"].values()} == {2}
+    report.write(partial, tmp_path, plots=False)
+    document = json.loads((tmp_path / "result.json").read_text())
+    assert document["status"] == "partial" and document["progress"] == {
+        "done": 2,
+        "requested": 5,
+        "unit": "trial",
+    }
+    assert "PARTIAL: 2 of 5 trials" in (tmp_path / "robustness.md").read_text()

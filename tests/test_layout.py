@@ -1,0 +1,46 @@
+"""The direction of the arrows: core <- plugins <- studies <- reports <- command line.
+
+Checked on the source (every import statement, nested ones included), so a new module that breaks
+the layout fails here rather than in review.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "idkit"
+
+
+def _imports(path: Path, top_level_only: bool = False) -> set[str]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    nodes = tree.body if top_level_only else list(ast.walk(tree))
+    found: set[str] = set()
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found |= {node.module} | {f"{node.module}.{alias.name}" for alias in node.names}
+    return found
+
+
+def _modules(*parts: str) -> list[Path]:
+    return sorted(PACKAGE.joinpath(*parts).rglob("*.py"))
+
+
+@pytest.mark.parametrize("path", [p for p in _modules() if "cli" not in p.relative_to(PACKAGE).parts[:1]])
+def test_nothing_below_the_command_line_imports_it(path):
+    assert not {name for name in _imports(path) if name.startswith("idkit.cli")}
+
+
+@pytest.mark.parametrize("path", _modules("studies"))
+def test_a_study_never_imports_a_report_at_module_level(path):
+    assert not {name for name in _imports(path, top_level_only=True) if name.startswith("idkit.reports")}
+
+
+@pytest.mark.parametrize("path", _modules("reports"))
+def test_a_report_never_runs_a_study(path):
+    """Reports import the result types of ``idkit.studies`` but never a study's ``run``."""
+    assert not {name for name in _imports(path) if name.startswith("idkit.studies") and name.endswith(".run")}
