@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from idkit.estimate import HistoryError, history_table
 from idkit.reports import files
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
@@ -41,25 +43,6 @@ def text(result: RunResult) -> str:
     return "\n".join(lines)
 
 
-def history(result: RunResult) -> tuple[list[str], list[list[float]]] | None:
-    """Convergence history as CSV ``(header, rows)``: best cost per iteration, one column per run.
-
-    Reads ``details["history"]``: a list (one run), a list of lists ``[runs][iterations]`` or a
-    mapping of named columns.
-    """
-    found = result.estimate.details.get("history")
-    if not found:
-        return None
-    if isinstance(found, Mapping):  # {"best_cost": [...], ...}: one column per entry
-        keys = list(found)
-        columns = [list(found[k]) for k in keys]
-        return ["iteration", *keys], [[i, *(c[i] for c in columns)] for i in range(len(columns[0]))]
-    if isinstance(found[0], (list, tuple)):  # [runs][iterations], as the PSO keeps it
-        header = ["iteration", *(f"run_{r}" for r in range(len(found)))]
-        return header, [[i, *step] for i, step in enumerate(zip(*found, strict=True))]
-    return ["iteration", "best_cost"], [[i, value] for i, value in enumerate(found)]
-
-
 def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[str, str]:
     """Write ``history.csv``, plots (``convergence.png``, ``estimate.png``) and ``result.json``.
 
@@ -68,8 +51,12 @@ def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[st
     """
     out = claim(out_dir, result.provenance)
     written: dict[str, str] = {}
-    found = history(result)
     label = result.estimate.estimator
+    try:
+        found = history_table(result.estimate.details.get("history"))
+    except HistoryError as exc:  # a plugin's malformed history must not cost the run its result.json
+        warnings.warn(f"{label}: history.csv not written: {exc}", stacklevel=2)
+        found = None
     if found is not None:
         written["history"] = str(files.write_csv(out / HISTORY_FILE, *found))
         if plots:

@@ -67,6 +67,22 @@ def test_history_csv_has_one_column_per_run(tmp_path):
     assert best == sorted(best, reverse=True)  # a global best never gets worse
 
 
+def test_a_malformed_history_still_writes_result_json(tmp_path):
+    """Runs of unequal length used to crash the writer after the fit: no result.json at all."""
+    from idkit.estimators.least_squares import LeastSquares
+
+    class RaggedHistory(LeastSquares):
+        def fit(self, problem):
+            estimate = super().fit(problem)
+            estimate.details["history"] = [[3.0, 2.0, 1.0], [3.0, 2.0]]
+            return estimate
+
+    with pytest.warns(UserWarning, match="history.csv not written: .*run 1 has 2 iterations"):
+        idkit.run(estimator=RaggedHistory(), cost=None, out_dir=tmp_path, plots=False)
+    assert json.loads((tmp_path / "result.json").read_text())["status"] == "complete"
+    assert not (tmp_path / "history.csv").exists()
+
+
 def test_objects_work_as_well_as_names():
     from idkit.estimators.least_squares import LeastSquares
     from idkit.robots.cylindrical import CylindricalRobot
