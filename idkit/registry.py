@@ -1,7 +1,8 @@
 """Plugin registry on ``importlib.metadata`` entry points.
 
-Every robot, estimator and cost — the built-ins included — is found through one entry-point group
-per interface, so a third-party distribution adds plugins by being installed and nothing else.
+Every robot, estimator, cost and excitation — the built-ins included — is found through one
+entry-point group per interface, so a third-party distribution adds plugins by being installed and
+nothing else.
 Listing names reads installed metadata only (no plugin module is imported); loading is lazy and
 cached, and a plugin that fails to import is reported without breaking the others.
 """
@@ -15,12 +16,13 @@ from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any, Literal
 
-Kind = Literal["robot", "estimator", "cost"]
+Kind = Literal["robot", "estimator", "cost", "excitation"]
 
 GROUPS: dict[str, str] = {
     "robot": "idkit.robots",
     "estimator": "idkit.estimators",
     "cost": "idkit.costs",
+    "excitation": "idkit.excitations",
 }
 
 

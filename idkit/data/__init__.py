@@ -11,7 +11,7 @@ from idkit.data.scenarios import (
     simulate,
     simulate_batch,
 )
-from idkit.data.trajectory import check_bounds, fourier_excitation, paper_trajectory, sample_times
+from idkit.data.trajectory import check_bounds, paper_trajectory, sample_times
 
 __all__ = [
     "FLOBAROID_KEYS",
@@ -21,7 +21,6 @@ __all__ = [
     "UnknownScenarioError",
     "check_bounds",
     "clean_samples",
-    "fourier_excitation",
     "get_scenario",
     "load_samples",
     "paper_trajectory",

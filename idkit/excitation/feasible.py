@@ -1,0 +1,66 @@
+"""Make any candidate motion respect the joint limits, by scaling its amplitude per joint.
+
+For a family that is an offset plus a motion linear in the other coefficients of each joint
+(``Excitation.coefficient_joints``), multiplying joint ``j``'s motion coefficients by ``s_j``
+turns ``q_j`` into ``offset_j + s_j (q_j - offset_j)`` and ``qd_j``, ``qdd_j`` into ``s_j qd_j``,
+``s_j qdd_j``. ``fit_into_limits`` chooses the largest ``s_j <= 1`` that keeps every sample of a
+time grid inside the box: candidates already inside are left unchanged, the others are shrunk
+until they touch the tightest limit. Every candidate an optimiser proposes is thereby feasible by
+construction (on that grid), the map is continuous and almost everywhere differentiable, and the
+optimiser needs no penalty weight.
+
+Between grid points a smooth signal ``x`` can exceed its largest sample by at most
+``h² / 8 · max |x''|`` (``h`` the grid step), so a fine grid makes the constraint hold in
+continuous time up to that bound.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+from idkit.interfaces import Excitation
+from idkit.limits import MotionLimits
+
+#: ``s`` is multiplied by this so that rounding cannot put a touching sample beyond the limit.
+ROUNDING_SAFETY = 1.0 - 1e-12
+
+
+def _largest_scale(motion: Tensor, lower: Tensor, upper: Tensor) -> Tensor:
+    """Largest ``s >= 0`` with ``lower <= s · motion <= upper`` for every sample: ``[..., n]``.
+
+    Args:
+        motion: ``[..., T, n]`` deviations from the offset (or rates); ``lower <= 0 <= upper`` ``[..., n]``.
+    """
+    high, low = motion.amax(-2), motion.amin(-2)
+    inf = torch.full_like(high, float("inf"))
+    by_upper = torch.where(high > 0, upper / torch.where(high > 0, high, 1.0), inf)
+    by_lower = torch.where(low < 0, lower / torch.where(low < 0, low, -1.0), inf)
+    return torch.minimum(by_upper, by_lower)
+
+
+def fit_into_limits(
+    excitation: Excitation, coefficients: Tensor, limits: MotionLimits, grid: Tensor
+) -> Tensor:
+    """Coefficients ``[..., C]`` scaled per joint so the motion stays within ``limits`` on ``grid[G]``.
+
+    An offset outside the joint's position range gives ``s = 0`` (the joint stays at its offset,
+    which is then still outside: such a candidate is infeasible whatever the scale, and an
+    optimiser's box should keep offsets inside).
+    """
+    joints, is_offset = (x.to(coefficients.device) for x in excitation.coefficient_joints())
+    n = excitation.n_joints
+    order = joints.masked_fill(~is_offset, n).argsort(stable=True)[:n]  # offset coefficient of joint j
+    offset = coefficients[..., order]  # [..., n]
+    q, qd, qdd = excitation.evaluate(coefficients, grid.to(coefficients))
+    lower, upper = limits.lower.to(coefficients), limits.upper.to(coefficients)
+    scale = torch.stack(
+        (
+            _largest_scale(q - offset[..., None, :], lower[0] - offset, upper[0] - offset),
+            _largest_scale(qd, lower[1].expand_as(offset), upper[1].expand_as(offset)),
+            _largest_scale(qdd, lower[2].expand_as(offset), upper[2].expand_as(offset)),
+        )
+    ).amin(0)
+    scale = (scale * ROUNDING_SAFETY).clamp(0.0, 1.0)  # [..., n]
+    per_coefficient = torch.where(is_offset, torch.ones_like(scale[..., joints]), scale[..., joints])
+    return coefficients * per_coefficient
