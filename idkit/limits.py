@@ -36,7 +36,9 @@ class MotionLimits:
             value = getattr(self, name)
             if not isinstance(value, Tensor) or value.shape != shape or value.isnan().any():
                 got = tuple(value.shape) if isinstance(value, Tensor) else type(value).__name__
-                raise ValueError(f"motion limits: {name} must be a [3, {shape[1]}] tensor without NaN, got {got}")
+                raise ValueError(
+                    f"motion limits: {name} must be a [3, {shape[1]}] tensor without NaN, got {got}"
+                )
         empty = (self.lower >= self.upper).nonzero().tolist()
         if empty:
             where = ", ".join(f"{self.joint_names[j]} {MOTION_VARIABLES[v]}" for v, j in empty)
@@ -62,7 +64,9 @@ class MotionLimits:
         stacked = torch.stack(rows)  # [3, n, 2]
         return cls(tuple(joint_names), stacked[..., 0], stacked[..., 1])
 
-    def replace(self, variable: str, lower: float | Sequence[float], upper: float | Sequence[float]) -> MotionLimits:
+    def replace(
+        self, variable: str, lower: float | Sequence[float], upper: float | Sequence[float]
+    ) -> MotionLimits:
         """A copy with one variable's limits set (a number applies to every joint)."""
         row = self._row(variable)
         new_lower, new_upper = self.lower.clone(), self.upper.clone()
@@ -72,7 +76,9 @@ class MotionLimits:
 
     def _row(self, variable: str) -> int:
         if variable not in MOTION_VARIABLES:
-            raise ValueError(f"motion limits: unknown variable {variable!r}; use one of {', '.join(MOTION_VARIABLES)}")
+            raise ValueError(
+                f"motion limits: unknown variable {variable!r}; use one of {', '.join(MOTION_VARIABLES)}"
+            )
         return MOTION_VARIABLES.index(variable)
 
     def excess(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
@@ -96,4 +102,3 @@ class MotionLimits:
             }
             for j, joint in enumerate(self.joint_names)
         }
-

@@ -26,16 +26,23 @@ from idkit.limits import MotionLimits
 ROUNDING_SAFETY = 1.0 - 1e-12
 
 
+def _ratio_where(binds: Tensor, limit: Tensor, extreme: Tensor) -> Tensor:
+    """``limit / extreme`` where ``binds``, else ``inf``; no infinity ever enters the division
+    (``inf / x`` would give NaN gradients through ``torch.where``)."""
+    ratio = torch.where(binds, limit, 1.0) / torch.where(binds, extreme, 1.0)
+    return torch.where(binds, ratio, torch.full_like(ratio, float("inf")))
+
+
 def _largest_scale(motion: Tensor, lower: Tensor, upper: Tensor) -> Tensor:
-    """Largest ``s >= 0`` with ``lower <= s · motion <= upper`` for every sample: ``[..., n]``.
+    """Largest ``s >= 0`` with ``lower <= s · motion <= upper`` at every sample: ``[..., n]``.
 
     Args:
-        motion: ``[..., T, n]`` deviations from the offset (or rates); ``lower <= 0 <= upper`` ``[..., n]``.
+        motion: ``[..., T, n]`` deviations from the offset (or rates).
+        lower, upper: ``[..., n]`` with ``lower <= 0 <= upper``; infinite ones never bind.
     """
     high, low = motion.amax(-2), motion.amin(-2)
-    inf = torch.full_like(high, float("inf"))
-    by_upper = torch.where(high > 0, upper / torch.where(high > 0, high, 1.0), inf)
-    by_lower = torch.where(low < 0, lower / torch.where(low < 0, low, -1.0), inf)
+    by_upper = _ratio_where((high > 0) & upper.isfinite(), upper, high)
+    by_lower = _ratio_where((low < 0) & lower.isfinite(), lower, low)
     return torch.minimum(by_upper, by_lower)
 
 

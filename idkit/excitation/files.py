@@ -46,7 +46,7 @@ def excitation_from_document(document: Mapping[str, Any], where: str = "excitati
         raise ValueError(f"{where}: 'excitation' must be a plugin name and 'options' a mapping")
     try:
         return create("excitation", name, **options)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, LookupError) as exc:
         raise ValueError(f"{where}: {exc}") from exc
 
 

@@ -68,14 +68,18 @@ class FourierExcitation(Excitation):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"fourier excitation: {name} must be an integer >= 1, got {value!r}")
         if isinstance(period, bool) or not isinstance(period, (int, float)) or not 0 < period < math.inf:
-            raise ValueError(f"fourier excitation: period must be a finite number > 0 (seconds), got {period!r}")
+            raise ValueError(
+                f"fourier excitation: period must be a finite number > 0 (seconds), got {period!r}"
+            )
         if (a is None) != (b is None):
             raise ValueError("fourier excitation: give both a and b, or neither (the default series)")
         shape = (n_joints, harmonics)
         self._omega = 2.0 * math.pi / period * torch.arange(1, harmonics + 1, dtype=torch.float64)  # [K]
         if a is None:
             j = torch.arange(1, n_joints + 1, dtype=torch.float64)[:, None]
-            phase = 2.0 * math.pi * torch.frac(j * torch.arange(1, harmonics + 1, dtype=torch.float64) * GOLDEN)
+            phase = (
+                2.0 * math.pi * torch.frac(j * torch.arange(1, harmonics + 1, dtype=torch.float64) * GOLDEN)
+            )
             self._a = DEFAULT_AMPLITUDE * self._omega[0] * torch.cos(phase)
             self._b = -DEFAULT_AMPLITUDE * self._omega[0] * torch.sin(phase)
         else:
@@ -102,7 +106,9 @@ class FourierExcitation(Excitation):
 
     def from_vector(self, vector: Tensor) -> FourierExcitation:
         offset, a, b = self._split(torch.as_tensor(vector, dtype=torch.float64).detach().cpu())
-        return FourierExcitation(self.n_joints, self.harmonics, self.period, offset.tolist(), a.tolist(), b.tolist())
+        return FourierExcitation(
+            self.n_joints, self.harmonics, self.period, offset.tolist(), a.tolist(), b.tolist()
+        )
 
     def _split(self, coefficients: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         n, k = self.n_joints, self.harmonics

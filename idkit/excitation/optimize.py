@@ -145,8 +145,13 @@ def optimize_excitation(
     if method not in METHODS:
         raise ValueError(f"optimize_excitation: unknown method {method!r}; use one of {', '.join(METHODS)}")
     _check_budget(
-        n_samples=n_samples, swarms=swarms, particles=particles, iterations=iterations,
-        adam_steps=adam_steps, grid_points=grid_points, check_points=check_points,
+        n_samples=n_samples,
+        swarms=swarms,
+        particles=particles,
+        iterations=iterations,
+        adam_steps=adam_steps,
+        grid_points=grid_points,
+        check_points=check_points,
     )
     limits = robot.motion_limits() if limits is None else limits
     if limits.joint_names != tuple(robot.joint_names):
@@ -163,8 +168,9 @@ def optimize_excitation(
     def objective(unit: Tensor) -> Tensor:
         """Loss ``[...]`` of unit-cube points ``[..., C]`` after fitting them into the limits."""
         coefficients = fit_into_limits(family, lower + (upper - lower) * unit, limits, grid)
-        states = family.evaluate(coefficients, t_device)
-        value = loss(criterion, observation_matrix(robot, *states))
+        w = observation_matrix(robot, *family.evaluate(coefficients, t_device))
+        finite = w.isfinite().flatten(-2).all(-1)[..., None, None]
+        value = loss(criterion, torch.where(finite, w, 0.0))  # a non-finite W scores as unexcited
         return torch.nan_to_num(value, nan=math.inf)
 
     generator = torch.Generator().manual_seed(int(seed))
@@ -184,9 +190,7 @@ def optimize_excitation(
             winner = best[objective(best).argmin()]
             coefficients = fit_into_limits(family, lower + (upper - lower) * winner, limits, grid)
     check_grid = torch.linspace(0.0, t_end, check_points, dtype=torch.float64)
-    final = family.from_vector(
-        fit_into_limits(family, coefficients.double().cpu(), limits, check_grid)
-    )
+    final = family.from_vector(fit_into_limits(family, coefficients.double().cpu(), limits, check_grid))
     baseline = robot.default_excitation()
     before, after = (
         float(criterion_value(criterion, observation_matrix(robot, *e(t)))) for e in (baseline, final)

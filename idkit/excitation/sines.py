@@ -36,7 +36,9 @@ def as_matrix(value: Sequence[Sequence[float]], shape: tuple[int, ...], where: s
 def offset_box(limits: MotionLimits) -> tuple[Tensor, Tensor]:
     """``(lower[n], upper[n])`` of the joints' offsets: their position limits (``FREE_OFFSET`` if none)."""
     lower, upper = limits.lower[0], limits.upper[0]
-    return torch.where(lower.isinf(), FREE_OFFSET[0], lower), torch.where(upper.isinf(), FREE_OFFSET[1], upper)
+    return torch.where(lower.isinf(), FREE_OFFSET[0], lower), torch.where(
+        upper.isinf(), FREE_OFFSET[1], upper
+    )
 
 
 def amplitude_caps(limits: MotionLimits, omega: Tensor) -> Tensor:

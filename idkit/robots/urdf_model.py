@@ -181,9 +181,8 @@ def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translati
         limits = (float(lo), float(hi)) if hi > lo else None
     child = joint.find("child").get("link")
     max_velocity = float(velocity) if velocity > 0 else None
-    return Body(
-        name, child, MOVING[kind], parent, rotation, translation, axis / norm, np.zeros(10), limits, max_velocity
-    )
+    body = Body(name, child, MOVING[kind], parent, rotation, translation, axis / norm, np.zeros(10), limits)
+    return replace(body, max_velocity=max_velocity)
 
 
 def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:

@@ -66,7 +66,9 @@ def autograd_derivatives(excitation, t: torch.Tensor) -> tuple[torch.Tensor, tor
     q = excitation(t)[0]
     n = q.shape[1]
     first = torch.stack([torch.autograd.grad(q[:, j].sum(), t, create_graph=True)[0] for j in range(n)], 1)
-    second = torch.stack([torch.autograd.grad(first[:, j].sum(), t, retain_graph=True)[0] for j in range(n)], 1)
+    second = torch.stack(
+        [torch.autograd.grad(first[:, j].sum(), t, retain_graph=True)[0] for j in range(n)], 1
+    )
     return first.detach(), second.detach()
 
 
@@ -198,7 +200,10 @@ def test_simulated_samples_keep_the_previous_numbers(cylindrical):
         ({"n_joints": 2, "harmonics": 1.5}, "harmonics must be an integer"),
         ({"n_joints": 2, "period": 0.0}, "period must be a finite number > 0"),
         ({"n_joints": 2, "a": [[1.0] * 5] * 2}, "give both a and b"),
-        ({"n_joints": 2, "a": [[1.0] * 4] * 2, "b": [[1.0] * 4] * 2}, r"a: expected shape \[2, 5\], got \[2, 4\]"),
+        (
+            {"n_joints": 2, "a": [[1.0] * 4] * 2, "b": [[1.0] * 4] * 2},
+            r"a: expected shape \[2, 5\], got \[2, 4\]",
+        ),
         ({"n_joints": 2, "offset": [0.0, math.nan]}, "offset: every value must be finite"),
     ],
 )
