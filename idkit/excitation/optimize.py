@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -59,7 +60,7 @@ class ExcitationResult:
         grid: the dense check grid ``[G]`` over ``[0, t_end]``.
         excess_before, excess_after: worst excursion beyond each limit on ``grid`` ``[3, n]``
             (rows position, velocity, acceleration; 0 inside).
-        details: method, budget, seed, the best loss after each stage.
+        details: method, budget, seed, the best loss and wall time of each stage.
     """
 
     name: str
@@ -109,10 +110,10 @@ def optimize_excitation(
     t_end: float = 10.0,
     limits: MotionLimits | None = None,
     method: str = "pso+adam",
-    swarms: int = 8,
-    particles: int = 128,
-    iterations: int = 300,
-    adam_steps: int = 300,
+    swarms: int = 4,
+    particles: int = 64,
+    iterations: int = 200,
+    adam_steps: int = 200,
     learning_rate: float = 0.01,
     grid_points: int = 1001,
     check_points: int = 10001,
@@ -174,28 +175,26 @@ def optimize_excitation(
         return torch.nan_to_num(value, nan=math.inf)
 
     generator = torch.Generator().manual_seed(int(seed))
+    budget = {
+        "swarms": swarms,
+        "particles": particles,
+        "iterations": iterations,
+        "adam_steps": adam_steps,
+        "learning_rate": learning_rate,
+    }
     work = swarms * particles * (grid_points + n_samples) * robot.n_joints
-    details: dict[str, Any] = {"method": method, "seed": int(seed), "grid_points": grid_points}
     with torch_threads(resolve_threads(threads, work)):
-        if method == "adam":
-            starts = torch.rand(swarms, lower.numel(), generator=generator, dtype=torch.float64).to(**like)
-        else:
-            starts = _swarm_search(objective, lower.numel(), swarms, particles, iterations, generator, like)
-            details["pso_best_loss"] = float(objective(starts).min())
-        best = starts
-        if method != "pso":
-            best = _adam_search(objective, starts, adam_steps, learning_rate)
-            details["adam_best_loss"] = float(objective(best).min())
-        with torch.no_grad():
-            winner = best[objective(best).argmin()]
-            coefficients = fit_into_limits(family, lower + (upper - lower) * winner, limits, grid)
+        unit, details = _search(objective, lower.numel(), method, budget, generator, like)
+    # With the default grids (1,000 and 10,000 intervals) the search grid's points are among the
+    # check grid's, so this only shrinks what the finer grid shows beyond a limit.
     check_grid = torch.linspace(0.0, t_end, check_points, dtype=torch.float64)
-    final = family.from_vector(fit_into_limits(family, coefficients.double().cpu(), limits, check_grid))
+    best = (lower + (upper - lower) * unit).double().cpu()
+    final = family.from_vector(fit_into_limits(family, best, limits, check_grid))
     baseline = robot.default_excitation()
     before, after = (
         float(criterion_value(criterion, observation_matrix(robot, *e(t)))) for e in (baseline, final)
     )
-    details.update(swarms=swarms, particles=particles, iterations=iterations, adam_steps=adam_steps)
+    details.update(seed=int(seed), grid_points=grid_points, check_points=check_points)
     return ExcitationResult(
         name=excitation,
         excitation=final,
@@ -210,6 +209,38 @@ def optimize_excitation(
         excess_after=limits.excess(*final(check_grid)),
         details=details,
     )
+
+
+def _search(
+    objective: Callable[[Tensor], Tensor],
+    dims: int,
+    method: str,
+    budget: dict[str, Any],
+    generator: torch.Generator,
+    like: dict[str, Any],
+) -> tuple[Tensor, dict[str, Any]]:
+    """The best unit-cube point ``[C]`` found by ``method``, and each stage's budget, loss and time.
+
+    Args:
+        budget: ``swarms``, ``particles``, ``iterations``, ``adam_steps``, ``learning_rate``.
+    """
+    details: dict[str, Any] = {"method": method, **budget}
+    started = time.perf_counter()
+    if method == "adam":
+        best = torch.rand(budget["swarms"], dims, generator=generator, dtype=torch.float64).to(**like)
+    else:
+        best = _swarm_search(
+            objective, dims, budget["swarms"], budget["particles"], budget["iterations"], generator, like
+        )
+        details.update(pso_best_loss=float(objective(best).min()), pso_seconds=time.perf_counter() - started)
+    if method != "pso":
+        started = time.perf_counter()
+        best = _adam_search(objective, best, budget["adam_steps"], budget["learning_rate"])
+        details.update(
+            adam_best_loss=float(objective(best).min()), adam_seconds=time.perf_counter() - started
+        )
+    with torch.no_grad():
+        return best[objective(best).argmin()], details
 
 
 def _swarm_search(
