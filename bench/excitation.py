@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from idkit.excitation import excitation_criterion, optimize_excitation
+from idkit.excitation.criterion import excitation_criterion
+from idkit.excitation.optimize import optimize_excitation
 from idkit.limits import MOTION_VARIABLES, MotionLimits
 from idkit.robots.cylindrical import CylindricalRobot
 from idkit.robots.urdf import URDFRobot

@@ -15,7 +15,8 @@ from idkit.data.scenarios import (
     simulate_batch,
 )
 from idkit.data.trajectory import sample_times
-from idkit.excitation import FourierExcitation, PaperExcitation
+from idkit.excitation.fourier import FourierExcitation
+from idkit.excitation.paper import PaperExcitation
 from idkit.interfaces import Robot
 from idkit.problem import SAMPLE_ARRAYS
 

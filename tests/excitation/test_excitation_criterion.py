@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 import torch
 
-from idkit.excitation import FourierExcitation, excitation_criterion, observation_matrix
-from idkit.excitation.criterion import log_det_information, scaled_condition_number
+from idkit.excitation.criterion import (
+    excitation_criterion,
+    log_det_information,
+    observation_matrix,
+    scaled_condition_number,
+)
+from idkit.excitation.fourier import FourierExcitation
 from idkit.robots.urdf import URDFRobot
 
 G = 9.81

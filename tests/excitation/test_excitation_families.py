@@ -4,6 +4,8 @@ the robots' defaults (unchanged numbers), and errors."""
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -12,7 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from idkit.data.scenarios import clean_samples
-from idkit.excitation import FourierExcitation, PaperExcitation
+from idkit.excitation.fourier import FourierExcitation
+from idkit.excitation.paper import PaperExcitation
 from idkit.interfaces import Robot
 from idkit.registry import create
 from idkit.robots.urdf import URDFRobot
@@ -219,3 +222,22 @@ def test_paper_and_fourier_reject_bad_coefficient_vectors():
         FourierExcitation(3).from_vector(torch.zeros(30))
     with pytest.raises(ValueError, match="amplitude: expected shape"):
         PaperExcitation(amplitude=[[1.0, 2.0]] * 3)
+
+
+LOAD_DEFAULTS = """
+import sys
+import torch
+from idkit import registry
+from idkit.robots.cylindrical import CylindricalRobot
+
+CylindricalRobot().excitation(torch.ones(2))
+registry.create("excitation", "fourier", n_joints=2)
+study = ("idkit.data", "idkit.excitation.optimize", "idkit.estimators")
+print(registry.available("excitation"), sorted(m for m in sys.modules if m.startswith(study)))
+"""
+
+
+def test_registered_and_light_to_load():
+    """Both built-ins are registered; loading them (as a robot's default does) imports no study code."""
+    out = subprocess.run([sys.executable, "-c", LOAD_DEFAULTS], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "['fourier', 'paper'] []"

@@ -7,13 +7,9 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from idkit.excitation import (
-    FourierExcitation,
-    PaperExcitation,
-    excitation_from_yaml,
-    excitation_yaml,
-    load_excitation,
-)
+from idkit.excitation.files import excitation_from_yaml, excitation_yaml, load_excitation
+from idkit.excitation.fourier import FourierExcitation
+from idkit.excitation.paper import PaperExcitation
 
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
 

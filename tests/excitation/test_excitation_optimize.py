@@ -10,8 +10,9 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from idkit.excitation import FourierExcitation, optimize_excitation
 from idkit.excitation.feasible import fit_into_limits
+from idkit.excitation.fourier import FourierExcitation
+from idkit.excitation.optimize import optimize_excitation
 from idkit.interfaces import Robot
 from idkit.robots.cylindrical import CylindricalRobot
 from idkit.robots.urdf import URDFRobot
