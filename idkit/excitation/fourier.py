@@ -51,7 +51,7 @@ class FourierExcitation(Excitation):
 
     def __init__(
         self,
-        n_joints: int,
+        n_joints: int = 1,
         harmonics: int = 5,
         period: float = 10.0,
         offset: Sequence[float] | None = None,
