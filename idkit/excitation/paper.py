@@ -15,7 +15,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from idkit.excitation.sines import amplitude_caps, as_matrix, offset_box
+from idkit.excitation.sines import amplitude_caps, as_matrix, check_joints, offset_box
 from idkit.interfaces import Excitation
 from idkit.limits import MotionLimits
 
@@ -47,7 +47,7 @@ class PaperExcitation(Excitation):
         self.omega = omega
         self.offset = offset
         n = len(offset)
-        self._omega = as_matrix(omega, (n, len(omega[0]) if len(omega) else 0), "paper excitation: omega")
+        self._omega = as_matrix(omega, (n, None), "paper excitation: omega")
         self._amplitude = as_matrix(amplitude, tuple(self._omega.shape), "paper excitation: amplitude")
         self._offset = as_matrix(offset, (n,), "paper excitation: offset")
         self.n_joints = n
@@ -92,6 +92,7 @@ class PaperExcitation(Excitation):
         return torch.cat((joints, joints.repeat_interleave(k))), torch.arange(n + n * k) < n
 
     def coefficient_box(self, limits: MotionLimits) -> tuple[Tensor, Tensor]:
+        check_joints(self, limits)
         low, high = offset_box(limits)
         cap = amplitude_caps(limits, self._omega).flatten()
         return torch.cat((low, -cap)), torch.cat((high, cap))

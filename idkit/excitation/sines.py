@@ -14,23 +14,38 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
+from idkit.interfaces import Excitation
 from idkit.limits import MotionLimits
 
 #: Offset range of a joint without position limits (a continuous joint turns freely).
 FREE_OFFSET = (-math.pi, math.pi)
 
 
-def as_matrix(value: Sequence[Sequence[float]], shape: tuple[int, ...], where: str) -> Tensor:
-    """``value`` as a float64 tensor of exactly ``shape``, or a ``ValueError`` naming ``where``."""
+def as_matrix(
+    value: Sequence[float] | Sequence[Sequence[float]], shape: tuple[int | None, ...], where: str
+) -> Tensor:
+    """``value`` as a finite float64 tensor of ``shape`` (``None``: any size); errors name ``where``."""
     try:
         tensor = torch.as_tensor(value, dtype=torch.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{where}: expected numbers of shape {list(shape)}: {exc}") from None
-    if tuple(tensor.shape) != shape:
-        raise ValueError(f"{where}: expected shape {list(shape)}, got {list(tensor.shape)}")
+    expected = [size if size is not None else "any" for size in shape]
+    if tensor.ndim != len(shape) or any(
+        s is not None and s != got for s, got in zip(shape, tensor.shape, strict=True)
+    ):
+        raise ValueError(f"{where}: expected shape {expected}, got {list(tensor.shape)}")
     if not torch.isfinite(tensor).all():
         raise ValueError(f"{where}: every value must be finite")
     return tensor
+
+
+def check_joints(excitation: Excitation, limits: MotionLimits) -> None:
+    """``ValueError`` unless ``limits`` are for as many joints as ``excitation`` moves."""
+    if len(limits.joint_names) != excitation.n_joints:
+        raise ValueError(
+            f"{type(excitation).__name__} moves {excitation.n_joints} joints, but the limits are for "
+            f"{len(limits.joint_names)} ({', '.join(limits.joint_names)})"
+        )
 
 
 def offset_box(limits: MotionLimits) -> tuple[Tensor, Tensor]:
