@@ -11,6 +11,7 @@ config section maps one-to-one onto a constructor call.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from idkit.registry import create
@@ -179,6 +180,14 @@ class Excitation(ABC):
     def __call__(self, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         """``(q, qd, qdd)``, each ``[T, n]``, of this member at times ``t[T]``."""
         return self.evaluate(self.to_vector(), t)
+
+    def check_joints(self, joint_names: Sequence[str], owner: str) -> None:
+        """``ValueError`` unless this excitation moves one joint per name (``owner``: whose joints)."""
+        if len(joint_names) != self.n_joints:
+            raise ValueError(
+                f"{type(self).__name__} moves {self.n_joints} joints, but {owner} has {len(joint_names)} "
+                f"({', '.join(joint_names)})"
+            )
 
     def coefficient_joints(self) -> tuple[Tensor, Tensor]:
         """``(joint[C], is_offset[C])``: the joint each coefficient moves, and whether it is its offset."""

@@ -72,7 +72,7 @@ def test_an_excitation_replaces_the_robots_motion(cylindrical):
     default = simulate_batch(cylindrical, "torque_noise", trials=2, seed=4)
     assert torch.equal(batch.relative_error, default.relative_error)
     assert torch.equal(simulate(cylindrical, "torque_noise", seed=4, excitation=excitation).tau, batch.tau[0])
-    with pytest.raises(ValueError, match="moves 2 joints, robot CylindricalRobot has 3"):
+    with pytest.raises(ValueError, match="moves 2 joints, but robot CylindricalRobot has 3"):
         simulate(cylindrical, excitation=FourierExcitation(2))
 
 

@@ -207,11 +207,8 @@ def clean_samples(
             f"params must have shape ({robot.n_params},) for {', '.join(robot.param_names)}, "
             f"got {tuple(params.shape)}"
         )
-    if excitation is not None and excitation.n_joints != robot.n_joints:
-        raise ValueError(
-            f"excitation {type(excitation).__name__} moves {excitation.n_joints} joints, robot "
-            f"{type(robot).__name__} has {robot.n_joints} ({', '.join(robot.joint_names)})"
-        )
+    if excitation is not None:
+        excitation.check_joints(robot.joint_names, f"robot {type(robot).__name__}")
     t = sample_times(n_samples, t_end)
     q, qd, qdd = robot.excitation(t) if excitation is None else excitation(t)
     tau = robot.inverse_dynamics(params, q, qd, qdd)

@@ -24,7 +24,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from idkit.excitation.sines import amplitude_caps, as_matrix, check_joints, offset_box
+from idkit.excitation.sines import amplitude_caps, as_matrix, offset_box
 from idkit.interfaces import Excitation
 from idkit.limits import MotionLimits
 
@@ -144,7 +144,7 @@ class FourierExcitation(Excitation):
         return torch.cat((joints, joints.repeat_interleave(k).repeat(2))), torch.arange(n + 2 * n * k) < n
 
     def coefficient_box(self, limits: MotionLimits) -> tuple[Tensor, Tensor]:
-        check_joints(self, limits)
+        self.check_joints(limits.joint_names, "the motion-limit box")
         low, high = offset_box(limits)
         omega = self._omega.expand(self.n_joints, -1)
         cap = (amplitude_caps(limits, omega) * omega).flatten()  # a, b are velocity amplitudes

@@ -52,7 +52,7 @@ class ExcitationResult:
     Attributes:
         name: registry name of the excitation family (``idkit.excitations``).
         excitation: the optimised member, feasible on ``grid``.
-        baseline: the robot's default excitation (what ``simulate`` used before).
+        baseline: the robot's default excitation (what ``simulate`` samples unless told otherwise).
         criterion: ``"cond"`` or ``"logdet"``.
         before, after: the criterion of ``baseline`` and of ``excitation`` at the sample times ``t``.
         t: sample times ``[N]``.
@@ -87,11 +87,7 @@ def build_excitation(name: str, robot: Robot, options: Mapping[str, Any] | None 
     if "n_joints" in inspect.signature(load("excitation", name)).parameters:
         options.setdefault("n_joints", robot.n_joints)
     excitation = create("excitation", name, **options)
-    if excitation.n_joints != robot.n_joints:
-        raise ValueError(
-            f"excitation {name!r} moves {excitation.n_joints} joints, robot {type(robot).__name__} has "
-            f"{robot.n_joints} ({', '.join(robot.joint_names)})"
-        )
+    excitation.check_joints(robot.joint_names, f"robot {type(robot).__name__}")
     return excitation
 
 

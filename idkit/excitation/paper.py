@@ -15,7 +15,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from idkit.excitation.sines import amplitude_caps, as_matrix, check_joints, offset_box
+from idkit.excitation.sines import amplitude_caps, as_matrix, offset_box
 from idkit.interfaces import Excitation
 from idkit.limits import MotionLimits
 
@@ -92,7 +92,7 @@ class PaperExcitation(Excitation):
         return torch.cat((joints, joints.repeat_interleave(k))), torch.arange(n + n * k) < n
 
     def coefficient_box(self, limits: MotionLimits) -> tuple[Tensor, Tensor]:
-        check_joints(self, limits)
+        self.check_joints(limits.joint_names, "the motion-limit box")
         low, high = offset_box(limits)
         cap = amplitude_caps(limits, self._omega).flatten()
         return torch.cat((low, -cap)), torch.cat((high, cap))

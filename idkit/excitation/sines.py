@@ -14,7 +14,6 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from idkit.interfaces import Excitation
 from idkit.limits import MotionLimits
 
 #: Offset range of a joint without position limits (a continuous joint turns freely).
@@ -37,15 +36,6 @@ def as_matrix(
     if not torch.isfinite(tensor).all():
         raise ValueError(f"{where}: every value must be finite")
     return tensor
-
-
-def check_joints(excitation: Excitation, limits: MotionLimits) -> None:
-    """``ValueError`` unless ``limits`` are for as many joints as ``excitation`` moves."""
-    if len(limits.joint_names) != excitation.n_joints:
-        raise ValueError(
-            f"{type(excitation).__name__} moves {excitation.n_joints} joints, but the limits are for "
-            f"{len(limits.joint_names)} ({', '.join(limits.joint_names)})"
-        )
 
 
 def offset_box(limits: MotionLimits) -> tuple[Tensor, Tensor]:

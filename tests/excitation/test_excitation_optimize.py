@@ -160,7 +160,7 @@ class NoLimits(Robot):
                 "excitation": "paper",
                 "options": {"amplitude": [[1.0]] * 2, "omega": [[1.0]] * 2, "offset": [0.0] * 2},
             },
-            "moves 2 joints, robot CylindricalRobot has 3",
+            "moves 2 joints, but robot CylindricalRobot has 3",
         ),
     ],
 )
