@@ -51,9 +51,8 @@ def fit_into_limits(
 ) -> Tensor:
     """Coefficients ``[..., C]`` scaled per joint so the motion stays within ``limits`` on ``grid[G]``.
 
-    An offset outside the joint's position range gives ``s = 0`` (the joint stays at its offset,
-    which is then still outside: such a candidate is infeasible whatever the scale, and an
-    optimiser's box should keep offsets inside).
+    Offsets are never changed: one outside the joint's position range cannot be fixed by scaling
+    (``coefficient_box`` keeps an optimiser's offsets inside).
     """
     joints, is_offset = (x.to(coefficients.device) for x in excitation.coefficient_joints())
     n = excitation.n_joints

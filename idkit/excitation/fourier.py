@@ -74,12 +74,11 @@ class FourierExcitation(Excitation):
         if (a is None) != (b is None):
             raise ValueError("fourier excitation: give both a and b, or neither (the default series)")
         shape = (n_joints, harmonics)
-        self._omega = 2.0 * math.pi / period * torch.arange(1, harmonics + 1, dtype=torch.float64)  # [K]
+        k = torch.arange(1, harmonics + 1, dtype=torch.float64)
+        self._omega = 2.0 * math.pi / period * k  # [K]
         if a is None:
             j = torch.arange(1, n_joints + 1, dtype=torch.float64)[:, None]
-            phase = (
-                2.0 * math.pi * torch.frac(j * torch.arange(1, harmonics + 1, dtype=torch.float64) * GOLDEN)
-            )
+            phase = 2.0 * math.pi * torch.frac(j * k * GOLDEN)  # [n, K]
             self._a = DEFAULT_AMPLITUDE * self._omega[0] * torch.cos(phase)
             self._b = -DEFAULT_AMPLITUDE * self._omega[0] * torch.sin(phase)
         else:
