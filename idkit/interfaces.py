@@ -1,4 +1,4 @@
-"""The plugin contract: ``Robot``, ``Cost`` and ``Estimator``.
+"""The plugin contract: ``Robot``, ``Cost``, ``Estimator`` and ``Excitation``.
 
 Shapes are part of the contract. ``...`` is any batch of leading dimensions (swarm particles,
 independent runs, several costs); ``N`` is the number of samples, ``n`` the number of joints, ``P``
@@ -11,12 +11,16 @@ config section maps one-to-one onto a constructor call.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, ClassVar
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from idkit.registry import create
 
 if TYPE_CHECKING:
     from torch import Tensor
 
     from idkit.estimate import Estimate
+    from idkit.limits import MotionLimits
     from idkit.problem import Problem
 
 
@@ -79,16 +83,22 @@ class Robot(ABC):
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Joint torques ``tau[..., N, n]`` for parameters ``params[..., P]`` and states ``[N, n]``."""
 
-    def excitation(self, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        """Joint trajectory ``(q, qd, qdd)``, each ``[N, n]``, at times ``t[N]`` for simulation.
+    def default_excitation(self) -> Excitation:
+        """The motion ``excitation`` simulates: a registered ``idkit.excitations`` plugin.
 
-        The default is a deterministic finite Fourier series per joint with exact derivatives
-        (``idkit.data.trajectory.fourier_excitation``), so any robot plugin can be simulated;
-        robots with a planned trajectory or tight joint limits override it.
+        The default is the built-in ``fourier`` series with its default coefficients (five
+        harmonics, golden-ratio phases), so any robot plugin can be simulated; robots with a
+        planned trajectory or tight joint limits return another one.
         """
-        from idkit.data.trajectory import fourier_excitation
+        return create("excitation", "fourier", n_joints=self.n_joints)
 
-        return fourier_excitation(t, self.n_joints)
+    def excitation(self, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """Joint trajectory ``(q, qd, qdd)``, each ``[N, n]``, at times ``t[N]`` for simulation."""
+        return self.default_excitation()(t)
+
+    def motion_limits(self) -> MotionLimits:
+        """The box an excitation must stay in (joint positions, velocities, accelerations)."""
+        raise NotImplementedError(f"{type(self).__name__} declares no joint motion limits")
 
     @property
     def has_regressor(self) -> bool:
@@ -145,3 +155,60 @@ class Estimator(ABC):
     @abstractmethod
     def fit(self, problem: Problem) -> Estimate:
         """Estimate the physical parameters (and base parameters where defined)."""
+
+
+class Excitation(ABC):
+    """A family of joint trajectories with exact derivatives, and one member of it.
+
+    The constructor takes the family's structure (number of joints, harmonics, period, ...) and the
+    member's coefficients as keyword arguments, stored unchanged: ``options()`` returns them as
+    plain Python values, so a registry name and ``options()`` (a YAML file) rebuild the excitation.
+    For optimisers the coefficients are also one flat vector ``[C]``, and ``evaluate`` computes the
+    trajectories of a whole batch of coefficient vectors ``[..., C]`` in one tensor computation.
+
+    Families an optimiser can tune also implement ``coefficient_joints`` and ``coefficient_box``;
+    they must be an offset plus a motion linear in the other coefficients of the same joint
+    (sums of sines, Fourier series, splines are), so scaling those coefficients scales the motion
+    about the offset — that is how ``idkit.excitation.optimize`` keeps candidates within limits.
+    """
+
+    n_joints: int
+
+    @abstractmethod
+    def options(self) -> dict[str, Any]:
+        """Constructor keyword arguments (ints, floats, nested lists) that rebuild this excitation."""
+
+    @abstractmethod
+    def to_vector(self) -> Tensor:
+        """The coefficients as one vector ``[C]`` (float64, CPU)."""
+
+    @abstractmethod
+    def from_vector(self, vector: Tensor) -> Excitation:
+        """The member of the same family whose coefficients are ``vector[C]``."""
+
+    @abstractmethod
+    def evaluate(self, coefficients: Tensor, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """``(q, qd, qdd)``, each ``[..., T, n]``, of coefficients ``[..., C]`` at times ``t[T]``.
+
+        Computed on ``t``'s device and dtype, differentiable in ``coefficients`` and ``t``.
+        """
+
+    def __call__(self, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """``(q, qd, qdd)``, each ``[T, n]``, of this member at times ``t[T]``."""
+        return self.evaluate(self.to_vector(), t)
+
+    def check_joints(self, joint_names: Sequence[str], owner: str) -> None:
+        """``ValueError`` unless this excitation moves one joint per name (``owner``: whose joints)."""
+        if len(joint_names) != self.n_joints:
+            raise ValueError(
+                f"{type(self).__name__} moves {self.n_joints} joints, but {owner} has {len(joint_names)} "
+                f"({', '.join(joint_names)})"
+            )
+
+    def coefficient_joints(self) -> tuple[Tensor, Tensor]:
+        """``(joint[C], is_offset[C])``: the joint each coefficient moves, and whether it is its offset."""
+        raise NotImplementedError(f"{type(self).__name__} does not declare its coefficients' joints")
+
+    def coefficient_box(self, limits: MotionLimits) -> tuple[Tensor, Tensor]:
+        """Search box ``(lower[C], upper[C])`` of the coefficients for motions within ``limits``."""
+        raise NotImplementedError(f"{type(self).__name__} has no coefficient search box")

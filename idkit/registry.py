@@ -1,7 +1,8 @@
 """Plugin registry on ``importlib.metadata`` entry points.
 
-Every robot, estimator and cost — the built-ins included — is found through one entry-point group
-per interface, so a third-party distribution adds plugins by being installed and nothing else.
+Every robot, estimator, cost and excitation — the built-ins included — is found through one
+entry-point group per interface, so a third-party distribution adds plugins by being installed and
+nothing else.
 Listing names reads installed metadata only (no plugin module is imported); loading is lazy and
 cached, and a plugin that fails to import is reported without breaking the others.
 """
@@ -18,7 +19,7 @@ from typing import Any, Literal
 from idkit.options import OptionError as OptionError  # re-exported: registry.create raises it
 from idkit.options import check_options
 
-Kind = Literal["robot", "estimator", "cost"]
+Kind = Literal["robot", "estimator", "cost", "excitation"]
 
 #: Key naming the plugin in a config mapping: ``{"_name_": "pso", "particles": 40}``. Shared by the
 #: command line's config nodes and the library's builders, so it lives below both.
@@ -30,6 +31,7 @@ GROUPS: dict[str, str] = {
     "robot": "idkit.robots",
     "estimator": "idkit.estimators",
     "cost": "idkit.costs",
+    "excitation": "idkit.excitations",
 }
 
 

@@ -23,7 +23,7 @@ KNOWN_FAILURES: dict[tuple[str, str, str], str] = {
 
 def _cases() -> list[pytest.param]:
     cases = []
-    for kind in ("robot", "cost", "estimator"):
+    for kind in ("robot", "cost", "estimator", "excitation"):
         for name in registry.available(kind):  # reads metadata only; nothing is imported here
             for check in checks_for(kind):
                 marks = []

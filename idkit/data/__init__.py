@@ -1,4 +1,4 @@
-"""Samples for identification: the paper's trajectory, simulated noise scenarios, user data files.
+"""Samples for identification: simulated noise scenarios and user data files.
 
 Attributes are imported lazily, so that ``idkit.data.presets`` (the scenario presets, torch-free)
 serves the command line's ``--help`` without importing torch.
@@ -22,8 +22,6 @@ _LAZY = {
     "get_scenario": "idkit.data.scenarios",
     "simulate": "idkit.data.scenarios",
     "simulate_batch": "idkit.data.scenarios",
-    "fourier_excitation": "idkit.data.trajectory",
-    "paper_trajectory": "idkit.data.trajectory",
     "sample_times": "idkit.data.trajectory",
 }
 

@@ -1,6 +1,7 @@
 """Simulated measurement scenarios reproducing the paper's Tables II–V.
 
-A scenario samples ``robot.excitation`` (eq. (39) for the cylindrical robot) at
+A scenario samples ``robot.excitation`` (eq. (39) for the cylindrical robot), or any other
+``Excitation`` given as ``excitation=`` (e.g. an optimised one, ``idkit.excitation``), at
 ``sample_times(n_samples, t_end)``, computes the true torques from the *clean* states with
 ``robot.inverse_dynamics(params or robot.nominal_params(), ...)`` — so state noise never leaks
 into the torques — and then corrupts the four arrays.
@@ -39,7 +40,7 @@ from torch import Tensor
 
 from idkit.data.presets import SCENARIOS, Scenario, UnknownScenarioError
 from idkit.data.trajectory import sample_times
-from idkit.interfaces import Robot
+from idkit.interfaces import Excitation, Robot
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
 
@@ -104,12 +105,16 @@ class SampleBatch:
 
 
 def clean_samples(
-    robot: Robot, n_samples: int = 10, params: Tensor | None = None, t_end: float = 10.0
+    robot: Robot,
+    n_samples: int = 10,
+    params: Tensor | None = None,
+    t_end: float = 10.0,
+    excitation: Excitation | None = None,
 ) -> tuple[Tensor, Samples]:
-    """Sampling instants ``t[N]`` and uncorrupted samples of ``robot.excitation`` (CPU, float64).
+    """Sampling instants ``t[N]`` and uncorrupted samples of a motion (CPU, float64).
 
-    Torques are ``robot.inverse_dynamics(params, q, qd, qdd)``; ``params[P]`` defaults to
-    ``robot.nominal_params()``.
+    The motion is ``excitation`` (default ``robot.excitation``). Torques are
+    ``robot.inverse_dynamics(params, q, qd, qdd)``; ``params[P]`` defaults to ``robot.nominal_params()``.
     """
     if params is None:
         params = robot.nominal_params()
@@ -124,8 +129,10 @@ def clean_samples(
             f"params must have shape ({robot.n_params},) for {', '.join(robot.param_names)}, "
             f"got {tuple(params.shape)}"
         )
+    if excitation is not None:
+        excitation.check_joints(robot.joint_names, f"robot {type(robot).__name__}")
     t = sample_times(n_samples, t_end)
-    q, qd, qdd = robot.excitation(t)
+    q, qd, qdd = robot.excitation(t) if excitation is None else excitation(t)
     tau = robot.inverse_dynamics(params, q, qd, qdd)
     return t, Samples(q, qd, qdd, tau)
 
@@ -137,17 +144,19 @@ def simulate_batch(
     seed: int = 0,
     n_samples: int | None = None,
     params: Tensor | None = None,
+    excitation: Excitation | None = None,
     **overrides: Any,
 ) -> SampleBatch:
     """``trials`` independent noisy copies of one scenario, drawn in one vectorised call.
 
     Args:
-        robot: any ``Robot``; its ``excitation`` gives the states.
+        robot: any ``Robot``; its ``excitation`` gives the states unless ``excitation`` is given.
         scenario: preset name (see ``SCENARIOS``), ``Scenario`` or mapping (see ``get_scenario``).
         trials: number of independent noise draws ``T``.
         seed: seeds the ``torch.Generator`` that draws every random number.
         n_samples: overrides ``scenario.n_samples``.
         params: true physical parameters ``[P]`` (default ``robot.nominal_params()``).
+        excitation: the motion to sample instead of the robot's default one.
         **overrides: any other ``Scenario`` field, e.g. ``torque_noise=0.1``.
 
     Returns:
@@ -156,7 +165,7 @@ def simulate_batch(
     sc = get_scenario(scenario, n_samples=n_samples, **overrides)
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
         raise ValueError(f"simulate_batch: trials must be an integer >= 1, got {trials!r}")
-    t, clean = clean_samples(robot, sc.n_samples, params, sc.t_end)
+    t, clean = clean_samples(robot, sc.n_samples, params, sc.t_end, excitation)
     n = clean.n_joints
     shape = (trials, len(SAMPLE_ARRAYS), sc.n_samples, n)
     n_components = math.prod(shape[1:])
@@ -188,10 +197,11 @@ def simulate(
     seed: int = 0,
     n_samples: int | None = None,
     params: Tensor | None = None,
+    excitation: Excitation | None = None,
     **overrides: Any,
 ) -> Samples:
     """One noisy sample set of a scenario: trial 0 of ``simulate_batch`` with the same arguments.
 
     Example: ``simulate(CylindricalRobot(), "outliers", seed=3)`` → ``Samples`` with ``[10, 3]`` arrays.
     """
-    return simulate_batch(robot, scenario, 1, seed, n_samples, params, **overrides)[0]
+    return simulate_batch(robot, scenario, 1, seed, n_samples, params, excitation, **overrides)[0]

@@ -24,14 +24,24 @@ rigid-body dynamics of that robot only under these assumptions:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import torch
 from torch import Tensor
 
-from idkit.interfaces import Robot
+from idkit.interfaces import Excitation, Robot
+from idkit.limits import MotionLimits
+from idkit.registry import create
 
 TRUE_PARAMS = (5.0, 3.0, -0.5, 3.0)
+
+#: Eq. (38), per joint (theta1, d2, d3): ``(lower, upper)`` of position, velocity, acceleration.
+PAPER_LIMITS = (
+    ((-math.pi, math.pi), (-4.0, 4.0), (-3.0, 3.0)),
+    ((0.0, 1.0), (-2.0, 2.0), (-2.0, 2.0)),
+    ((0.0, 1.0), (-1.5, 1.5), (-1.0, 1.0)),
+)
 
 
 class CylindricalRobot(Robot):
@@ -84,11 +94,13 @@ class CylindricalRobot(Robot):
         tau3 = m3 * d3_dd - m3 * r * th_d.square()
         return torch.stack((tau1, tau2.expand_as(tau1), tau3), dim=-1)
 
-    def excitation(self, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        """The paper's PSO-planned trajectory, eq. (39): ``(q, qd, qdd)``, each ``[N, 3]``."""
-        from idkit.data.trajectory import paper_trajectory
+    def default_excitation(self) -> Excitation:
+        """The paper's PSO-planned trajectory, eq. (39) (the ``paper`` excitation)."""
+        return create("excitation", "paper")
 
-        return paper_trajectory(t)
+    def motion_limits(self) -> MotionLimits:
+        """Eq. (38): the box the paper's planned trajectory should observe."""
+        return MotionLimits.from_ranges(self.joint_names, *zip(*PAPER_LIMITS, strict=True))
 
     def regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Eq. (23): ``Y[N, 3, 4]`` with ``tau = Y @ alpha``."""

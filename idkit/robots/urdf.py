@@ -27,6 +27,7 @@ import torch
 from torch import Tensor
 
 from idkit.interfaces import Robot
+from idkit.limits import MotionLimits
 from idkit.robots.base_params import BaseParameters, find_base_parameters
 from idkit.robots.rnea import TreeTensors, rnea, rnea_regressor
 from idkit.robots.urdf_model import INERTIAL_NAMES, KinematicTree, parse_urdf
@@ -134,6 +135,21 @@ class URDFRobot(Robot):
         states = self.random_states(self.n_states, generator)
         stacked = self.standard_regressor(*states).reshape(-1, self.n_params)
         return find_base_parameters(stacked.numpy(), self.tolerance)
+
+    def motion_limits(self) -> MotionLimits:
+        """The URDF's ``<limit>``: position ``lower``/``upper``, velocity ``±velocity``.
+
+        A URDF has no acceleration limits (they are ``±inf`` here: give them with
+        ``MotionLimits.replace("acceleration", ...)``); a continuous joint has no position limit,
+        a missing or zero ``velocity`` no velocity limit.
+        """
+        inf = float("inf")
+        return MotionLimits.from_ranges(
+            self.joint_names,
+            [body.limits or (-inf, inf) for body in self.tree.bodies],
+            [(-(body.max_velocity or inf), body.max_velocity or inf) for body in self.tree.bodies],
+            [(-inf, inf)] * self.n_joints,
+        )
 
     # ---------------------------------------------------------------- parameters
     def nominal_params(self) -> Tensor:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import os
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -48,6 +48,7 @@ class Body:
         inertial: ``[10]`` standard parameters ``(m, m c, I_xx, I_xy, I_xz, I_yy, I_yz, I_zz)`` with
             the inertia about the body-frame origin, welded links included.
         limits: ``(lower, upper)`` from ``<limit>``, or ``None`` (continuous joints).
+        max_velocity: ``velocity`` of ``<limit>`` (rad/s or m/s), or ``None`` when absent or 0.
     """
 
     joint: str
@@ -59,6 +60,7 @@ class Body:
     axis: np.ndarray
     inertial: np.ndarray
     limits: tuple[float, float] | None
+    max_velocity: float | None = None
 
 
 @dataclass(frozen=True)
@@ -171,13 +173,16 @@ def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translati
     if norm < 1e-12:
         raise ValueError(f"urdf: joint {name!r} has a zero axis")
     limits = None
+    limit = joint.find("limit")
+    velocity = _floats(limit, "velocity", (0.0,), f"joint {name!r} <limit>")[0]
     if kind != "continuous":
-        limit = joint.find("limit")
         lo = _floats(limit, "lower", (0.0,), f"joint {name!r} <limit>")[0]
         hi = _floats(limit, "upper", (0.0,), f"joint {name!r} <limit>")[0]
         limits = (float(lo), float(hi)) if hi > lo else None
     child = joint.find("child").get("link")
-    return Body(name, child, MOVING[kind], parent, rotation, translation, axis / norm, np.zeros(10), limits)
+    max_velocity = float(velocity) if velocity > 0 else None
+    body = Body(name, child, MOVING[kind], parent, rotation, translation, axis / norm, np.zeros(10), limits)
+    return replace(body, max_velocity=max_velocity)
 
 
 def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
@@ -255,8 +260,5 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
         stack.extend(reversed(pending))  # children in document order
     if not bodies:
         raise ValueError(f"urdf: {label} has no revolute, continuous or prismatic joint")
-    bodies = [
-        Body(b.joint, b.link, b.kind, b.parent, b.rotation, b.translation, b.axis, inertial, b.limits)
-        for b, inertial in zip(bodies, inertials, strict=True)
-    ]
+    bodies = [replace(b, inertial=inertial) for b, inertial in zip(bodies, inertials, strict=True)]
     return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies))

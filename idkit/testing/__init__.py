@@ -49,6 +49,7 @@ from idkit.testing._common import (
 )
 from idkit.testing.costs import COST_CHECKS
 from idkit.testing.estimators import ESTIMATOR_CHECKS, ProblemFactory, make_problem
+from idkit.testing.excitations import EXCITATION_CHECKS
 from idkit.testing.robots import ROBOT_CHECKS
 
 __all__ = [
@@ -56,11 +57,13 @@ __all__ = [
     "COST_CHECKS",
     "DTYPES",
     "ESTIMATOR_CHECKS",
+    "EXCITATION_CHECKS",
     "ROBOT_CHECKS",
     "ConformanceError",
     "build_for_checks",
     "check_cost",
     "check_estimator",
+    "check_excitation",
     "check_hyperparameters",
     "check_plugin",
     "check_robot",
@@ -73,6 +76,7 @@ _CHECKS: dict[str, Sequence[Callable[..., None]]] = {
     "robot": ROBOT_CHECKS,
     "cost": COST_CHECKS,
     "estimator": ESTIMATOR_CHECKS,
+    "excitation": EXCITATION_CHECKS,
 }
 
 
@@ -115,6 +119,11 @@ def check_estimator(estimator: Any, problem_factory: ProblemFactory = make_probl
     _run_all(estimator, ESTIMATOR_CHECKS, problem_factory)
 
 
+def check_excitation(excitation: Any) -> None:
+    """Run every excitation check; raise one ``ConformanceError`` listing all failures."""
+    _run_all(excitation, EXCITATION_CHECKS)
+
+
 def build_for_checks(kind: str, name: str, **options: Any) -> Any:
     """Create a registered plugin with ``options``, or else its class's ``conformance_options``."""
     from idkit import registry
@@ -126,4 +135,6 @@ def build_for_checks(kind: str, name: str, **options: Any) -> Any:
 def check_plugin(kind: str, name: str, **options: Any) -> None:
     """Load a plugin by its registered name and run every check of its kind."""
     plugin = build_for_checks(kind, name, **options)
-    {"robot": check_robot, "cost": check_cost, "estimator": check_estimator}[kind](plugin)
+    run = {"robot": check_robot, "cost": check_cost, "estimator": check_estimator}
+    run["excitation"] = check_excitation
+    run[kind](plugin)

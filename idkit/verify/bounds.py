@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from idkit.data.trajectory import paper_trajectory
+from idkit.excitation.paper import PaperExcitation
 
 #: Eq. (38): the physical box the planned trajectory should observe, ``name -> (lower, upper)``.
 PAPER_BOUNDS: dict[str, tuple[float, float]] = {
@@ -137,4 +137,4 @@ def format_violations(violations: list[BoundViolation]) -> str:
 def paper_bounds_report(n_points: int = 10001, t_end: float = 10.0) -> list[BoundViolation]:
     """Where eq. (39) leaves eq. (38) on a dense grid of ``n_points`` over ``0 <= t <= t_end``."""
     t = torch.linspace(0.0, t_end, n_points, dtype=torch.float64)
-    return check_bounds(t, *paper_trajectory(t))
+    return check_bounds(t, *PaperExcitation()(t))

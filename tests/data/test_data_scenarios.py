@@ -14,7 +14,9 @@ from idkit.data.scenarios import (
     simulate,
     simulate_batch,
 )
-from idkit.data.trajectory import paper_trajectory, sample_times
+from idkit.data.trajectory import sample_times
+from idkit.excitation.fourier import FourierExcitation
+from idkit.excitation.paper import PaperExcitation
 from idkit.interfaces import Robot
 from idkit.problem import SAMPLE_ARRAYS
 
@@ -49,13 +51,29 @@ def test_presets_match_the_paper():
 def test_clean_samples_follow_eq39_and_the_dynamics(cylindrical):
     t, clean = clean_samples(cylindrical, 10)
     assert torch.equal(t, sample_times(10))
-    q, qd, qdd = paper_trajectory(t)
+    q, qd, qdd = PaperExcitation()(t)
     assert torch.equal(clean.q, q) and torch.equal(clean.qd, qd) and torch.equal(clean.qdd, qdd)
     # Independent reference: the regressor form (eq. 23) times the base parameters (eq. 24).
     p = cylindrical.nominal_params()
     tau_ref = cylindrical.regressor(q, qd, qdd) @ cylindrical.base_params(p)
     torch.testing.assert_close(clean.tau, tau_ref, rtol=1e-13, atol=1e-12)
     assert torch.equal(simulate(cylindrical, "clean", seed=5).tau, clean.tau)
+
+
+def test_an_excitation_replaces_the_robots_motion(cylindrical):
+    excitation = FourierExcitation(3, offset=[0.0, 0.5, 0.5])
+    batch = simulate_batch(cylindrical, "torque_noise", trials=2, seed=4, excitation=excitation)
+    states = excitation(batch.t)
+    for got, expected in zip((batch.clean.q, batch.clean.qd, batch.clean.qdd), states, strict=True):
+        assert torch.equal(got, expected)
+    tau = cylindrical.inverse_dynamics(cylindrical.nominal_params(), *states)
+    torch.testing.assert_close(batch.clean.tau, tau)
+    # The same seed draws the same relative errors, whatever the motion.
+    default = simulate_batch(cylindrical, "torque_noise", trials=2, seed=4)
+    assert torch.equal(batch.relative_error, default.relative_error)
+    assert torch.equal(simulate(cylindrical, "torque_noise", seed=4, excitation=excitation).tau, batch.tau[0])
+    with pytest.raises(ValueError, match="moves 2 joints, but robot CylindricalRobot has 3"):
+        simulate(cylindrical, excitation=FourierExcitation(2))
 
 
 @pytest.mark.parametrize("name", ["clean", "state_noise", "torque_noise", "all_noise"])
