@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import os
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -48,6 +48,8 @@ class Body:
         inertial: ``[10]`` standard parameters ``(m, m c, I_xx, I_xy, I_xz, I_yy, I_yz, I_zz)`` with
             the inertia about the body-frame origin, welded links included.
         limits: ``(lower, upper)`` from ``<limit>``, or ``None`` (continuous joints).
+        welded: links welded to ``link`` by fixed joints, whose inertials are merged into ``inertial``.
+        effort: ``<limit effort>`` (N·m or N), or ``None`` when absent or 0.
     """
 
     joint: str
@@ -59,6 +61,8 @@ class Body:
     axis: np.ndarray
     inertial: np.ndarray
     limits: tuple[float, float] | None
+    welded: tuple[str, ...] = ()
+    effort: float | None = None
 
 
 @dataclass(frozen=True)
@@ -171,13 +175,17 @@ def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translati
     if norm < 1e-12:
         raise ValueError(f"urdf: joint {name!r} has a zero axis")
     limits = None
+    limit = joint.find("limit")
+    effort = float(_floats(limit, "effort", (0.0,), f"joint {name!r} <limit>")[0])
     if kind != "continuous":
-        limit = joint.find("limit")
         lo = _floats(limit, "lower", (0.0,), f"joint {name!r} <limit>")[0]
         hi = _floats(limit, "upper", (0.0,), f"joint {name!r} <limit>")[0]
         limits = (float(lo), float(hi)) if hi > lo else None
     child = joint.find("child").get("link")
-    return Body(name, child, MOVING[kind], parent, rotation, translation, axis / norm, np.zeros(10), limits)
+    return Body(
+        name, child, MOVING[kind], parent, rotation, translation, axis / norm, np.zeros(10), limits, (),
+        effort if effort > 0 else None,
+    )
 
 
 def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
@@ -228,6 +236,7 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
         raise ValueError(f"urdf: {label}: expected one root link, found {roots or 'none (a loop)'}")
     bodies: list[Body] = []
     inertials: list[np.ndarray] = []
+    welded: list[list[str]] = []
     # Depth-first walk. A stack entry is (link, owning body, pose of the link in that body, the
     # Body its moving parent joint starts — or None when it hangs on a fixed joint).
     stack: list[tuple[str, int, np.ndarray, np.ndarray, Body | None]] = [
@@ -238,7 +247,10 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
         if body is not None:
             bodies.append(body)
             inertials.append(np.zeros(10))
+            welded.append([])
             owner, rot, pos = len(bodies) - 1, np.eye(3), np.zeros(3)
+        elif owner >= 0:
+            welded[owner].append(link)
         mass, com, inertia = _link_inertial(links[link])
         if owner >= 0:
             inertials[owner] += _standard(mass, rot @ com + pos, rot @ inertia @ rot.T)
@@ -256,7 +268,6 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
     if not bodies:
         raise ValueError(f"urdf: {label} has no revolute, continuous or prismatic joint")
     bodies = [
-        Body(b.joint, b.link, b.kind, b.parent, b.rotation, b.translation, b.axis, inertial, b.limits)
-        for b, inertial in zip(bodies, inertials, strict=True)
+        replace(b, inertial=inertial, welded=tuple(w)) for b, inertial, w in zip(bodies, inertials, welded, strict=True)
     ]
     return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies))
