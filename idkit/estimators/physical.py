@@ -31,14 +31,15 @@ moments), and ``−log det J`` is a barrier that keeps every pseudo-inertia stri
 ``prior_weight = w``: one nat of summed divergence costs ``w`` units of χ², so the objective is a
 MAP estimate with the prior ``exp(−w D / 2)``. Friction and offset parameters have no prior.
 
-With ``prior_weight = 0`` a weight of ``TIE_BREAK = 1`` remains: the data fix only the base
-parameters, and among the standard parameters that fit equally well it picks those closest to the
-CAD model (and keeps the pseudo-inertias strictly positive definite). One nat per unit of χ² is
-as weak as the data's own uncertainty: on simulated data with 0.1 % noise it moved the base
-parameters by < 0.1 standard deviation. Smaller weights left the interior-point solver inaccurate
-on the KUKA recordings (``optimal_inaccurate``, eigenvalues down to −0.5 after the SCS fallback).
-Directions the data barely excite are still set by the data's noise: that is what
-``prior_weight`` is for.
+With ``prior_weight = 0`` a tie-break ``TIE_BREAK ‖(p − p0) / u‖²`` remains (``u`` the CAD magnitudes
+``m0, m0 L, m0 L²`` of each link's parameters, so the term counts relative deviations; weight 1 in
+χ² units): the data fix only the base parameters, and among the standard parameters that fit
+equally well it picks those closest to the CAD model. It is as weak as the data's own uncertainty
+(on simulated data with 0.1 % noise it moved the base parameters by < 0.01 standard deviation). It
+is Euclidean rather than entropic on purpose: where an LMI is active the log-det barrier with so small
+a weight pushes an eigenvalue to ~1e-6 of its scale, and Clarabel then failed (the SCS fallback took
+20 s and ended outside the cone). Directions the data barely excite are set by the data's noise:
+that is what ``prior_weight`` is for.
 
 Solved by cvxpy with Clarabel (interior point, accurate), falling back to SCS; an infeasible program
 or a failed solver raises :class:`~idkit.estimators.observation.IdentificationError` in one line.
@@ -61,7 +62,7 @@ from idkit.estimators.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
 
-#: Weight (χ² per nat) of the divergence to the CAD model when ``prior_weight = 0`` (module doc).
+#: Weight (χ² per squared relative deviation) of the pull to CAD when ``prior_weight = 0`` (module doc).
 TIE_BREAK = 1.0
 #: Conic solvers tried for ``solver="auto"``, in order, and their options (Clarabel's defaults of
 #: 1e-8 leave the base parameters ~1e-5 (relative) off the LS ones on consistent clean data).
@@ -201,6 +202,7 @@ def solve_consistent(
     cad_masses = robot.nominal_params()[0 : 10 * nb : 10].numpy()
     floor = 0.01 * float(cad_masses.min()) if min_mass is None else float(min_mass)
     K = robot.base_map.numpy()
+    nominal = robot.nominal_params().numpy()
     scale = np.sqrt(scale2)
     # Variables scaled by the CAD magnitudes so that the conic solver sees O(1) unknowns.
     unit = _parameter_units(robot, cad_masses)
@@ -217,8 +219,11 @@ def solve_consistent(
     if nonnegative:
         constraints.append(z[nonnegative] >= 0)
     started = time.perf_counter()
-    weight = prior_weight if prior_weight > 0 else TIE_BREAK
-    used, status = _solve(cp.Problem(cp.Minimize(data + weight * prior), constraints), solvers, floor, who)
+    if prior_weight > 0:
+        objective = data + prior_weight * prior
+    else:  # a barrier-free tie-break: the log-det barrier is ill-conditioned where the LMIs are active
+        objective = data + TIE_BREAK * cp.sum_squares(z[: 10 * nb] - nominal[: 10 * nb] / unit[: 10 * nb])
+    used, status = _solve(cp.Problem(cp.Minimize(objective), constraints), solvers, floor, who)
     elapsed = time.perf_counter() - started
     params = torch.as_tensor(unit * z.value, dtype=torch.float64)
     inertials = params[: 10 * nb].reshape(nb, 10)
@@ -339,6 +344,7 @@ def nearest_consistent(
     """
     if (params is None) == (base_params is None):
         raise ValueError("nearest_consistent: give exactly one of params [P] or base_params [B]")
+    _n_links(robot)
     if params is not None:
         params = torch.as_tensor(params, dtype=torch.float64)
         if params.shape != (robot.n_params,):
