@@ -77,8 +77,8 @@ class Recording:
         if (steps <= 0).any():
             i = int(np.flatnonzero(steps <= 0)[0])
             raise ValueError(
-                f"{self.source}: timestamps must increase strictly; t[{i + 1}] = {t[i + 1]!r} follows "
-                f"t[{i}] = {t[i]!r}"
+                f"{self.source}: timestamps must increase strictly; t[{i + 1}] = {float(t[i + 1])!r} follows "
+                f"t[{i}] = {float(t[i])!r}"
             )
 
     @property

@@ -19,6 +19,7 @@ from torch import Tensor
 
 from idkit.costs.relative import DEFAULT_FLOOR
 from idkit.estimate import Estimate, jsonable
+from idkit.estimators.uncertainty import base_uncertainty
 from idkit.estimators.observation import (
     Conditioning,
     IdentificationError,
@@ -119,6 +120,7 @@ class LinearEstimator(Estimator):
             "cond": conditioning.cond,
             "max_cond": default_max_cond(system.W.dtype) if self.max_cond is None else self.max_cond,
             **solution.details,
+            **base_uncertainty(system.W, system.tau, solution.alpha, system.base_names, conditioning).to_details(),
             "device": str(system.W.device),
             "threads": threads,
             "dtype": str(system.W.dtype).removeprefix("torch."),
