@@ -83,7 +83,9 @@ def _check(options: PreprocessOptions, rate: float, recording: Recording) -> Non
     if options.order < 1:
         raise ValueError(f"{where}: order must be >= 1, got {options.order}")
     if options.velocities not in ("differentiate", "measured"):
-        raise ValueError(f"{where}: velocities must be 'differentiate' or 'measured', got {options.velocities!r}")
+        raise ValueError(
+            f"{where}: velocities must be 'differentiate' or 'measured', got {options.velocities!r}"
+        )
     if options.velocities == "measured" and recording.qd is None:
         raise ValueError(f"{where}: velocities='measured' but the recording has no qd columns")
 
@@ -120,10 +122,8 @@ def preprocess_with_times(
     q = lowpass(resample(recording.q))
     tau = resample(recording.tau)
     tau = lowpass(tau) if options.filter_torques else tau
-    if options.velocities == "measured":
-        qd = lowpass(resample(recording.qd))
-    else:
-        qd = np.gradient(q, h, axis=0)
+    measured = options.velocities == "measured"
+    qd = lowpass(resample(recording.qd)) if measured else np.gradient(q, h, axis=0)
     qdd = np.empty_like(q)
     qdd[1:-1] = (q[2:] - 2 * q[1:-1] + q[:-2]) / h**2
     qdd[0], qdd[-1] = qdd[1], qdd[-2]  # trimmed below

@@ -19,7 +19,6 @@ from torch import Tensor
 
 from idkit.costs.relative import DEFAULT_FLOOR
 from idkit.estimate import Estimate, jsonable
-from idkit.estimators.uncertainty import base_uncertainty
 from idkit.estimators.observation import (
     Conditioning,
     IdentificationError,
@@ -29,6 +28,7 @@ from idkit.estimators.observation import (
     default_max_cond,
     linear_system,
 )
+from idkit.estimators.uncertainty import uncertainty_details
 from idkit.interfaces import Estimator
 from idkit.problem import Problem
 from idkit.runtime import resolve_threads, torch_threads
@@ -120,7 +120,7 @@ class LinearEstimator(Estimator):
             "cond": conditioning.cond,
             "max_cond": default_max_cond(system.W.dtype) if self.max_cond is None else self.max_cond,
             **solution.details,
-            **base_uncertainty(system.W, system.tau, solution.alpha, system.base_names, conditioning).to_details(),
+            **uncertainty_details(system, solution.alpha, conditioning),
             "device": str(system.W.device),
             "threads": threads,
             "dtype": str(system.W.dtype).removeprefix("torch."),

@@ -67,7 +67,10 @@ TIE_BREAK = 1.0
 #: Conic solvers tried for ``solver="auto"``, in order, and their options (Clarabel's defaults of
 #: 1e-8 leave the base parameters ~1e-5 (relative) off the LS ones on consistent clean data).
 AUTO_SOLVERS = ("CLARABEL", "SCS")
-SOLVER_OPTIONS = {"CLARABEL": {"tol_gap_abs": 1e-9, "tol_gap_rel": 1e-9, "tol_feas": 1e-9}, "SCS": {"eps": 1e-9}}
+SOLVER_OPTIONS = {
+    "CLARABEL": {"tol_gap_abs": 1e-9, "tol_gap_rel": 1e-9, "tol_feas": 1e-9},
+    "SCS": {"eps": 1e-9},
+}
 #: ``nearest_consistent`` counts the change of predicted torque in units of this fraction of them.
 PROJECTION_UNIT = 1e-3
 #: Floor of the pcls data scale ``s²``, relative to ``‖tau‖²`` (noise-free data).
@@ -310,7 +313,9 @@ def compress(W: Tensor, tau: Tensor | None = None) -> tuple[np.ndarray, np.ndarr
     """QR-compress ``W[M, B]`` (and ``tau[M]``): ``(R[B, B], b[B], r²)`` with ``‖W a − tau‖² =
     ‖R a − b‖² + r²`` for every ``a``. Without ``tau``, ``b = 0`` and ``r² = 0``."""
     W = W.detach().to("cpu", torch.float64)
-    target = torch.zeros(W.shape[0], dtype=torch.float64) if tau is None else tau.detach().to("cpu", torch.float64)
+    target = (
+        torch.zeros(W.shape[0], dtype=torch.float64) if tau is None else tau.detach().to("cpu", torch.float64)
+    )
     r_aug = torch.linalg.qr(torch.cat([W, target[:, None]], 1), mode="r").R
     B = W.shape[1]
     rest = float(r_aug[B, B]) ** 2 if r_aug.shape[0] > B else 0.0
@@ -348,7 +353,9 @@ def nearest_consistent(
     if params is not None:
         params = torch.as_tensor(params, dtype=torch.float64)
         if params.shape != (robot.n_params,):
-            raise ValueError(f"nearest_consistent: params must be [{robot.n_params}], got {tuple(params.shape)}")
+            raise ValueError(
+                f"nearest_consistent: params must be [{robot.n_params}], got {tuple(params.shape)}"
+            )
         target = robot.base_params(params)
     else:
         target = torch.as_tensor(base_params, dtype=torch.float64)
@@ -385,7 +392,9 @@ class PhysicallyConsistentLS(Estimator):
     constraints make it conservative where they are active).
     """
 
-    def __init__(self, prior_weight: float = 0.0, min_mass: float | None = None, solver: str = "auto") -> None:
+    def __init__(
+        self, prior_weight: float = 0.0, min_mass: float | None = None, solver: str = "auto"
+    ) -> None:
         self.prior_weight = prior_weight
         self.min_mass = min_mass
         self.solver = solver

@@ -23,7 +23,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from idkit.estimators.observation import Conditioning, _null_directions
+from idkit.estimators.observation import Conditioning, LinearSystem, _null_directions
 
 
 @dataclass(frozen=True)
@@ -101,3 +101,8 @@ def base_uncertainty(
     cond = float(sigma[0] / sigma[-1]) if float(sigma[-1]) > 0 else float("inf")
     null = tuple(_null_directions(Vh, sigma, tol, tuple(names))) if rank < B else ()
     return BaseUncertainty(tuple(names), std.cpu(), relative.cpu(), sigma2, dof, rank, cond, null)
+
+
+def uncertainty_details(system: LinearSystem, alpha: Tensor, conditioning: Conditioning) -> dict[str, Any]:
+    """``details`` entry of the least-squares family: :func:`base_uncertainty` of its system and fit."""
+    return base_uncertainty(system.W, system.tau, alpha, system.base_names, conditioning).to_details()

@@ -63,15 +63,27 @@ def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
     Raises:
         ValueError: wrong parameter shape or names, or a link mass ``≤ 0`` (naming the link).
     """
-    from idkit.estimators.physical import min_pseudo_inertia_eigenvalues
+    from idkit.estimators.physical import min_pseudo_inertia_eigenvalues, pseudo_inertia
 
     values = _vector(robot, params)
     data, _ = read_urdf_text(robot.urdf)
     root = ET.fromstring(data, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
     links = {link.get("name"): link for link in root.findall("link")}
     joints = {joint.get("name"): joint for joint in root.findall("joint")}
-    eigenvalues = min_pseudo_inertia_eigenvalues(robot, torch.as_tensor(values)).tolist()
-    bad = [f"{b.link} ({e:.3g})" for b, e in zip(robot.tree.bodies, eigenvalues, strict=True) if e < 0]
+    for i, body in enumerate(robot.tree.bodies):
+        if not values[10 * i] > 0:
+            raise ValueError(
+                f"urdf export: link {body.link!r} has mass {values[10 * i]:.6g} <= 0; a URDF needs a "
+                "positive mass (project with idkit.estimators.physical.nearest_consistent)"
+            )
+    inertials = torch.as_tensor(values[: 10 * len(robot.link_names)]).reshape(-1, 10)
+    eigenvalues = min_pseudo_inertia_eigenvalues(robot, torch.as_tensor(values))
+    scale = pseudo_inertia(inertials).abs().amax((-2, -1))
+    bad = [
+        f"{b.link} ({float(e):.3g})"
+        for b, e, s in zip(robot.tree.bodies, eigenvalues, scale, strict=True)
+        if e < -1e-12 * s
+    ]  # round-off of an exactly singular (thin rod, point mass) body is fine
     if bad:
         warnings.warn(
             f"urdf export: pseudo-inertia not positive semidefinite for {', '.join(bad)}; simulators may "
@@ -79,19 +91,21 @@ def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
             stacklevel=2,
         )
     for i, body in enumerate(robot.tree.bodies):
-        standard = values[10 * i : 10 * i + 10]
-        if not standard[0] > 0:
-            raise ValueError(
-                f"urdf export: link {body.link!r} has mass {standard[0]:.6g} <= 0; a URDF needs a positive "
-                "mass (project with idkit.estimators.physical.nearest_consistent)"
-            )
-        _set_inertial(links[body.link], *centroidal(standard))
+        _set_inertial(links[body.link], *centroidal(values[10 * i : 10 * i + 10]))
         for name in body.welded:
             for inertial in links[name].findall("inertial"):
                 links[name].remove(inertial)
-    if robot.friction:
-        _write_friction(robot, values, joints)
-    return ET.tostring(root, encoding="unicode", xml_declaration=True)
+    _write_joint_terms(robot, values, joints)
+    return '<?xml version="1.0" encoding="utf-8"?>\n' + _prolog(data) + ET.tostring(root, encoding="unicode")
+
+
+def _prolog(data: bytes) -> str:
+    """What precedes ``<robot`` in the source (comments, not the XML declaration)."""
+    text = data.decode("utf-8", errors="replace")
+    head = text[: text.find("<robot")]
+    if head.lstrip().startswith("<?xml"):
+        head = head[head.find("?>") + 2 :]
+    return head.lstrip("\r\n")
 
 
 def _set_inertial(link: ET.Element, mass: float, com: np.ndarray, inertia: np.ndarray) -> None:
@@ -105,7 +119,8 @@ def _set_inertial(link: ET.Element, mass: float, com: np.ndarray, inertia: np.nd
     ET.SubElement(inertial, "mass", value=_number(mass)).tail = indent + "  "
     (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia
     names = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-    element = ET.SubElement(inertial, "inertia", dict(zip(names, map(_number, (xx, xy, xz, yy, yz, zz)))))
+    values = map(_number, (xx, xy, xz, yy, yz, zz))
+    element = ET.SubElement(inertial, "inertia", dict(zip(names, values, strict=True)))
     element.tail = indent
     inertial.tail = indent
     link.insert(0, inertial)
@@ -113,23 +128,26 @@ def _set_inertial(link: ET.Element, mass: float, com: np.ndarray, inertia: np.nd
         link.text, inertial.tail = indent, indent[:-2] if indent.endswith("  ") else indent
 
 
-def _write_friction(robot: URDFRobot, values: np.ndarray, joints: dict[str, ET.Element]) -> None:
+def _write_joint_terms(robot: URDFRobot, values: np.ndarray, joints: dict[str, ET.Element]) -> None:
+    """Friction into ``<dynamics>``; Stribeck and offset terms into a comment in the joint."""
     index = {name: k for k, name in enumerate(robot.param_names)}
     for j, name in enumerate(robot.joint_names):
         joint = joints[name]
-        dynamics = joint.find("dynamics")
-        if dynamics is None:
-            dynamics = ET.SubElement(joint, "dynamics")
-            dynamics.tail = "\n  "
-        dynamics.set("damping", _number(values[index[f"{name}.fv"]]))
-        dynamics.set("friction", _number(values[index[f"{name}.fc"]]))
+        if robot.friction:
+            dynamics = joint.find("dynamics")
+            if dynamics is None:
+                dynamics = ET.SubElement(joint, "dynamics")
+                dynamics.tail = "\n  "
+            dynamics.set("damping", _number(values[index[f"{name}.fv"]]))
+            dynamics.set("friction", _number(values[index[f"{name}.fc"]]))
         keys = [key for key in ("fs", "offset") if f"{name}.{key}" in index]
         extra = [f"{key}={_number(values[index[f'{name}.{key}']])}" for key in keys]
         if robot.stribeck_scales is not None:
             extra.append(f"stribeck_velocity={_number(robot.stribeck_scales[j])}")
         if extra:
             comment = ET.Comment(f" idkit: {' '.join(extra)} (no URDF field) ")
-            comment.tail = "\n  "
+            if len(joint):
+                comment.tail, joint[-1].tail = joint[-1].tail, "\n    "
             joint.append(comment)
 
 

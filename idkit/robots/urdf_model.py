@@ -182,10 +182,9 @@ def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translati
         hi = _floats(limit, "upper", (0.0,), f"joint {name!r} <limit>")[0]
         limits = (float(lo), float(hi)) if hi > lo else None
     child = joint.find("child").get("link")
-    return Body(
-        name, child, MOVING[kind], parent, rotation, translation, axis / norm, np.zeros(10), limits, (),
-        effort if effort > 0 else None,
-    )
+    kind, axis = MOVING[kind], axis / norm
+    effort = effort if effort > 0 else None
+    return Body(name, child, kind, parent, rotation, translation, axis, np.zeros(10), limits, effort=effort)
 
 
 def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
@@ -268,6 +267,7 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
     if not bodies:
         raise ValueError(f"urdf: {label} has no revolute, continuous or prismatic joint")
     bodies = [
-        replace(b, inertial=inertial, welded=tuple(w)) for b, inertial, w in zip(bodies, inertials, welded, strict=True)
+        replace(b, inertial=inertial, welded=tuple(w))
+        for b, inertial, w in zip(bodies, inertials, welded, strict=True)
     ]
     return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies))

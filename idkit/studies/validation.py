@@ -51,7 +51,9 @@ def effort_limits(robot: Robot) -> np.ndarray | None:
     return None if limits is None else np.asarray(limits, dtype=np.float64)
 
 
-def predict(robot: Robot, samples: Samples, params: Tensor | None = None, base_params: Tensor | None = None) -> Tensor:
+def predict(
+    robot: Robot, samples: Samples, params: Tensor | None = None, base_params: Tensor | None = None
+) -> Tensor:
     """Predicted torques ``[N, n]`` from standard ``params[P]`` or ``base_params[B]`` (exactly one)."""
     if (params is None) == (base_params is None):
         raise ValueError("validation: give exactly one of params [P] or base_params [B]")

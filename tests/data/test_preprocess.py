@@ -83,7 +83,10 @@ def test_measured_velocities_are_filtered_not_differentiated():
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        (PreprocessOptions(rate=200.0, cutoff=120.0), r"cutoff 120 Hz is not below the Nyquist frequency 100 Hz"),
+        (
+            PreprocessOptions(rate=200.0, cutoff=120.0),
+            r"cutoff 120 Hz is not below the Nyquist frequency 100 Hz",
+        ),
         (PreprocessOptions(rate=50.0, cutoff=30.0), r"cutoff 30 Hz is not below the Nyquist frequency 25 Hz"),
         (PreprocessOptions(rate=200.0, cutoff=30.0, decimate=4), r"decimated Nyquist frequency 25 Hz"),
         (PreprocessOptions(velocities="measured"), "has no qd columns"),
@@ -107,9 +110,14 @@ def test_kuka_accelerations_recomputed_from_positions(kuka_dir):
     )
     with np.load(path) as data:
         t = data["times"] - data["times"][0]
-        files = {k: np.stack([np.interp(times, t, c) for c in data[v].T], 1)
-                 for k, v in (("qd", "velocities"), ("qdd", "accelerations"))}
-    rel = {k: np.sqrt(((getattr(samples, k).numpy() - v) ** 2).mean(0) / (v**2).mean(0)) for k, v in files.items()}
+        files = {
+            k: np.stack([np.interp(times, t, c) for c in data[v].T], 1)
+            for k, v in (("qd", "velocities"), ("qdd", "accelerations"))
+        }
+    rel = {
+        k: np.sqrt(((getattr(samples, k).numpy() - v) ** 2).mean(0) / (v**2).mean(0))
+        for k, v in files.items()
+    }
     assert rel["qd"].max() < 0.005
     assert rel["qdd"][[0, 2, 3, 5, 6]].max() < 0.03
     assert rel["qdd"][[1, 4]].max() < 0.16

@@ -32,8 +32,11 @@ def test_csv_with_and_without_velocities(tmp_path):
 @given(n=st.integers(1, 4), N=st.integers(2, 30), velocities=st.booleans(), seed=st.integers(0, 2**16))
 def test_npz_round_trip(tmp_path_factory, n, N, velocities, seed):
     rng = np.random.default_rng(seed)
-    arrays = {"t": np.cumsum(rng.uniform(0.001, 0.01, N)), "q": rng.normal(size=(N, n)),
-              "tau": rng.normal(size=(N, n))}
+    arrays = {
+        "t": np.cumsum(rng.uniform(0.001, 0.01, N)),
+        "q": rng.normal(size=(N, n)),
+        "tau": rng.normal(size=(N, n)),
+    }
     if velocities:
         arrays["qd"] = rng.normal(size=(N, n))
     path = tmp_path_factory.mktemp("rec") / "r.npz"

@@ -7,6 +7,7 @@ import functools
 import numpy as np
 import pytest
 import torch
+from test_robots_urdf import TREE_URDF
 
 from idkit import registry
 from idkit.estimators.observation import IdentificationError
@@ -18,7 +19,6 @@ from idkit.estimators.physical import (
 )
 from idkit.problem import Problem, Samples
 from idkit.robots.urdf import URDFRobot
-from test_robots_urdf import TREE_URDF
 
 #: Interior-point solutions may sit this far outside the PSD cone (kg·m² scale of the test robot).
 EIGEN_TOL = 1e-9
@@ -44,7 +44,9 @@ def simulated(robot: URDFRobot, params: torch.Tensor, noise: float, seed: int = 
     q, qd, qdd = robot.random_states(n, generator)
     tau = robot.inverse_dynamics(params, q, qd, qdd)
     scale = tau.square().mean(0).sqrt()
-    return Samples(q, qd, qdd, tau + noise * scale * torch.randn(tau.shape, generator=generator, dtype=tau.dtype))
+    return Samples(
+        q, qd, qdd, tau + noise * scale * torch.randn(tau.shape, generator=generator, dtype=tau.dtype)
+    )
 
 
 def vector(values: dict[str, float]) -> np.ndarray:
@@ -70,7 +72,9 @@ def test_pcls_equals_ls_when_ls_is_consistent(noise):
     robot = tree_robot()
     problem = Problem(robot, simulated(robot, true_params(robot), noise))
     ls = registry.create("estimator", "ls").fit(problem)
-    projected = nearest_consistent(robot, base_params=torch.as_tensor(vector(ls.base_params)), samples=problem.samples)
+    projected = nearest_consistent(
+        robot, base_params=torch.as_tensor(vector(ls.base_params)), samples=problem.samples
+    )
     assert projected.data_term < 1e-2  # LS is consistent: < (0.01 % torque change)^2 away
     pcls = registry.create("estimator", "pcls").fit(problem)
     a_ls, a_pcls = vector(ls.base_params), vector(pcls.base_params)
@@ -122,7 +126,9 @@ def test_projection_returns_consistent_parameters_and_keeps_consistent_ones():
     good = true_params(robot)
     again = nearest_consistent(robot, good)
     np.testing.assert_allclose(
-        robot.base_params(again.params).numpy(), robot.base_params(good).numpy(), atol=1e-5 * float(good.abs().max())
+        robot.base_params(again.params).numpy(),
+        robot.base_params(good).numpy(),
+        atol=1e-5 * float(good.abs().max()),
     )
 
 
@@ -133,7 +139,9 @@ def test_inputs_are_checked():
     with pytest.raises(ValueError, match=r"params must be \[" + str(robot.n_params)):
         nearest_consistent(robot, torch.zeros(3))
     with pytest.raises(ValueError, match="solver must be"):
-        PhysicallyConsistentLS(solver="mosek-pro").fit(Problem(robot, simulated(robot, true_params(robot), 0.0)))
+        PhysicallyConsistentLS(solver="mosek-pro").fit(
+            Problem(robot, simulated(robot, true_params(robot), 0.0))
+        )
     with pytest.raises(ValueError, match="needs a 'urdf' robot"):
         nearest_consistent(registry.create("robot", "cylindrical"), torch.ones(4))
 
@@ -158,7 +166,11 @@ def test_solver_failure_is_one_line(monkeypatch):
 
     monkeypatch.setattr(cp.Problem, "solve", broken)
     robot = tree_robot()
-    with pytest.raises(IdentificationError, match=r"^nearest_consistent: the conic solver failed \(CLARABEL: numerical trouble; SCS: numerical trouble\)$"):
+    with pytest.raises(
+        IdentificationError,
+        match=r"^nearest_consistent: the conic solver failed "
+        r"\(CLARABEL: numerical trouble; SCS: numerical trouble\)$",
+    ):
         nearest_consistent(robot, true_params(robot))
 
 

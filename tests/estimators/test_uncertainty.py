@@ -7,9 +7,9 @@ import pytest
 import torch
 
 from idkit import registry
+from idkit.data.scenarios import simulate
 from idkit.estimators.uncertainty import base_uncertainty
 from idkit.problem import Problem
-from idkit.data.scenarios import simulate
 
 
 def textbook(W: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -40,7 +40,9 @@ def test_rank_deficiency_names_the_combination_and_gives_infinite_std():
     W = np.c_[a, b, a + 2 * b, rng.normal(size=100)]  # column c = a + 2 b
     tau = W[:, [0, 1, 3]] @ np.array([1.0, 2.0, 3.0])
     alpha = np.array([1.0, 2.0, 0.0, 3.0])
-    result = base_uncertainty(torch.as_tensor(W), torch.as_tensor(tau), torch.as_tensor(alpha), ["a", "b", "c", "d"])
+    result = base_uncertainty(
+        torch.as_tensor(W), torch.as_tensor(tau), torch.as_tensor(alpha), ["a", "b", "c", "d"]
+    )
     assert result.rank == 3
     assert np.isinf(result.std.numpy()[:3]).all() and np.isfinite(result.std.numpy()[3])
     (combination,) = result.unidentifiable
