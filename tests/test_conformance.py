@@ -11,7 +11,7 @@ import pytest
 
 from idkit import registry
 from idkit.registry import PluginLoadError
-from idkit.testing import build_for_checks, checks_for
+from idkit.testing import build_for_checks, checks_for, problem_factory_for
 
 #: (kind, name, check) -> why it fails today. Strict xfail: once fixed, the XPASS says "remove me".
 KNOWN_FAILURES: dict[tuple[str, str, str], str] = {}
@@ -45,4 +45,5 @@ def test_registered_plugin_conforms(kind, name, check, plugins):
             plugins[key] = build_for_checks(kind, name)
         except PluginLoadError as err:  # every registered name must load: a real failure
             pytest.fail(str(err), pytrace=False)
-    check(plugins[key])
+    extra = [problem_factory_for(plugins[key])] if kind == "estimator" else []
+    check(plugins[key], *extra)

@@ -50,7 +50,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import torch
@@ -391,6 +391,12 @@ class PhysicallyConsistentLS(Estimator):
     :func:`idkit.estimators.uncertainty.base_uncertainty` (the LS formula at the pcls estimate; the
     constraints make it conservative where they are active).
     """
+
+    #: The conformance suite's problem: pcls needs a ``urdf`` robot (the cylindrical one from its URDF).
+    conformance_robot: ClassVar[tuple[str, dict[str, Any]]] = (
+        "urdf",
+        {"urdf": "cylindrical", "friction": True},
+    )
 
     def __init__(
         self, prior_weight: float = 0.0, min_mass: float | None = None, solver: str = "auto"
