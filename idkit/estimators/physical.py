@@ -75,8 +75,8 @@ SOLVER_OPTIONS = {
 PROJECTION_UNIT = 1e-3
 #: Floor of the pcls data scale ``s²``, relative to ``‖tau‖²`` (noise-free data).
 NOISE_FLOOR = 1e-10
-#: Parameter-name suffixes constrained to be non-negative (friction coefficients).
-NONNEGATIVE_SUFFIXES = (".fc", ".fv")
+#: Parameter-name suffixes constrained to be non-negative (Coulomb, viscous, Stribeck friction).
+NONNEGATIVE_SUFFIXES = (".fc", ".fv", ".fs")
 #: A CAD pseudo-inertia is lifted to ``J0 + eps λ_max(J0) 1`` when it is (nearly) singular, e.g. a
 #: thin rod or a point mass, so that the divergence to it is finite.
 PRIOR_REGULARISATION = 1e-6
@@ -212,17 +212,16 @@ def solve_consistent(
     z = cp.Variable(K.shape[1])
     p = cp.multiply(unit, z)
     data = cp.sum_squares((R @ K / scale) @ p - b / scale)
-    constraints, prior = [], 0
+    constraints, pseudo = [], []
     for i in range(nb):
-        j = _pseudo_inertia_expression(p[10 * i : 10 * i + 10], cp)
-        inv0 = np.linalg.inv(j0[i])
-        prior = prior - cp.log_det(j) + cp.trace(inv0 @ j)
-        constraints += [j >> 0, p[10 * i] >= floor]
+        pseudo.append(_pseudo_inertia_expression(p[10 * i : 10 * i + 10], cp))
+        constraints += [pseudo[i] >> 0, p[10 * i] >= floor]
     nonnegative = [k for k, name in enumerate(robot.param_names) if name.endswith(NONNEGATIVE_SUFFIXES)]
     if nonnegative:
         constraints.append(z[nonnegative] >= 0)
     started = time.perf_counter()
-    if prior_weight > 0:
+    if prior_weight > 0:  # the entropic divergence, without its constants
+        prior = sum(-cp.log_det(j) + cp.trace(np.linalg.inv(j0[i]) @ j) for i, j in enumerate(pseudo))
         objective = data + prior_weight * prior
     else:  # a barrier-free tie-break: the log-det barrier is ill-conditioned where the LMIs are active
         objective = data + TIE_BREAK * cp.sum_squares(z[: 10 * nb] - nominal[: 10 * nb] / unit[: 10 * nb])
