@@ -10,7 +10,7 @@ origin, the order of :mod:`idkit.robots.urdf_model`) describe a real mass distri
 fit under it is a convex semidefinite program. Both tools here solve
 
     min_p  ‖R (K p) − b‖² / s²  +  w Σ_links D(J_i(p) ‖ J_i0)
-    s.t.   J_i(p) ⪰ 0,  m_i ≥ min_mass,  friction coefficients ≥ 0,
+    s.t.   J_i(p) ⪰ 0,  m_i ≥ min_mass,  fc, fv ≥ 0,  fc + fs ≥ 0 (Stribeck term, if any),
 
 with ``p`` the standard parameters ``[P]`` of a ``urdf`` robot, ``K`` its base map (``alpha = K p``)
 and ``(R, b, s²)`` a QR-compressed data term: for ``pcls`` the regressor and torques of the samples,
@@ -75,8 +75,10 @@ SOLVER_OPTIONS = {
 PROJECTION_UNIT = 1e-3
 #: Floor of the pcls data scale ``s²``, relative to ``‖tau‖²`` (noise-free data).
 NOISE_FLOOR = 1e-10
-#: Parameter-name suffixes constrained to be non-negative (Coulomb, viscous, Stribeck friction).
-NONNEGATIVE_SUFFIXES = (".fc", ".fv", ".fs")
+#: Parameter-name suffixes constrained to be non-negative (Coulomb and viscous friction). A Stribeck
+#: coefficient ``fs`` may be negative (friction building up over ``v_s`` after a reversal) as long as
+#: the friction at low speed opposes the motion: ``fc + fs >= 0``.
+NONNEGATIVE_SUFFIXES = (".fc", ".fv")
 #: A CAD pseudo-inertia is lifted to ``J0 + eps λ_max(J0) 1`` when it is (nearly) singular, e.g. a
 #: thin rod or a point mass, so that the divergence to it is finite.
 PRIOR_REGULARISATION = 1e-6
@@ -219,6 +221,10 @@ def solve_consistent(
     nonnegative = [k for k, name in enumerate(robot.param_names) if name.endswith(NONNEGATIVE_SUFFIXES)]
     if nonnegative:
         constraints.append(z[nonnegative] >= 0)
+    index = {name: k for k, name in enumerate(robot.param_names)}
+    for joint in robot.joint_names:
+        if f"{joint}.fs" in index:
+            constraints.append(p[index[f"{joint}.fc"]] + p[index[f"{joint}.fs"]] >= 0)
     started = time.perf_counter()
     if prior_weight > 0:  # the entropic divergence, without its constants
         prior = sum(-cp.log_det(j) + cp.trace(np.linalg.inv(j0[i]) @ j) for i, j in enumerate(pseudo))

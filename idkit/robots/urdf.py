@@ -7,8 +7,9 @@ Parameters ``p[P]`` (``P = 10 nb (+ 2 n friction) (+ n offset)``), in this order
   about the LINK-FRAME ORIGIN (not the centre of mass): the dynamics are linear in these;
 * with ``friction=True``: ``<joint>.fc`` for every joint, then ``<joint>.fv`` for every joint
   (the paper's eq. (1) ``F_c sign(qd) + F_v qd``); with ``stribeck_velocity = v_s`` also
-  ``<joint>.fs`` for every joint, the Stribeck excess ``F_s exp(-(qd/v_s)²) sign(qd)`` of the
-  breakaway friction over the Coulomb level at low speed (linear in ``F_s`` for a fixed ``v_s``);
+  ``<joint>.fs`` for every joint, a low-speed term ``F_s exp(-(qd/v_s)²) sign(qd)`` (linear in
+  ``F_s`` for a fixed ``v_s``): ``F_s > 0`` is the Stribeck excess of breakaway over Coulomb
+  friction, ``-F_c ≤ F_s < 0`` friction that builds up over ``v_s`` after a velocity reversal;
 * with ``offset=True``: ``<joint>.offset``, a constant torque per joint (sensor bias).
 
 Base parameters (``alpha = K p``) come from :mod:`idkit.robots.base_params` on the regressor stacked
@@ -58,7 +59,7 @@ class URDFRobot(Robot):
     (``L = max(|c0|, 0.1 m)``, ``m_hi`` the upper mass bound): mass ``[m0/2, 2 m0]`` (``[0, 1 kg]``
     when ``m0 = 0``); first moments ``h0 ± m_hi L``; diagonal inertia about the origin
     ``[I0/2, 2 I0]`` (``[0, m_hi L²]`` when 0); products ``I0_kl ± sqrt(I_hi,kk I_hi,ll) / 2``;
-    ``fc ∈ [0, max_coulomb]``, ``fv ∈ [0, max_viscous]``, ``offset ∈ ±max_offset``.
+    ``fc ∈ [0, max_coulomb]``, ``fv ∈ [0, max_viscous]``, ``fs ∈ ±max_coulomb``, ``offset ∈ ±max_offset``.
     ``base_bounds`` is the smallest box holding ``K p`` for every ``p`` in that box (interval
     arithmetic: ``K mid ± |K| half_width``), so every physical point of the box is reachable.
     """
@@ -177,10 +178,11 @@ class URDFRobot(Robot):
             upper += [m_hi, *(h0 + m_hi * length), xx_hi, xy_hi, xz_hi, yy_hi, yz_hi, zz_hi]
         n = self.n_joints
         if self.friction:
+            lower += [0.0] * (2 * n)
             upper += [self.max_coulomb] * n + [self.max_viscous] * n
-            if self.stribeck_scales is not None:
+            if self.stribeck_scales is not None:  # fs < 0: friction building up after a reversal
+                lower += [-self.max_coulomb] * n
                 upper += [self.max_coulomb] * n
-            lower += [0.0] * (len(upper) - len(lower))
         if self.offset:
             lower += [-self.max_offset] * n
             upper += [self.max_offset] * n

@@ -181,3 +181,16 @@ def test_scs_agrees_with_clarabel():
     scs = PhysicallyConsistentLS(solver="scs").fit(problem)
     assert scs.details["solver"] == "SCS"
     assert scs.details["criterion_value"] == pytest.approx(clarabel.details["criterion_value"], rel=1e-3)
+
+
+def test_stribeck_friction_never_drives_the_joint():
+    """fs may be negative (friction building up after a reversal) but not below -fc."""
+    robot = URDFRobot(TREE_URDF, friction=True, stribeck_velocity=0.3)
+    params = robot.nominal_params().clone()
+    n, start = robot.n_joints, 10 * len(robot.link_names)
+    params[start : start + n] = 0.5  # fc
+    params[start + 2 * n :] = -1.5  # fs < -fc: friction that would push at low speed
+    estimate = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, params, noise=1e-3, seed=4)))
+    fit = torch.as_tensor(vector(estimate.params))
+    assert (fit[start : start + n] + fit[start + 2 * n :] >= -1e-9).all()
+    assert (fit[start + 2 * n :] < 0).any()

@@ -29,7 +29,8 @@ def test_stribeck_term_in_torques_and_regressor(scales):
     torch.testing.assert_close(robot.inverse_dynamics(params, q, qd, qdd), by_hand, rtol=0, atol=1e-12)
     torch.testing.assert_close(robot.standard_regressor(q, qd, qdd) @ params, by_hand, rtol=0, atol=1e-12)
     lower, upper = robot.bounds()
-    assert (lower[rigid.n_params : rigid.n_params + 3 * n] == 0).all()
+    assert (lower[rigid.n_params : rigid.n_params + 2 * n] == 0).all()
+    assert (lower[rigid.n_params + 2 * n : rigid.n_params + 3 * n] < 0).all()
     assert (upper > lower).all()
 
 
