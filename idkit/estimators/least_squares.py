@@ -28,6 +28,7 @@ from idkit.estimators.observation import (
     default_max_cond,
     linear_system,
 )
+from idkit.estimators.uncertainty import uncertainty_details
 from idkit.interfaces import Estimator
 from idkit.problem import Problem
 from idkit.runtime import resolve_threads, torch_threads
@@ -119,6 +120,7 @@ class LinearEstimator(Estimator):
             "cond": conditioning.cond,
             "max_cond": default_max_cond(system.W.dtype) if self.max_cond is None else self.max_cond,
             **solution.details,
+            **uncertainty_details(system, solution.alpha, conditioning),
             "device": str(system.W.device),
             "threads": threads,
             "dtype": str(system.W.dtype).removeprefix("torch."),

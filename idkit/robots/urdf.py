@@ -6,7 +6,10 @@ Parameters ``p[P]`` (``P = 10 nb (+ 2 n friction) (+ n offset)``), in this order
   parameters ``<link>.m, .mcx, .mcy, .mcz, .Ixx, .Ixy, .Ixz, .Iyy, .Iyz, .Izz`` with the inertia
   about the LINK-FRAME ORIGIN (not the centre of mass): the dynamics are linear in these;
 * with ``friction=True``: ``<joint>.fc`` for every joint, then ``<joint>.fv`` for every joint
-  (the paper's eq. (1) ``F_c sign(qd) + F_v qd``);
+  (the paper's eq. (1) ``F_c sign(qd) + F_v qd``); with ``stribeck_velocity = v_s`` also
+  ``<joint>.fs`` for every joint, a low-speed term ``F_s exp(-(qd/v_s)²) sign(qd)`` (linear in
+  ``F_s`` for a fixed ``v_s``): ``F_s > 0`` is the Stribeck excess of breakaway over Coulomb
+  friction, ``-F_c ≤ F_s < 0`` friction that builds up over ``v_s`` after a velocity reversal;
 * with ``offset=True``: ``<joint>.offset``, a constant torque per joint (sensor bias).
 
 Base parameters (``alpha = K p``) come from :mod:`idkit.robots.base_params` on the regressor stacked
@@ -21,6 +24,8 @@ floating base), unknown types, ``<mimic>`` joints; closed loops are refused too.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import torch
@@ -40,6 +45,8 @@ class URDFRobot(Robot):
         urdf: a URDF file path, URDF text, or the name of a URDF shipped in ``idkit/robots/assets``
             (default: the paper's cylindrical robot).
         friction: add per-joint Coulomb ``fc`` and viscous ``fv`` friction parameters.
+        stribeck_velocity: with ``friction``, also a per-joint Stribeck parameter ``fs`` with this
+            velocity scale (rad/s or m/s; one value, or one per joint); ``None`` = no Stribeck term.
         offset: add a per-joint constant torque offset.
         gravity: gravitational acceleration (m/s²) along −z of the root link.
         n_states: random states stacked to find the base parameters (``n_states * n >> P``).
@@ -53,7 +60,7 @@ class URDFRobot(Robot):
     (``L = max(|c0|, 0.1 m)``, ``m_hi`` the upper mass bound): mass ``[m0/2, 2 m0]`` (``[0, 1 kg]``
     when ``m0 = 0``); first moments ``h0 ± m_hi L``; diagonal inertia about the origin
     ``[I0/2, 2 I0]`` (``[0, m_hi L²]`` when 0); products ``I0_kl ± sqrt(I_hi,kk I_hi,ll) / 2``;
-    ``fc ∈ [0, max_coulomb]``, ``fv ∈ [0, max_viscous]``, ``offset ∈ ±max_offset``.
+    ``fc ∈ [0, max_coulomb]``, ``fv ∈ [0, max_viscous]``, ``fs ∈ ±max_coulomb``, ``offset ∈ ±max_offset``.
     ``base_bounds`` is the smallest box holding ``K p`` for every ``p`` in that box (interval
     arithmetic: ``K mid ± |K| half_width``), so every physical point of the box is reachable.
     """
@@ -72,6 +79,7 @@ class URDFRobot(Robot):
         max_coulomb: float = 10.0,
         max_viscous: float = 10.0,
         max_offset: float = 10.0,
+        stribeck_velocity: float | Sequence[float] | None = None,
     ) -> None:
         self.urdf = urdf
         self.friction = friction
@@ -83,12 +91,16 @@ class URDFRobot(Robot):
         self.max_coulomb = max_coulomb
         self.max_viscous = max_viscous
         self.max_offset = max_offset
+        self.stribeck_velocity = stribeck_velocity
         self.tree: KinematicTree = parse_urdf(urdf)
         self.joint_names = self.tree.joint_names
+        self.stribeck_scales = self._check_stribeck(stribeck_velocity)
         self.link_names = self.tree.link_names
         names = [f"{link}.{p}" for link in self.link_names for p in INERTIAL_NAMES]
         if friction:
             names += [f"{j}.fc" for j in self.joint_names] + [f"{j}.fv" for j in self.joint_names]
+            if self.stribeck_scales is not None:
+                names += [f"{j}.fs" for j in self.joint_names]
         if offset:
             names += [f"{j}.offset" for j in self.joint_names]
         self.param_names = tuple(names)
@@ -151,6 +163,12 @@ class URDFRobot(Robot):
             [(-inf, inf)] * self.n_joints,
         )
 
+    @property
+    def effort_limits(self) -> np.ndarray | None:
+        """``<limit effort>`` per joint ``[n]``, or ``None`` unless every joint declares one."""
+        efforts = [b.effort for b in self.tree.bodies]
+        return None if any(e is None for e in efforts) else np.array(efforts, dtype=np.float64)
+
     # ---------------------------------------------------------------- parameters
     def nominal_params(self) -> Tensor:
         """The URDF's CAD parameters ``[P]`` (friction and offset 0)."""
@@ -178,6 +196,9 @@ class URDFRobot(Robot):
         if self.friction:
             lower += [0.0] * (2 * n)
             upper += [self.max_coulomb] * n + [self.max_viscous] * n
+            if self.stribeck_scales is not None:  # fs < 0: friction building up after a reversal
+                lower += [-self.max_coulomb] * n
+                upper += [self.max_coulomb] * n
         if self.offset:
             lower += [-self.max_offset] * n
             upper += [self.max_offset] * n
@@ -245,11 +266,12 @@ class URDFRobot(Robot):
         nb = len(self.tree.bodies)
         inertials = params[..., : 10 * nb].unflatten(-1, (nb, 10))
         tau = rnea(self._tree_tensors(q), inertials, q, qd, qdd, self.gravity)
-        extra = params[..., None, 10 * nb :]  # [..., 1, 2n + n]
+        extra = params[..., None, 10 * nb :]  # [..., 1, (2 or 3) n + n]
         n = self.n_joints
         if self.friction:
-            tau = tau + extra[..., :n] * torch.sign(qd) + extra[..., n : 2 * n] * qd
-            extra = extra[..., 2 * n :]
+            for feature in self.friction_features(qd):
+                tau = tau + extra[..., :n] * feature
+                extra = extra[..., n:]
         if self.offset:
             tau = tau + extra
         return tau
@@ -275,13 +297,36 @@ class URDFRobot(Robot):
             self._regressor_cache = (states, versions, y)
         return y
 
+    def friction_features(self, qd: Tensor) -> list[Tensor]:
+        """Per-joint friction torque per unit coefficient, ``[N, n]`` each, in parameter order:
+        ``sign(qd)``, ``qd`` and (with ``stribeck_velocity``) ``exp(-(qd/v_s)²) sign(qd)``."""
+        features = [torch.sign(qd), qd]
+        if self.stribeck_scales is not None:
+            scale = torch.as_tensor(self.stribeck_scales, dtype=qd.dtype, device=qd.device)
+            features.append(torch.exp(-((qd / scale) ** 2)) * torch.sign(qd))
+        return features
+
+    def _check_stribeck(self, value: float | Sequence[float] | None) -> np.ndarray | None:
+        """``stribeck_velocity`` as ``[n]`` positive scales, or ``None``."""
+        if value is None:
+            return None
+        scales = np.atleast_1d(np.asarray(value if np.isscalar(value) else list(value), dtype=np.float64))
+        if scales.size == 1:
+            scales = np.full(self.n_joints, scales[0])
+        if not self.friction or scales.shape != (self.n_joints,) or not (scales > 0).all():
+            raise ValueError(
+                f"urdf: stribeck_velocity={value!r} needs friction=true and one value > 0 (rad/s) or "
+                f"{self.n_joints} of them (joints: {', '.join(self.joint_names)})"
+            )
+        return scales
+
     def standard_regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Regressor ``Y[N, n, P]`` of all standard parameters: ``tau = Y @ params``."""
         self._check_states(q, qd, qdd)
         inertial = rnea_regressor(self._tree_tensors(q), q, qd, qdd, self.gravity).flatten(-2)
         blocks = [inertial]
         if self.friction:
-            blocks += [torch.diag_embed(torch.sign(qd)), torch.diag_embed(qd)]
+            blocks += [torch.diag_embed(feature) for feature in self.friction_features(qd)]
         if self.offset:
             blocks.append(torch.diag_embed(torch.ones_like(q)))
         return torch.cat(blocks, dim=-1)

@@ -49,6 +49,8 @@ class Body:
             the inertia about the body-frame origin, welded links included.
         limits: ``(lower, upper)`` from ``<limit>``, or ``None`` (continuous joints).
         max_velocity: ``velocity`` of ``<limit>`` (rad/s or m/s), or ``None`` when absent or 0.
+        welded: links welded to ``link`` by fixed joints, whose inertials are merged into ``inertial``.
+        effort: ``<limit effort>`` (N·m or N), or ``None`` when absent or 0.
     """
 
     joint: str
@@ -61,6 +63,8 @@ class Body:
     inertial: np.ndarray
     limits: tuple[float, float] | None
     max_velocity: float | None = None
+    welded: tuple[str, ...] = ()
+    effort: float | None = None
 
 
 @dataclass(frozen=True)
@@ -175,14 +179,28 @@ def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translati
     limits = None
     limit = joint.find("limit")
     velocity = _floats(limit, "velocity", (0.0,), f"joint {name!r} <limit>")[0]
+    effort = float(_floats(limit, "effort", (0.0,), f"joint {name!r} <limit>")[0])
     if kind != "continuous":
         lo = _floats(limit, "lower", (0.0,), f"joint {name!r} <limit>")[0]
         hi = _floats(limit, "upper", (0.0,), f"joint {name!r} <limit>")[0]
         limits = (float(lo), float(hi)) if hi > lo else None
     child = joint.find("child").get("link")
     max_velocity = float(velocity) if velocity > 0 else None
-    body = Body(name, child, MOVING[kind], parent, rotation, translation, axis / norm, np.zeros(10), limits)
-    return replace(body, max_velocity=max_velocity)
+    kind, axis = MOVING[kind], axis / norm
+    effort = effort if effort > 0 else None
+    return Body(
+        name,
+        child,
+        kind,
+        parent,
+        rotation,
+        translation,
+        axis,
+        np.zeros(10),
+        limits,
+        max_velocity=max_velocity,
+        effort=effort,
+    )
 
 
 def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
@@ -233,6 +251,7 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
         raise ValueError(f"urdf: {label}: expected one root link, found {roots or 'none (a loop)'}")
     bodies: list[Body] = []
     inertials: list[np.ndarray] = []
+    welded: list[list[str]] = []
     # Depth-first walk. A stack entry is (link, owning body, pose of the link in that body, the
     # Body its moving parent joint starts — or None when it hangs on a fixed joint).
     stack: list[tuple[str, int, np.ndarray, np.ndarray, Body | None]] = [
@@ -243,7 +262,10 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
         if body is not None:
             bodies.append(body)
             inertials.append(np.zeros(10))
+            welded.append([])
             owner, rot, pos = len(bodies) - 1, np.eye(3), np.zeros(3)
+        elif owner >= 0:
+            welded[owner].append(link)
         mass, com, inertia = _link_inertial(links[link])
         if owner >= 0:
             inertials[owner] += _standard(mass, rot @ com + pos, rot @ inertia @ rot.T)
@@ -260,5 +282,8 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
         stack.extend(reversed(pending))  # children in document order
     if not bodies:
         raise ValueError(f"urdf: {label} has no revolute, continuous or prismatic joint")
-    bodies = [replace(b, inertial=inertial) for b, inertial in zip(bodies, inertials, strict=True)]
+    bodies = [
+        replace(b, inertial=inertial, welded=tuple(w))
+        for b, inertial, w in zip(bodies, inertials, welded, strict=True)
+    ]
     return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies))

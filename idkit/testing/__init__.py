@@ -48,7 +48,7 @@ from idkit.testing._common import (
     options_for_checks,
 )
 from idkit.testing.costs import COST_CHECKS
-from idkit.testing.estimators import ESTIMATOR_CHECKS, ProblemFactory, make_problem
+from idkit.testing.estimators import ESTIMATOR_CHECKS, ProblemFactory, make_problem, problem_factory_for
 from idkit.testing.excitations import EXCITATION_CHECKS
 from idkit.testing.robots import ROBOT_CHECKS
 
@@ -70,6 +70,7 @@ __all__ = [
     "checks_for",
     "get_params",
     "make_problem",
+    "problem_factory_for",
 ]
 
 _CHECKS: dict[str, Sequence[Callable[..., None]]] = {
@@ -111,12 +112,14 @@ def check_cost(cost: Any) -> None:
     _run_all(cost, COST_CHECKS)
 
 
-def check_estimator(estimator: Any, problem_factory: ProblemFactory = make_problem) -> None:
-    """Run every estimator check on problems from ``problem_factory(dtype=..., seed=...)``.
+def check_estimator(estimator: Any, problem_factory: ProblemFactory | None = None) -> None:
+    """Run every estimator check on problems from ``problem_factory(dtype=..., seed=...)``
+    (default: ``problem_factory_for(estimator)``, the core cylindrical robot unless the class
+    declares a ``conformance_robot``).
 
     Fits take as long as the estimator's options make them: build it with cheap options.
     """
-    _run_all(estimator, ESTIMATOR_CHECKS, problem_factory)
+    _run_all(estimator, ESTIMATOR_CHECKS, problem_factory or problem_factory_for(estimator))
 
 
 def check_excitation(excitation: Any) -> None:

@@ -11,6 +11,7 @@ iterations), or declare ``conformance_options`` on the class and use ``check_plu
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections.abc import Callable
@@ -70,6 +71,18 @@ def make_problem(
     gen = torch.Generator().manual_seed(20260301)
     tau = tau * (1 + noise * (2 * torch.rand(tau.shape, generator=gen, dtype=torch.float64) - 1))
     return Problem(robot, Samples(q, qd, qdd, tau), cost=criterion, seed=seed, dtype=dtype)
+
+
+def problem_factory_for(estimator: Estimator) -> ProblemFactory:
+    """``make_problem`` on the robot the estimator's class declares as ``conformance_robot``
+    (``(registered name, options)``: e.g. ``pcls`` needs a ``urdf`` robot), else on the default."""
+    spec = getattr(type(estimator), "conformance_robot", None)
+    if spec is None:
+        return make_problem
+    from idkit import registry
+
+    name, options = spec
+    return functools.partial(make_problem, registry.create("robot", name, **options))
 
 
 def _fit(estimator: Estimator, problem: Problem) -> Estimate:

@@ -1,0 +1,160 @@
+"""Write the identified model back as a URDF (``identified.urdf``).
+
+The source URDF of a ``urdf`` robot is copied element for element (comments, visuals, collisions,
+limits, transmissions, plugins stay as they are); only these change:
+
+* each moving body's link gets a new ``<inertial>`` from its standard parameters ``(m, h, I_O)``:
+  ``<origin xyz = c = h/m rpy = 0>``, ``<mass m>`` and the inertia about the centre of mass in the
+  link frame, ``I_c = I_O − m (|c|² 1 − c cᵀ)`` (parallel-axis theorem backwards);
+* links welded to a body by ``fixed`` joints lose their ``<inertial>``: the parser merged them into
+  the body, and the identification cannot separate them again;
+* with friction, each joint's ``<dynamics damping="fv" friction="fc">`` (other attributes kept);
+  terms URDF has no field for (Stribeck ``fs``, torque ``offset``) go into an XML comment in the
+  joint, so they are not lost.
+
+A mass ``≤ 0`` cannot be written (the centre of mass is undefined) and raises; a pseudo-inertia that
+is not positive semidefinite is written with a warning (many simulators reject it): project the
+estimate first with :func:`idkit.estimators.physical.nearest_consistent`.
+"""
+
+from __future__ import annotations
+
+import warnings
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from idkit.robots.urdf import URDFRobot
+from idkit.robots.urdf_model import read_urdf_text
+
+
+def _vector(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> np.ndarray:
+    if isinstance(params, Mapping):
+        missing = [name for name in robot.param_names if name not in params]
+        if missing:
+            raise ValueError(f"urdf export: parameters missing: {', '.join(missing[:5])}")
+        return np.array([float(params[name]) for name in robot.param_names])
+    values = torch.as_tensor(params, dtype=torch.float64).detach().cpu().numpy()
+    if values.shape != (robot.n_params,):
+        raise ValueError(f"urdf export: params must be [{robot.n_params}], got {values.shape}")
+    return values
+
+
+def centroidal(standard: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(m, c[3], I_c[3, 3])`` of standard parameters ``[10]`` (inertia about the origin)."""
+    m, h = float(standard[0]), standard[1:4]
+    xx, xy, xz, yy, yz, zz = standard[4:]
+    inertia_o = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    c = h / m
+    return m, c, inertia_o - m * (c @ c * np.eye(3) - np.outer(c, c))
+
+
+def _number(x: float) -> str:
+    return repr(float(x))
+
+
+def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> str:
+    """The source URDF of ``robot`` with the identified ``params`` (``[P]`` or name → value) written in.
+
+    Raises:
+        ValueError: wrong parameter shape or names, or a link mass ``≤ 0`` (naming the link).
+    """
+    from idkit.estimators.physical import min_pseudo_inertia_eigenvalues, pseudo_inertia
+
+    values = _vector(robot, params)
+    data, _ = read_urdf_text(robot.urdf)
+    root = ET.fromstring(data, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
+    links = {link.get("name"): link for link in root.findall("link")}
+    joints = {joint.get("name"): joint for joint in root.findall("joint")}
+    for i, body in enumerate(robot.tree.bodies):
+        if not values[10 * i] > 0:
+            raise ValueError(
+                f"urdf export: link {body.link!r} has mass {values[10 * i]:.6g} <= 0; a URDF needs a "
+                "positive mass (project with idkit.estimators.physical.nearest_consistent)"
+            )
+    inertials = torch.as_tensor(values[: 10 * len(robot.link_names)]).reshape(-1, 10)
+    eigenvalues = min_pseudo_inertia_eigenvalues(robot, torch.as_tensor(values))
+    scale = pseudo_inertia(inertials).abs().amax((-2, -1))
+    bad = [
+        f"{b.link} ({float(e):.3g})"
+        for b, e, s in zip(robot.tree.bodies, eigenvalues, scale, strict=True)
+        if e < -1e-12 * s
+    ]  # round-off of an exactly singular (thin rod, point mass) body is fine
+    if bad:
+        warnings.warn(
+            f"urdf export: pseudo-inertia not positive semidefinite for {', '.join(bad)}; simulators may "
+            "reject these inertials (project with idkit.estimators.physical.nearest_consistent)",
+            stacklevel=2,
+        )
+    for i, body in enumerate(robot.tree.bodies):
+        _set_inertial(links[body.link], *centroidal(values[10 * i : 10 * i + 10]))
+        for name in body.welded:
+            for inertial in links[name].findall("inertial"):
+                links[name].remove(inertial)
+    _write_joint_terms(robot, values, joints)
+    return '<?xml version="1.0" encoding="utf-8"?>\n' + _prolog(data) + ET.tostring(root, encoding="unicode")
+
+
+def _prolog(data: bytes) -> str:
+    """What precedes ``<robot`` in the source (comments, not the XML declaration)."""
+    text = data.decode("utf-8", errors="replace")
+    head = text[: text.find("<robot")]
+    if head.lstrip().startswith("<?xml"):
+        head = head[head.find("?>") + 2 :]
+    return head.lstrip("\r\n")
+
+
+def _set_inertial(link: ET.Element, mass: float, com: np.ndarray, inertia: np.ndarray) -> None:
+    for old in link.findall("inertial"):
+        link.remove(old)
+    indent = (link.text or "\n    ") if (link.text or "").strip() == "" else "\n    "
+    inertial = ET.Element("inertial")
+    inertial.text = indent + "  "
+    origin = ET.SubElement(inertial, "origin", xyz=" ".join(map(_number, com)), rpy="0 0 0")
+    origin.tail = indent + "  "
+    ET.SubElement(inertial, "mass", value=_number(mass)).tail = indent + "  "
+    (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia
+    names = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    values = map(_number, (xx, xy, xz, yy, yz, zz))
+    element = ET.SubElement(inertial, "inertia", dict(zip(names, values, strict=True)))
+    element.tail = indent
+    inertial.tail = indent
+    link.insert(0, inertial)
+    if len(link) == 1:
+        link.text, inertial.tail = indent, indent[:-2] if indent.endswith("  ") else indent
+
+
+def _write_joint_terms(robot: URDFRobot, values: np.ndarray, joints: dict[str, ET.Element]) -> None:
+    """Friction into ``<dynamics>``; Stribeck and offset terms into a comment in the joint."""
+    index = {name: k for k, name in enumerate(robot.param_names)}
+    for j, name in enumerate(robot.joint_names):
+        joint = joints[name]
+        if robot.friction:
+            dynamics = joint.find("dynamics")
+            if dynamics is None:
+                dynamics = ET.SubElement(joint, "dynamics")
+                dynamics.tail = "\n  "
+            dynamics.set("damping", _number(values[index[f"{name}.fv"]]))
+            dynamics.set("friction", _number(values[index[f"{name}.fc"]]))
+        keys = [key for key in ("fs", "offset") if f"{name}.{key}" in index]
+        extra = [f"{key}={_number(values[index[f'{name}.{key}']])}" for key in keys]
+        if robot.stribeck_scales is not None:
+            extra.append(f"stribeck_velocity={_number(robot.stribeck_scales[j])}")
+        if extra:
+            comment = ET.Comment(f" idkit: {' '.join(extra)} (no URDF field) ")
+            if len(joint):
+                comment.tail, joint[-1].tail = joint[-1].tail, "\n    "
+            joint.append(comment)
+
+
+def write_identified_urdf(
+    robot: URDFRobot, params: Tensor | Mapping[str, float], path: str | Path = "identified.urdf"
+) -> Path:
+    """Write :func:`identified_urdf` to ``path`` (UTF-8) and return the path."""
+    path = Path(path)
+    path.write_text(identified_urdf(robot, params), encoding="utf-8")
+    return path
