@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 from idkit import registry
 from idkit.costs.paper import f1, f9
-from idkit.costs.relative import RelativeFloorWarning
+from idkit.relative import RelativeFloorWarning
 from idkit.data.scenarios import simulate
 from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares, total_least_squares
 from idkit.estimators.observation import IdentificationError, IdentificationWarning, linear_system

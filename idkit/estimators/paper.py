@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 import torch
 
 from idkit.costs.paper import f13, f14
-from idkit.costs.relative import DEFAULT_FLOOR
+from idkit.relative import DEFAULT_FLOOR
 from idkit.estimate import Estimate
 from idkit.estimators.aggregate import KeepRule
 from idkit.estimators.objective import Objective, cost_label
@@ -31,7 +31,7 @@ class PaperFinalEstimate(Estimator):
     """Mean of PSO-f13 and PSO-f14 (label ``"PSO-f13/f14"``).
 
     Args:
-        floor: near-zero torque floor of the relative costs (``idkit.costs.relative``).
+        floor: near-zero torque floor of the relative costs (``idkit.relative``).
         preset … history: passed unchanged to ``ParticleSwarm`` (see there).
     """
 

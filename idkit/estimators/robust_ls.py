@@ -56,7 +56,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.costs.relative import DEFAULT_FLOOR
+from idkit.relative import DEFAULT_FLOOR
 from idkit.estimators.least_squares import LinearEstimator, Solution, smallest_singular_value
 from idkit.estimators.observation import (
     Conditioning,

@@ -23,7 +23,7 @@ import warnings
 from collections.abc import Callable
 
 import torch
-from idkit.costs.relative import DEFAULT_FLOOR, relative_denominator
+from idkit.relative import DEFAULT_FLOOR, relative_denominator
 from idkit.estimate import Estimate, jsonable
 from idkit.interfaces import Estimator
 from idkit.problem import Problem
@@ -80,7 +80,7 @@ class IRLS(Estimator):
         tol: stop when the relative change of ``alpha`` is at most ``tol`` (at least 100 machine
             epsilons of the problem's dtype: IRLS converges linearly, round-off sets the floor).
         relative: fit the relative error (eq. 27 via eqs. 36-37) instead of the absolute one.
-        floor: near-zero policy of the relative error (``idkit.costs.relative``).
+        floor: near-zero policy of the relative error (``idkit.relative``).
         threads: torch intra-op threads during the fit (restored afterwards); ``None`` keeps
             torch's setting. 1 by default: these are small solves, and on a busy 2-core machine
             two threads made a fit ~5x slower (measured, noisy).
