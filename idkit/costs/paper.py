@@ -15,8 +15,8 @@ from typing import ClassVar
 from torch import Tensor
 
 from idkit.costs.norms import NORMS
-from idkit.relative import DEFAULT_FLOOR, relative_error
 from idkit.interfaces import Cost, NormStructure
+from idkit.relative import DEFAULT_FLOOR, relative_error
 
 
 class NormProductCost(Cost):

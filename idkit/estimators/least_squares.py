@@ -17,7 +17,6 @@ from typing import Any, ClassVar
 import torch
 from torch import Tensor
 
-from idkit.relative import DEFAULT_FLOOR
 from idkit.estimate import Estimate, jsonable
 from idkit.estimators.observation import (
     Conditioning,
@@ -30,6 +29,7 @@ from idkit.estimators.observation import (
 )
 from idkit.interfaces import Estimator
 from idkit.problem import Problem
+from idkit.relative import DEFAULT_FLOOR
 from idkit.runtime import resolve_threads, torch_threads
 
 

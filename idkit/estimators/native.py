@@ -73,14 +73,39 @@ static double spectral3(const double *e, int64_t N) {
 }
 
 static double norm(int code, const double *e, int64_t n, int64_t N) {
-    double best = 0;
+    double best = 0, a;
     switch (code) {
-    case 1: { double a = 0; for (int64_t m = 0; m < n * N; m++) a += e[m] * e[m]; return sqrt(a); }
-    case 2: return spectral3(e, N);
-    case 3: for (int64_t j = 0; j < N; j++) { double a = 0; for (int64_t i = 0; i < n; i++) a += fabs(e[i * N + j]); if (a > best) best = a; } return best;
-    case 4: for (int64_t i = 0; i < n; i++) { double a = 0; for (int64_t j = 0; j < N; j++) a += fabs(e[i * N + j]); if (a > best) best = a; } return best;
-    case 5: for (int64_t i = 0; i < n; i++) { double a = 0; for (int64_t j = 0; j < N; j++) a += e[i * N + j] * e[i * N + j]; if (a > best) best = a; } return best;
-    case 6: for (int64_t m = 0; m < n * N; m++) { double a = fabs(e[m]); if (a > best) best = a; } return best;
+    case 1: /* Frobenius */
+        a = 0;
+        for (int64_t m = 0; m < n * N; m++) a += e[m] * e[m];
+        return sqrt(a);
+    case 2: /* spectral, n == 3 */
+        return spectral3(e, N);
+    case 3: /* largest column (sample) absolute sum */
+        for (int64_t j = 0; j < N; j++) {
+            a = 0;
+            for (int64_t i = 0; i < n; i++) a += fabs(e[i * N + j]);
+            if (a > best) best = a;
+        }
+        return best;
+    case 4: /* largest row (joint) absolute sum */
+        for (int64_t i = 0; i < n; i++) {
+            a = 0;
+            for (int64_t j = 0; j < N; j++) a += fabs(e[i * N + j]);
+            if (a > best) best = a;
+        }
+        return best;
+    case 5: /* largest row square sum */
+        for (int64_t i = 0; i < n; i++) {
+            a = 0;
+            for (int64_t j = 0; j < N; j++) a += e[i * N + j] * e[i * N + j];
+            if (a > best) best = a;
+        }
+        return best;
+    case 6: /* largest absolute entry */
+        for (int64_t m = 0; m < n * N; m++)
+            if (fabs(e[m]) > best) best = fabs(e[m]);
+        return best;
     }
     return NAN;
 }
@@ -92,18 +117,35 @@ static double remainder_(double a, double b) {
     return r;
 }
 
-/* evaluate + bests, then (if move) one move. Shapes: S swarms x K particles x P.
-   alpha[S,K,B]; linear[L,B,M]; offset[L,M]; slot_of[S] in [0,L); codes[L,MAX_NORMS] (0 = none).
-   r1, r2, u3: [S,K,P] or [S,K,1] (per_particle); u3 only for the random boundary. */
-int64_t idkit_pso_step(
-    int64_t S, int64_t K, int64_t P, int64_t B, int64_t n, int64_t N,
-    const double *alpha, const double *linear, const double *offset, const int64_t *slot_of,
-    const int32_t *codes, int64_t max_norms,
-    double *x, double *v, double *pbest, double *pcost, double *gpos, double *gcost,
-    int64_t move, double w, const double *r1, const double *r2, const double *u3,
-    int64_t per_particle, const double *lower, const double *upper, int64_t boundary,
-    double velocity_limit)
+/* What stays fixed over a run: sizes, samples, state buffers. Shapes: S swarms x K particles x P.
+   alpha[S,K,B] (base parameters of x); linear[L,B,M]; offset[L,M]; slot_of[S] in [0,L);
+   codes[L,max_norms] (0 = none); x, v, pbest [S,K,P]; pcost [S,K]; gpos [S,P]. */
+typedef struct {
+    int64_t S, K, P, B, n, N;
+    const double *alpha, *linear, *offset;
+    const int64_t *slot_of;
+    const int32_t *codes;
+    int64_t max_norms;
+    double *x, *v, *pbest, *pcost, *gpos;
+    int64_t per_particle;
+    const double *lower, *upper;
+    int64_t boundary;
+    double velocity_limit;
+} Batch;
+
+/* Evaluate x, update personal bests and write each swarm's best into gcost[S]; then, if move,
+   one move with inertia w and (scaled) r1, r2, u3: [S,K,P] or [S,K,1] (per_particle). */
+int64_t idkit_pso_step(const Batch *batch, double *gcost, int64_t move, double w,
+                       const double *r1, const double *r2, const double *u3)
 {
+    int64_t S = batch->S, K = batch->K, P = batch->P, B = batch->B, n = batch->n, N = batch->N;
+    const double *alpha = batch->alpha, *linear = batch->linear, *offset = batch->offset;
+    const int64_t *slot_of = batch->slot_of;
+    const int32_t *codes = batch->codes;
+    int64_t max_norms = batch->max_norms, per_particle = batch->per_particle, boundary = batch->boundary;
+    double *x = batch->x, *v = batch->v, *pbest = batch->pbest, *pcost = batch->pcost, *gpos = batch->gpos;
+    const double *lower = batch->lower, *upper = batch->upper;
+    double velocity_limit = batch->velocity_limit;
     int64_t M = n * N;
     double *e = (double *)malloc(sizeof(double) * (size_t)M);
     if (!e) return -1;
@@ -213,7 +255,17 @@ def kernel() -> tuple[ctypes.CDLL | None, str, float]:
                 source.write_text(SOURCE)
                 built = Path(tmp) / path.name
                 subprocess.run(
-                    [compiler, "-O3", "-fPIC", "-shared", "-fno-fast-math", str(source), "-o", str(built), "-lm"],
+                    [
+                        compiler,
+                        "-O3",
+                        "-fPIC",
+                        "-shared",
+                        "-fno-fast-math",
+                        str(source),
+                        "-o",
+                        str(built),
+                        "-lm",
+                    ],
                     check=True,
                     capture_output=True,
                     timeout=120,
@@ -227,18 +279,37 @@ def kernel() -> tuple[ctypes.CDLL | None, str, float]:
     library = ctypes.CDLL(str(path))
     function = library.idkit_pso_step
     function.restype = ctypes.c_int64
-    i64, f64, ptr = ctypes.c_int64, ctypes.c_double, ctypes.c_void_p
-    function.argtypes = [i64] * 6 + [ptr] * 5 + [i64] + [ptr] * 6 + [i64, f64] + [ptr] * 3 + [i64, ptr, ptr, i64, f64]
+    ptr = ctypes.c_void_p
+    function.argtypes = [ctypes.POINTER(_Batch), ptr, ctypes.c_int64, ctypes.c_double, ptr, ptr, ptr]
     return library, how, spent
 
 
+class _Batch(ctypes.Structure):
+    """The C ``Batch`` struct (same field order)."""
+
+    _fields_ = [
+        *((name, ctypes.c_int64) for name in ("S", "K", "P", "B", "n", "N")),
+        *((name, ctypes.c_void_p) for name in ("alpha", "linear", "offset", "slot_of", "codes")),
+        ("max_norms", ctypes.c_int64),
+        *((name, ctypes.c_void_p) for name in ("x", "v", "pbest", "pcost", "gpos")),
+        ("per_particle", ctypes.c_int64),
+        ("lower", ctypes.c_void_p),
+        ("upper", ctypes.c_void_p),
+        ("boundary", ctypes.c_int64),
+        ("velocity_limit", ctypes.c_double),
+    ]
+
+
 class NativeStep:
-    """Binds the kernel to one batch: fixed tensors are converted and checked once.
+    """The kernel bound to one batch of swarms: fixed tensors and the state buffers, set once.
 
     Args:
         linear: ``[L, B, M]`` (``-Yᵀ/d`` per slot), ``offset``: ``[L, 1, M]`` (``T/d``).
         slot_of: ``[S]`` slot of each swarm. ``norms``: per slot, its norm names.
         shape: ``(n, N)`` of the error matrix. ``lower``, ``upper``: the box ``[P]``.
+        state: ``(x, v, pbest, pcost, gpos)``, contiguous float64 ``[S, K, P]`` ×3, ``[S, K]``,
+            ``[S, P]``, updated in place by every call (a personal best improves where the cost is
+            strictly lower, so start ``pcost`` at ``inf``).
     """
 
     def __init__(
@@ -250,9 +321,8 @@ class NativeStep:
         shape: tuple[int, int],
         lower: Tensor,
         upper: Tensor,
-        boundary: str,
-        velocity_limit: float | None,
-        per_particle: bool,
+        rules: swarm.SwarmRules,
+        state: tuple[Tensor, ...],
     ) -> None:
         library, _, _ = kernel()
         if library is None:
@@ -261,53 +331,59 @@ class NativeStep:
         codes = torch.zeros((len(norms), MAX_NORMS), dtype=torch.int32)
         for slot, names in enumerate(norms):
             codes[slot, : len(names)] = torch.tensor([NORM_CODES[name] for name in names], dtype=torch.int32)
-        self.keep = [
-            linear.contiguous(),
-            offset.reshape(offset.shape[0], -1).contiguous(),
-            slot_of.to(torch.int64).contiguous(),
-            codes,
-            lower.contiguous(),
-            upper.contiguous(),
-        ]
-        self.sizes = (linear.shape[1], *shape)
-        self.boundary = BOUNDARY_CODES[boundary]
-        self.velocity_limit = float(velocity_limit or 0.0)
-        self.per_particle = int(per_particle)
+        fixed = {
+            "linear": linear.contiguous(),
+            "offset": offset.reshape(offset.shape[0], -1).contiguous(),
+            "slot_of": slot_of.to(torch.int64).contiguous(),
+            "codes": codes,
+            "lower": lower.contiguous(),
+            "upper": upper.contiguous(),
+            **dict(zip(("x", "v", "pbest", "pcost", "gpos"), state, strict=True)),
+        }
+        if any(not t.is_contiguous() for t in state):
+            raise ValueError("native PSO kernel: state buffers must be contiguous")
+        self.keep = fixed  # the struct holds raw pointers: keep the tensors alive
+        x = state[0]
+        self.batch = _Batch(
+            *x.shape,
+            linear.shape[1],
+            *shape,
+            None,
+            *(fixed[name].data_ptr() for name in ("linear", "offset", "slot_of", "codes")),
+            MAX_NORMS,
+            *(t.data_ptr() for t in state),
+            int(rules.per_particle),
+            fixed["lower"].data_ptr(),
+            fixed["upper"].data_ptr(),
+            BOUNDARY_CODES[rules.boundary],
+            float(rules.velocity_limit or 0.0),
+        )
+        self.pointer = ctypes.byref(self.batch)
 
     def __call__(
-        self,
-        alpha: Tensor,
-        state: tuple[Tensor, ...],
-        move: tuple[float, Tensor, Tensor, Tensor | None] | None,
+        self, alpha: Tensor, best: Tensor, move: tuple[float, Tensor, Tensor, Tensor | None] | None
     ) -> None:
         """Evaluate ``alpha[S, K, B]`` (the base parameters of ``x``), update bests, then move.
 
-        ``state`` is ``(x, v, pbest, pcost, gpos, gcost)``, contiguous float64 ``[S, K, P]``,
-        ``[S, K, P]``, ``[S, K, P]``, ``[S, K]``, ``[S, P]``, ``[S]``, updated in place (a personal
-        best improves where the cost is strictly lower, so start ``pcost`` at ``inf``); ``move`` is
-        ``(w, c1·r1, c2·r2, u)`` (``u`` for the random boundary rule) or ``None`` for the last
-        evaluation.
+        Each swarm's best cost goes to ``best[S]`` (contiguous, e.g. a row of the history);
+        ``move`` is ``(w, c1·r1, c2·r2, u)`` (``u`` for the random boundary rule) or ``None`` for
+        the last evaluation.
         """
-        x = state[0]
-        linear, offset, slot_of, codes, lower, upper = self.keep
-        alpha = alpha.contiguous()
-        w, r1, r2, u3 = move if move is not None else (0.0, None, None, None)
-        randoms = [None if r is None else r.contiguous() for r in (r1, r2, u3)]  # kept alive for the call
-        status = self.function(
-            *x.shape,
-            *self.sizes,
-            *(t.data_ptr() for t in (alpha, linear, offset, slot_of, codes)),
-            MAX_NORMS,
-            *(t.data_ptr() for t in state),
-            int(move is not None),
-            w,
-            *(None if r is None else r.data_ptr() for r in randoms),
-            self.per_particle,
-            lower.data_ptr(),
-            upper.data_ptr(),
-            self.boundary,
-            self.velocity_limit,
-        )
+        alpha = alpha.contiguous()  # kept alive in this frame during the call
+        self.batch.alpha = alpha.data_ptr()
+        if move is None:
+            status = self.function(self.pointer, best.data_ptr(), 0, 0.0, None, None, None)
+        else:
+            w, r1, r2, u3 = move
+            status = self.function(
+                self.pointer,
+                best.data_ptr(),
+                1,
+                w,
+                r1.data_ptr(),
+                r2.data_ptr(),
+                None if u3 is None else u3.data_ptr(),
+            )
         if status != 0:
             raise MemoryError("native PSO kernel: out of memory for one error matrix")
 
@@ -331,18 +407,6 @@ def run(
     lower, upper = objective.lower, objective.upper
     dimension = lower.shape[-1]
     count = len(objective.costs)
-    step = NativeStep(
-        objective.linear,
-        objective.offset,
-        torch.arange(slots).repeat_interleave(runs),
-        [objective.structures[s % count].norms for s in range(slots)],
-        objective.shape,
-        lower,
-        upper,
-        rules.boundary,
-        rules.velocity_limit,
-        rules.per_particle,
-    )
     u = uniform.draw((slots, runs, particles, dimension))
     x = (lower + (upper - lower) * u).reshape(slots * runs, particles, dimension).contiguous()
     state = (
@@ -352,12 +416,23 @@ def run(
         torch.full(x.shape[:2], torch.inf, dtype=x.dtype),
         torch.empty((slots * runs, dimension), dtype=x.dtype),
     )
+    step = NativeStep(
+        objective.linear,
+        objective.offset,
+        torch.arange(slots).repeat_interleave(runs),
+        [objective.structures[s % count].norms for s in range(slots)],
+        objective.shape,
+        lower,
+        upper,
+        rules,
+        state,
+    )
     history = torch.empty((iterations, slots * runs), dtype=x.dtype)
     numbers = swarm.move_draws(uniform, batch_shape, particles, iterations, lower, rules)
-    for move, random in enumerate(numbers):
+    for move, random in enumerate(numbers):  # random numbers are contiguous slices of a block
         scaled = (rules.weight(move), random[0], random[1], random[2] if len(random) > 2 else None)
-        step(objective.base(x), (*state, history[move]), scaled)
-    step(objective.base(x), (*state, history[-1]), None)
+        step(objective.base(x), history[move], scaled)
+    step(objective.base(x), history[-1], None)
     x, v, pbest, pcost, gpos = (t.view(slots, runs, *t.shape[1:]) for t in state)
     final = swarm.SwarmState(x, v, pbest, pcost, gpos, history[-1].view(slots, runs))
     return final, history.view(iterations, slots, runs)

@@ -235,7 +235,9 @@ class Objective:
             # Per slot, -Yᵀ / divisor and T / divisor, so that E (already divided) is one baddbmm.
             divisors = self.divisors.reshape(self.slots, 1, -1)
             self.linear = (minus_yt.repeat_interleave(count, 0) / divisors).contiguous()  # [S, B, n·N]
-            self.offset = (self.absolute[0].repeat_interleave(count, 0) / divisors).contiguous()  # [S, 1, n·N]
+            self.offset = (
+                self.absolute[0].repeat_interleave(count, 0) / divisors
+            ).contiguous()  # [S, 1, n·N]
 
     @property
     def fast_costs(self) -> list[int]:

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from idkit.relative import DEFAULT_FLOOR, relative_denominator
 from idkit.problem import Problem
+from idkit.relative import DEFAULT_FLOOR, relative_denominator
 
 
 class IdentificationError(ValueError):

@@ -51,12 +51,10 @@ from idkit.estimators import native, swarm
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
+from idkit.estimators.trials import CHUNK_ELEMENTS, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.runtime import resolve_threads, torch_threads
-
-#: Error-tensor elements per chunk of runs (see ``fit_costs``); about 2 MB of float64.
-CHUNK_ELEMENTS = 1 << 18
 
 #: ``engine`` values: how the swarm's iterations are computed.
 ENGINES = ("auto", "eager", "native")
@@ -160,7 +158,11 @@ class ParticleSwarm(Estimator):
             value = getattr(self, name)
             if value is not None:
                 resolved[name] = value
-        for name, value in (("runs", self.runs), ("particles", resolved["particles"]), ("iterations", resolved["iterations"])):
+        for name, value in (
+            ("runs", self.runs),
+            ("particles", resolved["particles"]),
+            ("iterations", resolved["iterations"]),
+        ):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"pso option {name} must be an integer >= 1, got {value!r}")
         resolved["inertia"] = tuple(resolved["inertia"])
@@ -221,16 +223,13 @@ class ParticleSwarm(Estimator):
         problems, costs = list(problems), list(costs)
         if not problems or not costs:
             raise ValueError("fit_trials needs at least one problem and one cost")
-        if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
-            raise ValueError(f"chunk must be an integer >= 1 or None, got {chunk!r}")
         n, samples = problems[0].robot.n_joints, problems[0].samples.n_samples
         per_run = len(costs) * settings["particles"] * n * samples
         # Big batches run as consecutive chunks of runs whose tensors stay in the CPU cache
         # (elementwise ops on [10,000 × 20 × 4] run ~4× slower per element than on [500 × 20 × 4]);
         # small trials are stacked instead, several per chunk.
         run_chunk = max(1, CHUNK_ELEMENTS // per_run)
-        if chunk is None:
-            chunk = max(1, CHUNK_ELEMENTS // (per_run * self.runs)) if run_chunk >= self.runs else 1
+        chunk = trial_chunk(chunk, per_run * self.runs if run_chunk >= self.runs else CHUNK_ELEMENTS)
         estimates: list[list[Estimate]] = []
         for start in range(0, len(problems), chunk):
             estimates += self._fit_group(problems[start : start + chunk], costs, settings, run_chunk)
@@ -245,11 +244,15 @@ class ParticleSwarm(Estimator):
         objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
         engine, runner = self._engine(objective)
         n, samples = objective.shape
-        threads = resolve_threads(self.threads, min(objective.slots * self.runs, run_chunk) * settings["particles"] * n * samples)
+        threads = resolve_threads(
+            self.threads, min(objective.slots * self.runs, run_chunk) * settings["particles"] * n * samples
+        )
         with torch_threads(threads), torch.inference_mode():
             uniform = swarm.Draws([swarm.Uniform(p.generator(), objective.lower) for p in problems])
             parts = [
-                runner(objective, (objective.slots, min(run_chunk, self.runs - start)), settings, rules, uniform)
+                runner(
+                    objective, (objective.slots, min(run_chunk, self.runs - start)), settings, rules, uniform
+                )
                 for start in range(0, self.runs, run_chunk)
             ]
             position = torch.cat([state.global_position for state, _ in parts], dim=1)  # [S, R, D]
@@ -287,7 +290,9 @@ class ParticleSwarm(Estimator):
             )
         return estimates
 
-    def _engine(self, objective: Objective) -> tuple[dict[str, Any], Callable[..., tuple[swarm.SwarmState, Tensor]]]:
+    def _engine(
+        self, objective: Objective
+    ) -> tuple[dict[str, Any], Callable[..., tuple[swarm.SwarmState, Tensor]]]:
         """The engine for ``objective`` and what ``details`` records about it (see module docstring)."""
         reason = native.supports(objective) if self.engine != "eager" else "engine='eager' was asked for"
         if reason is None:
@@ -299,14 +304,29 @@ class ParticleSwarm(Estimator):
 
 
 def _run_eager(
-    objective: Objective, batch: tuple[int, int], settings: dict[str, Any], rules: swarm.SwarmRules, uniform: swarm.Draws
+    objective: Objective,
+    batch: tuple[int, int],
+    settings: dict[str, Any],
+    rules: swarm.SwarmRules,
+    uniform: swarm.Draws,
 ) -> tuple[swarm.SwarmState, Tensor]:
     return swarm.run(
-        objective, objective.lower, objective.upper, batch, settings["particles"], settings["iterations"], rules, uniform
+        objective,
+        objective.lower,
+        objective.upper,
+        batch,
+        settings["particles"],
+        settings["iterations"],
+        rules,
+        uniform,
     )
 
 
 def _run_native(
-    objective: Objective, batch: tuple[int, int], settings: dict[str, Any], rules: swarm.SwarmRules, uniform: swarm.Draws
+    objective: Objective,
+    batch: tuple[int, int],
+    settings: dict[str, Any],
+    rules: swarm.SwarmRules,
+    uniform: swarm.Draws,
 ) -> tuple[swarm.SwarmState, Tensor]:
     return native.run(objective, batch, settings["particles"], settings["iterations"], rules, uniform)

@@ -275,7 +275,12 @@ class Draws:
 
 
 def move_draws(
-    uniform: Draws, batch_shape: tuple[int, ...], particles: int, iterations: int, lower: Tensor, rules: SwarmRules
+    uniform: Draws,
+    batch_shape: tuple[int, ...],
+    particles: int,
+    iterations: int,
+    lower: Tensor,
+    rules: SwarmRules,
 ) -> Iterator[Sequence[Tensor]]:
     """The scaled random numbers of every move (``c1·r1``, ``c2·r2`` and the boundary's ``u``)."""
     scale = (rules.c1, rules.c2, 1.0) if rules.boundary == "random" else (rules.c1, rules.c2)

@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 
 import torch
-from idkit.relative import DEFAULT_FLOOR, relative_error
 from idkit.interfaces import Cost
+from idkit.relative import DEFAULT_FLOOR, relative_error
 from torch import Tensor
 
 
