@@ -35,7 +35,7 @@ from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
 from idkit.estimators.swarm import Draws, Uniform
-from idkit.estimators.trials import trial_chunk
+from idkit.estimators.trials import criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.runtime import resolve_threads, torch_threads
@@ -100,7 +100,7 @@ class AdamMultiStart(Estimator):
         return self.fit_trials([problem], costs)[0]
 
     def fit_trials(
-        self, problems: Sequence[Problem], costs: Sequence[Cost], chunk: int | None = None
+        self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None
     ) -> list[list[Estimate]]:
         """One estimate per trial and cost: trials × costs × starts as one batch per chunk.
 
@@ -108,15 +108,14 @@ class AdamMultiStart(Estimator):
         Adam's update is elementwise, so its estimates equal ``fit_costs(problems[t], costs)``
         whatever ``chunk`` (trials per batch; ``None``: about ``CHUNK_ELEMENTS`` error elements).
         """
-        problems, costs = list(problems), list(costs)
-        if not problems or not costs:
-            raise ValueError("fit_trials needs at least one problem and one cost")
-        n, samples = problems[0].robot.n_joints, problems[0].samples.n_samples
-        chunk = trial_chunk(chunk, len(costs) * self.starts * n * samples)
-        estimates: list[list[Estimate]] = []
-        for start in range(0, len(problems), chunk):
-            estimates += self._fit_group(problems[start : start + chunk], costs)
-        return estimates
+        problems, costs = list(problems), criteria(problems, costs)
+
+        def trials_per_batch(problem: Problem) -> int:
+            return trial_chunk(
+                chunk, len(costs) * self.starts * problem.robot.n_joints * problem.samples.n_samples
+            )
+
+        return fit_in_batches(problems, trials_per_batch, lambda batch: self._fit_group(batch, costs))
 
     def _fit_group(self, problems: list[Problem], costs: list[Cost]) -> list[list[Estimate]]:
         """``fit_trials`` of one chunk of trials."""

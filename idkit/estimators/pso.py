@@ -51,7 +51,7 @@ from idkit.estimators import native, swarm
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
-from idkit.estimators.trials import CHUNK_ELEMENTS, trial_chunk
+from idkit.estimators.trials import CHUNK_ELEMENTS, criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.runtime import resolve_threads, torch_threads
@@ -200,7 +200,7 @@ class ParticleSwarm(Estimator):
         return self.fit_trials([problem], costs)[0]
 
     def fit_trials(
-        self, problems: Sequence[Problem], costs: Sequence[Cost], chunk: int | None = None
+        self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None
     ) -> list[list[Estimate]]:
         """One estimate per trial and cost: trials × costs × runs as one batched swarm per chunk.
 
@@ -211,8 +211,9 @@ class ParticleSwarm(Estimator):
 
         Args:
             problems: ``T`` trials (their ``cost`` is ignored).
-            costs: ``C`` costs, each fitted on every trial.
-            chunk: trials per batched computation, to bound memory; ``None`` picks it from the
+            costs: ``C`` costs, each fitted on every trial (``None``: the problems' shared cost).
+            chunk: trials per batched computation (trials of equal sample counts share one), to
+                bound memory; ``None`` picks it from the
                 problem size (about ``CHUNK_ELEMENTS`` error elements per chunk).
 
         Returns:
@@ -220,20 +221,28 @@ class ParticleSwarm(Estimator):
             shared the computation and ``details["engine"]`` which engine ran it.
         """
         settings = self.settings()
-        problems, costs = list(problems), list(costs)
-        if not problems or not costs:
-            raise ValueError("fit_trials needs at least one problem and one cost")
-        n, samples = problems[0].robot.n_joints, problems[0].samples.n_samples
-        per_run = len(costs) * settings["particles"] * n * samples
-        # Big batches run as consecutive chunks of runs whose tensors stay in the CPU cache
-        # (elementwise ops on [10,000 × 20 × 4] run ~4× slower per element than on [500 × 20 × 4]);
-        # small trials are stacked instead, several per chunk.
-        run_chunk = max(1, CHUNK_ELEMENTS // per_run)
-        chunk = trial_chunk(chunk, per_run * self.runs if run_chunk >= self.runs else CHUNK_ELEMENTS)
-        estimates: list[list[Estimate]] = []
-        for start in range(0, len(problems), chunk):
-            estimates += self._fit_group(problems[start : start + chunk], costs, settings, run_chunk)
-        return estimates
+        problems, costs = list(problems), criteria(problems, costs)
+        trial_chunk(chunk, 1)  # check it
+
+        def per_run(problem: Problem) -> int:
+            """Error-tensor elements of one run of every cost on this trial."""
+            return len(costs) * settings["particles"] * problem.robot.n_joints * problem.samples.n_samples
+
+        def run_chunk(problem: Problem) -> int:
+            """Runs per chunk: big batches run as consecutive chunks of runs whose tensors stay in
+            the CPU cache (elementwise ops on [10,000 × 20 × 4] run ~4× slower per element than on
+            [500 × 20 × 4])."""
+            return max(1, CHUNK_ELEMENTS // per_run(problem))
+
+        def trials_per_batch(problem: Problem) -> int:
+            """Small trials are stacked instead, several per batch; a big one is a batch alone."""
+            whole = run_chunk(problem) >= self.runs
+            return trial_chunk(chunk, per_run(problem) * self.runs if whole else CHUNK_ELEMENTS)
+
+        def fit_batch(batch: list[Problem]) -> list[list[Estimate]]:
+            return self._fit_group(batch, costs, settings, run_chunk(batch[0]))
+
+        return fit_in_batches(problems, trials_per_batch, fit_batch)
 
     def _fit_group(
         self, problems: list[Problem], costs: list[Cost], settings: dict[str, Any], run_chunk: int
