@@ -222,6 +222,9 @@ def peers_table(robot: CylindricalRobot, problem: Problem, repeats: int, quick: 
             f"| {label} | {ms(idkit['native'])} | {ms(idkit['eager'])} | {ms(evosax)} "
             f"| {evosax_compile:.2f} s | {peer_text} | {evosax[0] / best:.2f}× | {peer[0] / best:.1f}× |"
         )
+    two = ParticleSwarm(preset="paper", runs=big, threads=2, engine="native", history=False)
+    took = once(lambda: two.fit(problem))
+    rows.append(f"| batch of {big:,} runs, idkit native on 2 threads | {ms(took)} | – | – | – | – | – | – |")
     rows.append(
         f"| native kernel build (once per machine, cached on disk) | {build_s:.2f} s ({how}) "
         "| – | – | – | – | – | – |"

@@ -258,12 +258,11 @@ class ParticleSwarm(Estimator):
         )
         with torch_threads(threads), torch.inference_mode():
             uniform = swarm.Draws([swarm.Uniform(p.generator(), objective.lower) for p in problems])
-            parts = [
-                runner(
-                    objective, (objective.slots, min(run_chunk, self.runs - start)), settings, rules, uniform
-                )
+            batches = [
+                (objective.slots, min(run_chunk, self.runs - start))
                 for start in range(0, self.runs, run_chunk)
             ]
+            parts = [runner(objective, batch, settings, rules, uniform, threads) for batch in batches]
             position = torch.cat([state.global_position for state, _ in parts], dim=1)  # [S, R, D]
             run_costs = torch.cat([state.global_cost for state, _ in parts], dim=1)  # [S, R]
             history = torch.cat([h for _, h in parts], dim=2)  # [iterations, S, R]
@@ -318,7 +317,9 @@ def _run_eager(
     settings: dict[str, Any],
     rules: swarm.SwarmRules,
     uniform: swarm.Draws,
+    threads: int,
 ) -> tuple[swarm.SwarmState, Tensor]:
+    """The eager engine (torch's intra-op threads are already set to ``threads``)."""
     return swarm.run(
         objective,
         objective.lower,
@@ -337,5 +338,9 @@ def _run_native(
     settings: dict[str, Any],
     rules: swarm.SwarmRules,
     uniform: swarm.Draws,
+    threads: int,
 ) -> tuple[swarm.SwarmState, Tensor]:
-    return native.run(objective, batch, settings["particles"], settings["iterations"], rules, uniform)
+    """The native engine: its C step splits the swarms over ``threads`` threads."""
+    return native.run(
+        objective, batch, settings["particles"], settings["iterations"], rules, uniform, threads
+    )

@@ -126,3 +126,13 @@ def test_cuda_runs_the_same_code(problem):
     assert estimate.details["device"].startswith("cuda") and estimate.details["engine"] == "eager"
     cpu = ParticleSwarm(runs=3, particles=6, iterations=15, engine="eager").fit(problem)
     assert np.isfinite(estimate.vector()).all() and estimate.cost == pytest.approx(cpu.cost, rel=0.5)
+
+
+@needs_kernel
+def test_threads_split_swarms_without_changing_numbers(problem, monkeypatch):
+    monkeypatch.setattr(native, "PARTICLES_PER_THREAD", 1)  # split even this small batch
+    objective = Objective(problem, [paper.f13(), paper.f6()])
+    rules = RULES["constriction (reflect)"]
+    one = native.run(objective, (objective.slots, 5), 4, 8, rules, _draws(3, objective.lower), threads=1)
+    three = native.run(objective, (objective.slots, 5), 4, 8, rules, _draws(3, objective.lower), threads=3)
+    assert torch.equal(one[1], three[1]) and torch.equal(one[0].position, three[0].position)
