@@ -1,8 +1,9 @@
 """Where a PSO fit's time goes, per engine and batch size (the profile behind docs/speed.md).
 
-Run: ``python bench/profile_pso.py``. For one run, a 10-run estimate and a 10,000-run batch
-(paper preset, f13, ``torque_noise``, one thread) it prints the wall time per move (the 299
-moves of a 300-iteration run) and its split:
+Run: ``python bench/profile_pso.py``. For one run, a 10-run estimate and one chunk of a 10,000-run
+batch (436 runs; paper preset, f13, ``torque_noise``, one thread) it prints the CPU time per move
+(of the 299 moves of a 300-iteration run; CPU time, because the machine is shared), per
+particle-move, and its split:
 
 - eager engine: torch ops per move and their summed self time (``torch.profiler``), and the rest
   (Python between ops);
@@ -34,37 +35,39 @@ def main() -> None:
     problem = Problem(robot, simulate(robot, "torque_noise", seed=0), paper.f13(), seed=0)
     objective = Objective(problem, [paper.f13()])
     rules = ParticleSwarm.rules(ParticleSwarm(preset="paper").settings())
-    print("| runs | engine | µs per move (one chunk) | split |\n| --- | --- | --- | --- |")
+    print("| runs | engine | µs CPU per move (ns per particle-move) | split |\n| --- | --- | --- | --- |")
     for runs in (1, 10, 436):  # 436 = the chunk of runs a 10,000-run batch is cut into
         draws = lambda: swarm.Draws([swarm.Uniform(problem.generator(), objective.lower)])  # noqa: E731
         shape = (1, runs)
         # eager: ops per move from the profiler
         swarm.run(objective, objective.lower, objective.upper, shape, 20, ITERATIONS, rules, draws())
-        start = time.perf_counter()
+        start = time.process_time()
         swarm.run(objective, objective.lower, objective.upper, shape, 20, ITERATIONS, rules, draws())
-        wall = time.perf_counter() - start
+        wall = time.process_time() - start
         with profile(activities=[ProfilerActivity.CPU]) as prof:
             swarm.run(objective, objective.lower, objective.upper, shape, 20, ITERATIONS, rules, draws())
         events = [e for e in prof.key_averages() if e.key.startswith("aten::")]
         ops = sum(e.count for e in events) / (ITERATIONS - 1)
         op_time = sum(e.self_cpu_time_total for e in events) / (ITERATIONS - 1)
+        move = wall / (ITERATIONS - 1)
         print(
-            f"| {runs} | eager | {wall / (ITERATIONS - 1) * 1e6:.0f} | {ops:.0f} aten calls per move, "
-            f"{op_time:.0f} µs in their kernels (profiled), the rest dispatch and Python |"
+            f"| {runs} | eager | {move * 1e6:.0f} ({move / runs / 20 * 1e9:.0f}) | {ops:.0f} aten calls per "
+            f"move (views included), {op_time:.0f} µs self time under the profiler |"
         )
         # native: split base map / C step
         native.run(objective, shape, 20, ITERATIONS, rules, draws())
         width = objective.upper - objective.lower
         x = objective.lower + width * torch.rand((runs, 20, 4), dtype=torch.float64)
-        start = time.perf_counter()
+        start = time.process_time()
         for _ in range(ITERATIONS - 1):
             objective.base(x)
-        base_map = (time.perf_counter() - start) / (ITERATIONS - 1)
-        start = time.perf_counter()
+        base_map = (time.process_time() - start) / (ITERATIONS - 1)
+        start = time.process_time()
         native.run(objective, shape, 20, ITERATIONS, rules, draws())
-        wall = (time.perf_counter() - start) / (ITERATIONS - 1)
+        wall = (time.process_time() - start) / (ITERATIONS - 1)
         print(
-            f"| {runs} | native | {wall * 1e6:.0f} | base-parameter map (torch) {base_map * 1e6:.0f} µs, "
+            f"| {runs} | native | {wall * 1e6:.0f} ({wall / runs / 20 * 1e9:.0f}) "
+            f"| base-parameter map (torch) {base_map * 1e6:.0f} µs, "
             f"C step + rest {(wall - base_map) * 1e6:.0f} µs |"
         )
 

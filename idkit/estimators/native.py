@@ -21,6 +21,7 @@ and the estimator takes the eager engine and says so in ``details["engine"]``.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
 import os
@@ -30,6 +31,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import weakref
 from functools import cache
 from pathlib import Path
 
@@ -37,6 +39,7 @@ import torch
 from torch import Tensor
 
 from idkit.estimators import swarm
+from idkit.estimators.base_map import identity_source, map_source
 from idkit.estimators.objective import Objective
 
 #: Norm name (``idkit.costs.norms.NORMS``) -> code in the C source.
@@ -58,6 +61,8 @@ SOURCE = r"""
 #include <string.h>
 
 #define MAX_THREADS 64
+
+/*BASE_MAP*/
 
 static double spectral3(const double *e, int64_t N) {
     /* Largest singular value of e[3, N]: Smith's closed form for the top eigenvalue of e e^T. */
@@ -140,6 +145,7 @@ typedef struct {
     const double *lower, *upper;
     int64_t boundary;
     double velocity_limit;
+    int64_t use_map; /* 1: alpha = base_map(x) here; 0: alpha is given (computed by torch) */
 } Batch;
 
 /* Swarms [s0, s1): evaluate x, update personal bests, write each swarm's best into gcost; then,
@@ -156,14 +162,19 @@ static int64_t swarm_range(const Batch *batch, int64_t s0, int64_t s1, double *g
     const double *lower = batch->lower, *upper = batch->upper;
     double velocity_limit = batch->velocity_limit;
     int64_t M = n * N;
-    double *e = (double *)malloc(sizeof(double) * (size_t)M);
+    double *e = (double *)malloc(sizeof(double) * (size_t)(M + B));
     if (!e) return -1;
+    double *mapped = e + M;
     for (int64_t s = s0; s < s1; s++) {
         int64_t l = slot_of[s];
         const double *lin = linear + l * B * M, *off = offset + l * M;
         const int32_t *code = codes + l * max_norms;
         for (int64_t k = 0; k < K; k++) {
             const double *a = alpha + (s * K + k) * B;
+            if (batch->use_map) {
+                base_map(x + (s * K + k) * P, mapped);
+                a = mapped;
+            }
             memcpy(e, off, sizeof(double) * (size_t)M);
             for (int64_t b = 0; b < B; b++) {
                 double ab = a[b];
@@ -225,36 +236,43 @@ static int64_t swarm_range(const Batch *batch, int64_t s0, int64_t s1, double *g
     return 0;
 }
 
+/* `count` moves of swarms [s0, s1) (needs use_map): move m evaluates x into history[m], then moves
+   with weights[m] and the random numbers block[m] = [draws][S][K][P'] (r1, r2, u3). */
+static int64_t moves_range(const Batch *batch, int64_t s0, int64_t s1, double *history, int64_t count,
+                           const double *weights, const double *block, int64_t draws)
+{
+    int64_t stride = batch->S * batch->K * (batch->per_particle ? 1 : batch->P);
+    for (int64_t m = 0; m < count; m++) {
+        const double *r = block + m * draws * stride;
+        int64_t status = swarm_range(batch, s0, s1, history + m * batch->S, 1, weights[m], r, r + stride,
+                                     draws > 2 ? r + 2 * stride : NULL);
+        if (status) return status;
+    }
+    return 0;
+}
+
 typedef struct {
     const Batch *batch;
     int64_t s0, s1, move;
     double *gcost, w;
     const double *r1, *r2, *u3;
-    int64_t status;
+    int64_t count; /* > 0: moves_range over `count` moves with weights and block */
+    const double *weights, *block;
+    int64_t draws, status;
 } Part;
 
 static void *run_part(void *arg) {
-    Part *part = (Part *)arg;
-    part->status = swarm_range(part->batch, part->s0, part->s1, part->gcost, part->move, part->w,
-                               part->r1, part->r2, part->u3);
+    Part *p = (Part *)arg;
+    if (p->count > 0)
+        p->status = moves_range(p->batch, p->s0, p->s1, p->gcost, p->count, p->weights, p->block, p->draws);
+    else
+        p->status = swarm_range(p->batch, p->s0, p->s1, p->gcost, p->move, p->w, p->r1, p->r2, p->u3);
     return NULL;
 }
 
-/* One evaluation (+ move) of all swarms, split over `threads` threads (contiguous swarm ranges). */
-int64_t idkit_pso_step(const Batch *batch, double *gcost, int64_t move, double w,
-                       const double *r1, const double *r2, const double *u3, int64_t threads)
-{
-    if (threads > MAX_THREADS) threads = MAX_THREADS;
-    if (threads > batch->S) threads = batch->S;
-    if (threads <= 1) return swarm_range(batch, 0, batch->S, gcost, move, w, r1, r2, u3);
-    Part parts[MAX_THREADS];
+static int64_t run_parts(Part *parts, int64_t threads) {
     pthread_t ids[MAX_THREADS];
     int started[MAX_THREADS] = {0};
-    for (int64_t t = 0; t < threads; t++) {
-        int64_t s0 = batch->S * t / threads, s1 = batch->S * (t + 1) / threads;
-        Part part = {batch, s0, s1, move, gcost, w, r1, r2, u3, 0};
-        parts[t] = part;
-    }
     for (int64_t t = 1; t < threads; t++)
         started[t] = pthread_create(&ids[t], NULL, run_part, &parts[t]) == 0;
     run_part(&parts[0]);
@@ -265,6 +283,40 @@ int64_t idkit_pso_step(const Batch *batch, double *gcost, int64_t move, double w
         if (parts[t].status) status = parts[t].status;
     }
     return status;
+}
+
+static int64_t clamp_threads(const Batch *batch, int64_t threads) {
+    if (threads > MAX_THREADS) threads = MAX_THREADS;
+    if (threads > batch->S) threads = batch->S;
+    return threads < 1 ? 1 : threads;
+}
+
+/* One evaluation (+ move) of all swarms, split over `threads` threads (contiguous swarm ranges). */
+int64_t idkit_pso_step(const Batch *batch, double *gcost, int64_t move, double w,
+                       const double *r1, const double *r2, const double *u3, int64_t threads)
+{
+    threads = clamp_threads(batch, threads);
+    Part parts[MAX_THREADS];
+    for (int64_t t = 0; t < threads; t++) {
+        int64_t s0 = batch->S * t / threads, s1 = batch->S * (t + 1) / threads;
+        Part part = {batch, s0, s1, move, gcost, w, r1, r2, u3, 0, NULL, NULL, 0, 0};
+        parts[t] = part;
+    }
+    return run_parts(parts, threads);
+}
+
+/* `count` moves of all swarms in one call (the base map is in C: nothing to do in between). */
+int64_t idkit_pso_moves(const Batch *batch, double *history, int64_t count, const double *weights,
+                        const double *block, int64_t draws, int64_t threads)
+{
+    threads = clamp_threads(batch, threads);
+    Part parts[MAX_THREADS];
+    for (int64_t t = 0; t < threads; t++) {
+        int64_t s0 = batch->S * t / threads, s1 = batch->S * (t + 1) / threads;
+        Part part = {batch, s0, s1, 1, history, 0, NULL, NULL, NULL, count, weights, block, draws, 0};
+        parts[t] = part;
+    }
+    return run_parts(parts, threads);
 }
 """
 
@@ -282,14 +334,20 @@ def _compiler() -> str | None:
     return None
 
 
+#: The base map of a kernel that reads base parameters computed by torch.
+NO_MAP = "static void base_map(const double *x, double *alpha) { (void)x; (void)alpha; }\n"
+
+
 @cache
-def kernel() -> tuple[ctypes.CDLL | None, str, float]:
+def kernel(base_map: str = NO_MAP) -> tuple[ctypes.CDLL | None, str, float]:
     """``(library or None, how it was obtained or why not, seconds spent compiling in this process)``.
 
-    Compiled once per machine (cached on disk), loaded once per process.
+    Compiled once per machine and base map (``idkit.estimators.base_map``; cached on disk), loaded
+    once per process.
     """
+    source = SOURCE.replace("/*BASE_MAP*/", base_map)
     # -march=native makes the library specific to this CPU: the key names the host too.
-    key = "\n".join((SOURCE, *FLAGS, sys.platform, platform.machine(), platform.node()))
+    key = "\n".join((source, *FLAGS, sys.platform, platform.machine(), platform.node()))
     digest = hashlib.sha256(key.encode()).hexdigest()[:16]
     path = cache_dir() / f"pso_step-{digest}.so"
     spent = 0.0
@@ -302,12 +360,12 @@ def kernel() -> tuple[ctypes.CDLL | None, str, float]:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
-                source = Path(tmp) / "pso_step.c"
-                source.write_text(SOURCE)
+                c_file = Path(tmp) / "pso_step.c"
+                c_file.write_text(source)
                 built = Path(tmp) / path.name
                 portable = tuple(f for f in FLAGS if f != "-march=native")
                 for flags in (FLAGS, portable):  # a compiler without -march=native gets the second
-                    command = [compiler, *flags, str(source), "-o", str(built), "-lm"]
+                    command = [compiler, *flags, str(c_file), "-o", str(built), "-lm"]
                     done = subprocess.run(command, capture_output=True, timeout=120)
                     if done.returncode == 0:
                         break
@@ -319,19 +377,14 @@ def kernel() -> tuple[ctypes.CDLL | None, str, float]:
         spent = time.perf_counter() - started
         how = f"compiled with {compiler}"
     library = ctypes.CDLL(str(path))
-    function = library.idkit_pso_step
-    function.restype = ctypes.c_int64
-    ptr = ctypes.c_void_p
-    function.argtypes = [
-        ctypes.POINTER(_Batch),
-        ptr,
-        ctypes.c_int64,
-        ctypes.c_double,
-        ptr,
-        ptr,
-        ptr,
-        ctypes.c_int64,
-    ]
+    batch, ptr, i64 = ctypes.POINTER(_Batch), ctypes.c_void_p, ctypes.c_int64
+    signatures = {
+        "idkit_pso_step": [batch, ptr, i64, ctypes.c_double, ptr, ptr, ptr, i64],
+        "idkit_pso_moves": [batch, ptr, i64, ptr, ptr, i64, i64],
+    }
+    for name, argtypes in signatures.items():
+        function = getattr(library, name)
+        function.restype, function.argtypes = i64, argtypes
     return library, how, spent
 
 
@@ -348,6 +401,7 @@ class _Batch(ctypes.Structure):
         ("upper", ctypes.c_void_p),
         ("boundary", ctypes.c_int64),
         ("velocity_limit", ctypes.c_double),
+        ("use_map", ctypes.c_int64),
     ]
 
 
@@ -362,6 +416,9 @@ class NativeStep:
             ``[S, P]``, updated in place by every call (a personal best improves where the cost is
             strictly lower, so start ``pcost`` at ``inf``).
         threads: split the swarms over this many threads (results do not depend on it).
+        base_map: C source of the robot's base map (``idkit.estimators.base_map``): the kernel
+            then computes the base parameters itself and ``moves`` runs many moves per call;
+            ``None``: every call is given the base parameters.
     """
 
     def __init__(
@@ -376,11 +433,13 @@ class NativeStep:
         rules: swarm.SwarmRules,
         state: tuple[Tensor, ...],
         threads: int = 1,
+        base_map: str | None = None,
     ) -> None:
-        library, _, _ = kernel()
+        library, _, _ = kernel(base_map or NO_MAP)
         if library is None:
             raise RuntimeError("the native PSO kernel is unavailable")
         self.function = library.idkit_pso_step
+        self.many = library.idkit_pso_moves
         codes = torch.zeros((len(norms), MAX_NORMS), dtype=torch.int32)
         for slot, names in enumerate(norms):
             codes[slot, : len(names)] = torch.tensor([NORM_CODES[name] for name in names], dtype=torch.int32)
@@ -410,6 +469,7 @@ class NativeStep:
             fixed["upper"].data_ptr(),
             BOUNDARY_CODES[rules.boundary],
             float(rules.velocity_limit or 0.0),
+            int(base_map is not None),
         )
         self.pointer = ctypes.byref(self.batch)
         # A thread pays only for enough particles (thread start ~20 µs vs ~0.1 µs per particle).
@@ -443,6 +503,44 @@ class NativeStep:
         if status != 0:
             raise MemoryError("native PSO kernel: out of memory for one error matrix")
 
+    def moves(self, history: Tensor, weights: Tensor, block: Tensor) -> None:
+        """``count`` moves in one call (needs ``base_map``): evaluate into ``history[count, S]``, move.
+
+        ``weights[count]`` are the inertias, ``block[count, draws, S, K, P']`` the scaled random
+        numbers of ``Draws.blocks``.
+        """
+        count = block.shape[0]
+        status = self.many(
+            self.pointer,
+            history.data_ptr(),
+            count,
+            weights.data_ptr(),
+            block.data_ptr(),
+            block.shape[1],
+            self.threads,
+        )
+        if status != 0:
+            raise MemoryError("native PSO kernel: out of memory for one error matrix")
+
+
+#: Base maps translated to C, per robot object: ``id -> (weak reference, source or None)``.
+_MAPS: dict[int, tuple[weakref.ref, str | None]] = {}
+
+
+def robot_map(objective: Objective) -> str | None:
+    """C source of the objective's search-to-base map, or ``None`` (the torch map is used)."""
+    dimension = objective.lower.shape[-1]
+    if objective.space == "base":
+        return identity_source(dimension)
+    robot = objective.problem.robot
+    known = _MAPS.get(id(robot))
+    if known is not None and known[0]() is robot:
+        return known[1]
+    source = map_source(robot, dimension)
+    with contextlib.suppress(TypeError):  # a robot that is not weak-referenceable is traced again
+        _MAPS[id(robot)] = (weakref.ref(robot), source)
+    return source
+
 
 def run(
     objective: Objective,
@@ -464,6 +562,7 @@ def run(
     lower, upper = objective.lower, objective.upper
     dimension = lower.shape[-1]
     count = len(objective.costs)
+    base_map = robot_map(objective)
     u = uniform.draw((slots, runs, particles, dimension))
     x = (lower + (upper - lower) * u).reshape(slots * runs, particles, dimension).contiguous()
     state = (
@@ -484,13 +583,23 @@ def run(
         rules,
         state,
         threads,
+        base_map,
     )
     history = torch.empty((iterations, slots * runs), dtype=x.dtype)
-    numbers = swarm.move_draws(uniform, batch_shape, particles, iterations, lower, rules)
-    for move, random in enumerate(numbers):  # random numbers are contiguous slices of a block
-        scaled = (rules.weight(move), random[0], random[1], random[2] if len(random) > 2 else None)
-        step(objective.base(x), history[move], scaled)
-    step(objective.base(x), history[-1], None)
+    if base_map is not None:  # whole blocks of moves per call, nothing in torch in between
+        shape, scale = swarm.move_shape(batch_shape, particles, lower, rules)
+        weights = torch.tensor([rules.weight(m) for m in range(iterations - 1)], dtype=torch.float64)
+        done = 0
+        for block in uniform.blocks(shape, scale, iterations - 1):
+            count = block.shape[0]
+            step.moves(history[done : done + count], weights[done : done + count], block.contiguous())
+            done += count
+    else:
+        numbers = swarm.move_draws(uniform, batch_shape, particles, iterations, lower, rules)
+        for move, random in enumerate(numbers):  # random numbers are contiguous slices of a block
+            scaled = (rules.weight(move), random[0], random[1], random[2] if len(random) > 2 else None)
+            step(objective.base(x), history[move], scaled)
+    step(objective.base(x) if base_map is None else x, history[-1], None)
     x, v, pbest, pcost, gpos = (t.view(slots, runs, *t.shape[1:]) for t in state)
     final = swarm.SwarmState(x, v, pbest, pcost, gpos, history[-1].view(slots, runs))
     return final, history.view(iterations, slots, runs)
@@ -507,5 +616,5 @@ def supports(objective: Objective) -> str | None:
             return f"cost {type(cost).__name__} declares no norm structure the kernel knows"
         if "2" in structure.norms and objective.shape[0] != 3:
             return "the native kernel's spectral norm is for 3 joints only"
-    library, how, _ = kernel()
+    library, how, _ = kernel(robot_map(objective) or NO_MAP)
     return None if library is not None else how

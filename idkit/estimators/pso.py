@@ -304,7 +304,7 @@ class ParticleSwarm(Estimator):
         """The engine for ``objective`` and what ``details`` records about it (see module docstring)."""
         reason = native.supports(objective) if self.engine != "eager" else "engine='eager' was asked for"
         if reason is None:
-            _, how, seconds = native.kernel()
+            _, how, seconds = native.kernel(native.robot_map(objective) or native.NO_MAP)
             return {"engine": "native", "engine_build": how, "engine_compile_s": seconds}, _run_native
         if self.engine == "native":
             raise ValueError(f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'")

@@ -264,14 +264,25 @@ class Draws:
         parts = [stream(own) for stream in self.streams]
         return parts[0] if len(parts) == 1 else torch.cat(parts)
 
+    def blocks(self, shape: tuple[int, ...], scale: Sequence[float], moves: int) -> Iterator[Tensor]:
+        """Yield blocks ``[count, len(scale), *shape]`` (uniform times ``scale``), ``moves`` in all."""
+        own = self._per_trial(shape)
+        for parts in zip(*(random_blocks(own, scale, moves, stream) for stream in self.streams), strict=True):
+            yield parts[0] if len(parts) == 1 else torch.cat(parts, dim=2)
+
     def moves(self, shape: tuple[int, ...], scale: Sequence[float], moves: int) -> Iterator[Sequence[Tensor]]:
         """Yield ``moves`` tuples of ``len(scale)`` tensors ``[*shape]``: uniform times ``scale``."""
-        own = self._per_trial(shape)
-        blocks = zip(*(random_blocks(own, scale, moves, stream) for stream in self.streams), strict=True)
-        for parts in blocks:
-            block = parts[0] if len(parts) == 1 else torch.cat(parts, dim=2)  # [count, draws, *shape]
+        for block in self.blocks(shape, scale, moves):
             for move in block.unbind(0):
                 yield move.unbind(0)
+
+
+def move_shape(
+    batch_shape: tuple[int, ...], particles: int, lower: Tensor, rules: SwarmRules
+) -> tuple[tuple[int, ...], tuple[float, ...]]:
+    """Shape and scales of each move's random numbers (``c1·r1``, ``c2·r2``, the boundary's ``u``)."""
+    scale = (rules.c1, rules.c2, 1.0) if rules.boundary == "random" else (rules.c1, rules.c2)
+    return (*batch_shape, particles, 1 if rules.per_particle else lower.shape[-1]), scale
 
 
 def move_draws(
@@ -283,8 +294,7 @@ def move_draws(
     rules: SwarmRules,
 ) -> Iterator[Sequence[Tensor]]:
     """The scaled random numbers of every move (``c1·r1``, ``c2·r2`` and the boundary's ``u``)."""
-    scale = (rules.c1, rules.c2, 1.0) if rules.boundary == "random" else (rules.c1, rules.c2)
-    shape = (*batch_shape, particles, 1 if rules.per_particle else lower.shape[-1])
+    shape, scale = move_shape(batch_shape, particles, lower, rules)
     return uniform.moves(shape, scale, iterations - 1)
 
 

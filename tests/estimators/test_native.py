@@ -97,7 +97,7 @@ def test_costs_without_structure_take_the_eager_path(problem):
 
 
 def test_no_compiler_falls_back_to_eager(problem, monkeypatch):
-    monkeypatch.setattr(native, "kernel", lambda: (None, "no C compiler found (set CC)", 0.0))
+    monkeypatch.setattr(native, "kernel", lambda *_: (None, "no C compiler found (set CC)", 0.0))
     estimate = ParticleSwarm(runs=2, particles=5, iterations=5).fit(problem)
     assert estimate.details["engine"] == "eager" and "no C compiler" in estimate.details["engine_build"]
 
