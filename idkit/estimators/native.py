@@ -1,22 +1,25 @@
-"""A compiled PSO step for costs with a declared norm structure (the ``"native"`` engine).
+"""A compiled PSO loop for costs with a declared norm structure (the ``"native"`` engine).
 
 Why: an eager PyTorch step of a paper-sized swarm (20 particles × 4 parameters × a 3 × 10 error
 matrix) is ~25 tensor ops of a few microseconds of dispatch each; the work itself is a few
 thousand flops. JAX peers compile the whole loop (XLA) and win small swarms by 10×. This module
-compiles one plain C function with the host's C compiler (``cc``/``gcc``, ``-O3``) the first time
-it is needed, caches the shared library on disk (``IDKIT_CACHE_DIR`` or ``~/.cache/idkit``, keyed by
-the source's hash, so later processes only load it) and calls it through ``ctypes`` once per move.
+compiles plain C with the host's C compiler (``cc``/``gcc``, ``-O3 -march=native``, IEEE
+arithmetic) the first time it is needed, caches the shared library on disk (``IDKIT_CACHE_DIR`` or
+``~/.cache/idkit``, keyed by the source's hash and the host, so later processes only load it) and
+calls it through ``ctypes``.
 
-The C step does, for every swarm of the batch, what ``swarm.step`` + ``Objective.__call__`` do
-in torch: evaluate ``E = T/d − alpha · Yᵀ/d`` and the product of its norms for every particle,
+The C step does, for every swarm of the batch, what ``swarm.step`` + ``Objective.__call__`` do in
+torch: evaluate ``E = T/d − alpha · Yᵀ/d`` and the product of its norms for every particle,
 update personal and global bests, then move the particles (velocity, boundary rule). The robot's
-map from search positions to base parameters (``Objective.base``) stays in torch, so any robot
-with a regressor works. Random numbers come from the same pre-drawn blocks as the eager engine,
-so a seed gives the same numbers to both; the trajectories agree to rounding (the eager engine
-sums in a different order), and the kernel gives identical numbers on every call.
+map from search positions to base parameters is traced and written in C where it is an
+elementwise formula (``idkit.estimators.base_map``); then whole blocks of moves run in one call.
+Otherwise the map stays in torch and the kernel is called once per move. Random numbers come from
+the same pre-drawn blocks as the eager engine, so a seed gives the same numbers to both; the
+trajectories agree to rounding, and the kernel gives identical numbers on every call and for any
+thread count (swarms are split over threads, each swarm on one).
 
 When no compiler is available (or compiling fails) ``kernel()`` returns ``None`` with the reason,
-and the estimator takes the eager engine and says so in ``details["engine"]``.
+and the estimator takes the eager engine and says so in ``details["engine_build"]``.
 """
 
 from __future__ import annotations
