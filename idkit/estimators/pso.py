@@ -59,6 +59,9 @@ from idkit.runtime import resolve_threads, torch_threads
 #: ``engine`` values: how the swarm's iterations are computed.
 ENGINES = ("auto", "eager", "native")
 
+#: Costs run by one engine: ``(cost indices, their objective, details to record, runner)``.
+EngineGroup = tuple[list[int], Objective, dict[str, Any], Callable[..., tuple[swarm.SwarmState, Tensor]]]
+
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {
         "particles": 20,
@@ -251,21 +254,35 @@ class ParticleSwarm(Estimator):
         started = time.perf_counter()
         rules, keep = self.rules(settings), KeepRule.parse(self.keep)
         objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
-        engine, runner = self._engine(objective)
         n, samples = objective.shape
         threads = resolve_threads(
             self.threads, min(objective.slots * self.runs, run_chunk) * settings["particles"] * n * samples
         )
+        count, trials = len(costs), len(problems)
+        engines: list[dict[str, Any]] = [{} for _ in costs]
         with torch_threads(threads), torch.inference_mode():
             uniform = swarm.Draws([swarm.Uniform(p.generator(), objective.lower) for p in problems])
-            batches = [
-                (objective.slots, min(run_chunk, self.runs - start))
-                for start in range(0, self.runs, run_chunk)
-            ]
-            parts = [runner(objective, batch, settings, rules, uniform, threads) for batch in batches]
-            position = torch.cat([state.global_position for state, _ in parts], dim=1)  # [S, R, D]
-            run_costs = torch.cat([state.global_cost for state, _ in parts], dim=1)  # [S, R]
-            history = torch.cat([h for _, h in parts], dim=2)  # [iterations, S, R]
+            position = objective.lower.new_empty((objective.slots, self.runs, objective.dimension))
+            run_costs = objective.lower.new_empty((objective.slots, self.runs))
+            history = objective.lower.new_empty((settings["iterations"], objective.slots, self.runs))
+            for members, part, engine, runner in self._engines(problems, costs, objective):
+                chunks = [
+                    runner(
+                        part,
+                        (part.slots, min(run_chunk, self.runs - start)),
+                        settings,
+                        rules,
+                        uniform,
+                        threads,
+                    )
+                    for start in range(0, self.runs, run_chunk)
+                ]
+                slots = torch.tensor([t * count + c for t in range(trials) for c in members])
+                position[slots] = torch.cat([state.global_position for state, _ in chunks], dim=1)
+                run_costs[slots] = torch.cat([state.global_cost for state, _ in chunks], dim=1)
+                history[:, slots] = torch.cat([h for _, h in chunks], dim=2)
+                for c in members:
+                    engines[c] = engine
             mean, kept = aggregate(position, run_costs, keep)
             values = [objective.exact(s, mean[s]) for s in range(objective.slots)]
         wall = time.perf_counter() - started
@@ -279,7 +296,6 @@ class ParticleSwarm(Estimator):
                 settings=settings,
                 evaluations_per_run=settings["particles"] * settings["iterations"],
                 batched_trials=len(problems),
-                **engine,
             )
             estimates.append(
                 per_cost_estimates(
@@ -296,19 +312,52 @@ class ParticleSwarm(Estimator):
                     common,
                 )
             )
+            for estimate, engine in zip(estimates[-1], engines, strict=True):
+                estimate.details.update(engine)
         return estimates
 
-    def _engine(
-        self, objective: Objective
-    ) -> tuple[dict[str, Any], Callable[..., tuple[swarm.SwarmState, Tensor]]]:
-        """The engine for ``objective`` and what ``details`` records about it (see module docstring)."""
-        reason = native.supports(objective) if self.engine != "eager" else "engine='eager' was asked for"
-        if reason is None:
-            _, how, seconds = native.kernel(native.robot_map(objective) or native.NO_MAP)
-            return {"engine": "native", "engine_build": how, "engine_compile_s": seconds}, _run_native
-        if self.engine == "native":
-            raise ValueError(f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'")
-        return {"engine": "eager", "engine_build": reason, "engine_compile_s": 0.0}, _run_eager
+    def _engines(self, problems: list[Problem], costs: list[Cost], objective: Objective) -> list[EngineGroup]:
+        """Which costs run on which engine, and what ``details`` records about it (module docstring).
+
+        With ``"auto"``, costs that declare a norm structure run on the native kernel and the
+        others (third-party costs) on the eager engine, one after the other on the same random
+        streams; with ``"native"`` every cost must suit the kernel.
+        """
+
+        def subset(members: list[int]) -> Objective:
+            if len(members) == len(costs):
+                return objective
+            chosen = [costs[c] for c in members]
+            return Objective(problems, chosen, space=self.space, use_regressor=self.use_regressor)
+
+        def eager(members: list[int], why: str) -> EngineGroup:
+            return (
+                members,
+                subset(members),
+                {"engine": "eager", "engine_build": why, "engine_compile_s": 0.0},
+                _run_eager,
+            )
+
+        everything = list(range(len(costs)))
+        if self.engine == "eager":
+            return [eager(everything, "engine='eager' was asked for")]
+        fast = objective.fast_costs if self.engine == "auto" else everything
+        part = subset(fast) if fast else None
+        reason = "no cost declares a norm structure" if part is None else native.supports(part)
+        if reason is not None:
+            if self.engine == "native":
+                raise ValueError(
+                    f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'"
+                )
+            return [eager(everything, reason)]
+        _, how, seconds = native.kernel(native.robot_map(part) or native.NO_MAP)
+        groups = [
+            (fast, part, {"engine": "native", "engine_build": how, "engine_compile_s": seconds}, _run_native)
+        ]
+        rest = [c for c in everything if c not in fast]
+        if rest:
+            groups.append(eager(rest, "the cost declares no norm structure (Cost.structure)"))
+        return groups
 
 
 def _run_eager(

@@ -90,8 +90,11 @@ def test_costs_without_structure_take_the_eager_path(problem):
     assert paper.f13().structure().norms == ("1", "inf") and paper.f13().structure().relative
     assert _Overridden().structure() is None and _Unstructured().structure() is None
     options = {"runs": 2, "particles": 5, "iterations": 5}
-    estimate = ParticleSwarm(**options).fit_costs(problem, [_Unstructured(), paper.f1()])[0]
-    assert estimate.details["engine"] == "eager" and "_Unstructured" in estimate.details["engine_build"]
+    other, f1 = ParticleSwarm(**options).fit_costs(problem, [_Unstructured(), paper.f1()])
+    assert other.details["engine"] == "eager" and "no norm structure" in other.details["engine_build"]
+    assert f1.details["engine"] == "native"  # the structured cost still takes the kernel
+    alone = ParticleSwarm(**options).fit_costs(problem, [_Unstructured()])[0]
+    assert alone.details["engine"] == "eager" and "no cost declares" in alone.details["engine_build"]
     with pytest.raises(ValueError, match="engine='native' is impossible"):
         ParticleSwarm(engine="native", **options).fit_costs(problem, [_Overridden()])
 

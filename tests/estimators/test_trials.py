@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -15,10 +16,19 @@ from idkit.estimators.least_squares import LeastSquares
 from idkit.estimators.paper import PaperFinalEstimate
 from idkit.estimators.pso import ParticleSwarm
 from idkit.estimators.trials import fit_trials
+from idkit.interfaces import Cost
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 
-COSTS = [paper.f1(), paper.f13(), paper.f16()]
+
+class _SumAbs(Cost):
+    """A third-party cost without a norm structure (runs eager beside the native ones)."""
+
+    def __call__(self, error: torch.Tensor, measured: torch.Tensor) -> torch.Tensor:
+        return error.abs().sum(dim=(-2, -1))
+
+
+COSTS = [paper.f1(), _SumAbs(), paper.f13(), paper.f16()]
 TRIALS = 5
 
 
@@ -43,6 +53,8 @@ def test_pso_trials_do_not_depend_on_the_chunk_size(problems, engine):
     alone = [pso.fit_costs(p, COSTS) for p in problems]  # each trial on its own, same seed
     assert _vectors(alone) == by_chunk[1]
     batched = pso.fit_trials(problems, COSTS, chunk=3)
+    expected = {"native": ["native", "eager", "native", "native"], "eager": ["eager"] * 4}[engine]
+    assert [e.details["engine"] for e in batched[0]] == expected
     shared = [e[0].details["batched_trials"] for e in batched]
     assert max(shared) == 3  # trials of equal sample counts stacked, at most `chunk` of them
 
