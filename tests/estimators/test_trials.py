@@ -45,7 +45,7 @@ def _vectors(estimates):
     return [[e.vector() + [e.cost] for e in per_trial] for per_trial in estimates]
 
 
-@pytest.mark.parametrize("engine", ["native", "eager"])
+@pytest.mark.parametrize("engine", ["auto", "eager"])
 def test_pso_trials_do_not_depend_on_the_chunk_size(problems, engine):
     pso = ParticleSwarm(runs=3, particles=6, iterations=12, engine=engine, history=False)
     by_chunk = {chunk: _vectors(pso.fit_trials(problems, COSTS, chunk=chunk)) for chunk in (1, 3, None)}
@@ -53,7 +53,7 @@ def test_pso_trials_do_not_depend_on_the_chunk_size(problems, engine):
     alone = [pso.fit_costs(p, COSTS) for p in problems]  # each trial on its own, same seed
     assert _vectors(alone) == by_chunk[1]
     batched = pso.fit_trials(problems, COSTS, chunk=3)
-    expected = {"native": ["native", "eager", "native", "native"], "eager": ["eager"] * 4}[engine]
+    expected = {"auto": ["native", "eager", "native", "native"], "eager": ["eager"] * 4}[engine]
     assert [e.details["engine"] for e in batched[0]] == expected
     shared = [e[0].details["batched_trials"] for e in batched]
     assert max(shared) == 3  # trials of equal sample counts stacked, at most `chunk` of them
