@@ -27,7 +27,9 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import hashlib
+import inspect
 import os
+import pickle
 import platform
 import shutil
 import subprocess
@@ -44,6 +46,7 @@ from torch import Tensor
 from idkit.estimators import swarm
 from idkit.estimators.base_map import identity_source, map_source
 from idkit.estimators.objective import Objective
+from idkit.interfaces import Robot
 
 #: Norm name (``idkit.costs.norms.NORMS``) -> code in the C source.
 NORM_CODES = {"fro": 1, "2": 2, "1": 3, "inf": 4, "max_row_sq": 5, "max_abs": 6}
@@ -221,7 +224,8 @@ static int64_t swarm_range(const Batch *batch, int64_t s0, int64_t s1, double *g
                     pos = c;
                 } else if (boundary == 1) {
                     double width = hi - lo;
-                    double folded = width - remainder_(pos - lo, 2 * width);
+                    double t = pos - lo; /* fmod(t, 2 width) is t itself inside [0, 2 width) */
+                    double folded = width - (t >= 0 && t < 2 * width ? t : remainder_(t, 2 * width));
                     pos = hi - fabs(folded);
                     vel = folded > 0 ? vel : (folded < 0 ? -vel : 0 * vel);
                 } else {
@@ -526,12 +530,30 @@ class NativeStep:
             raise MemoryError("native PSO kernel: out of memory for one error matrix")
 
 
-#: Base maps translated to C, per robot object: ``id -> (weak reference, source or None)``.
-_MAPS: dict[int, tuple[weakref.ref, str | None]] = {}
+#: Base maps translated to C, per robot object: ``id -> (weak reference, source or None, seconds)``.
+_MAPS: dict[int, tuple[weakref.ref, str | None, float]] = {}
+
+
+def _map_file(robot: Robot, dimension: int) -> Path | None:
+    """Disk-cache file of a robot's translated map: keyed by its pickled state and its code."""
+    try:
+        state = pickle.dumps(robot)
+        code = inspect.getsource(type(robot))
+    except Exception:  # not picklable, or no source: trace in every process
+        return None
+    key = hashlib.sha256(
+        b"\n".join((state, code.encode(), str(dimension).encode(), torch.__version__.encode()))
+    )
+    return cache_dir() / "maps" / f"{key.hexdigest()[:16]}.c"
 
 
 def robot_map(objective: Objective) -> str | None:
-    """C source of the objective's search-to-base map, or ``None`` (the torch map is used)."""
+    """C source of the objective's search-to-base map, or ``None`` (the torch map is used).
+
+    Tracing (``idkit.estimators.base_map``) imports torch's tracer, seconds the first time in a
+    process, so its result is cached on disk beside the kernels (an empty file: not translatable)
+    and in memory per robot object.
+    """
     dimension = objective.lower.shape[-1]
     if objective.space == "base":
         return identity_source(dimension)
@@ -539,10 +561,27 @@ def robot_map(objective: Objective) -> str | None:
     known = _MAPS.get(id(robot))
     if known is not None and known[0]() is robot:
         return known[1]
-    source = map_source(robot, dimension)
+    started = time.perf_counter()
+    file = _map_file(robot, dimension)
+    if file is not None and file.exists():
+        source = file.read_text() or None
+    else:
+        source = map_source(robot, dimension)
+        if file is not None:
+            with contextlib.suppress(OSError):  # a read-only cache only costs the next process a trace
+                file.parent.mkdir(parents=True, exist_ok=True)
+                temporary = file.with_suffix(f".{os.getpid()}.tmp")
+                temporary.write_text(source or "")
+                os.replace(temporary, file)
     with contextlib.suppress(TypeError):  # a robot that is not weak-referenceable is traced again
-        _MAPS[id(robot)] = (weakref.ref(robot), source)
+        _MAPS[id(robot)] = (weakref.ref(robot), source, time.perf_counter() - started)
     return source
+
+
+def map_seconds(objective: Objective) -> float:
+    """Seconds this process spent obtaining the objective's base map (tracing or reading the cache)."""
+    known = _MAPS.get(id(objective.problem.robot))
+    return 0.0 if known is None else known[2]
 
 
 def run(

@@ -32,7 +32,9 @@ robot, any device. ``"native"`` runs each move as one compiled C call (``idkit.e
 for costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 16) on a robot
 with a regressor, on the CPU in float64; its compile step (well under a second with gcc) happens
 once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"`` wherever it
-applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"`` elsewhere;
+applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"`` elsewhere
+(in a call with several costs, per cost: third-party costs without a structure run eager beside
+the others);
 ``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record the choice. Both
 engines use the same random numbers; their trajectories agree to rounding.
 """
@@ -350,7 +352,10 @@ class ParticleSwarm(Estimator):
                     f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'"
                 )
             return [eager(everything, reason)]
-        _, how, seconds = native.kernel(native.robot_map(part) or native.NO_MAP)
+        base_map = native.robot_map(part)
+        _, how, seconds = native.kernel(base_map or native.NO_MAP)
+        how += "; base map in C" if base_map is not None else "; base map in torch (not translatable)"
+        seconds += native.map_seconds(part)
         groups = [
             (fast, part, {"engine": "native", "engine_build": how, "engine_compile_s": seconds}, _run_native)
         ]

@@ -37,3 +37,21 @@ def test_kernel_map_and_torch_map_give_the_same_estimate(monkeypatch):
     in_torch = pso.fit(problem)
     assert in_c.details["engine"] == in_torch.details["engine"] == "native"
     assert in_c.params == pytest.approx(in_torch.params, rel=1e-9)
+
+
+def test_translated_map_is_cached_on_disk(tmp_path, monkeypatch):
+    from idkit.estimators.objective import Objective
+
+    monkeypatch.setenv("IDKIT_CACHE_DIR", str(tmp_path))
+    robot = CylindricalRobot()
+    objective = Objective(Problem(robot, simulate(robot, "clean", seed=0)), [paper.f1()])
+    source = native.robot_map(objective)
+    assert source is not None and [f.read_text() for f in (tmp_path / "native" / "maps").glob("*.c")] == [source]
+
+    def no_tracing(*_):
+        raise AssertionError("traced again despite the disk cache")
+
+    monkeypatch.setattr(native, "map_source", no_tracing)
+    again = CylindricalRobot()  # a new object: not in the in-memory cache
+    problem = Problem(again, simulate(again, "clean", seed=0))
+    assert native.robot_map(Objective(problem, [paper.f1()])) == source
