@@ -46,7 +46,8 @@ def test_translated_map_is_cached_on_disk(tmp_path, monkeypatch):
     robot = CylindricalRobot()
     objective = Objective(Problem(robot, simulate(robot, "clean", seed=0)), [paper.f1()])
     source = native.robot_map(objective)
-    assert source is not None and [f.read_text() for f in (tmp_path / "native" / "maps").glob("*.c")] == [source]
+    cached = [f.read_text() for f in (tmp_path / "native" / "maps").glob("*.c")]
+    assert source is not None and cached == [source]
 
     def no_tracing(*_):
         raise AssertionError("traced again despite the disk cache")
