@@ -14,7 +14,13 @@ $(STAMP): pyproject.toml plugins/idkit-robust/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install -q --upgrade pip
 	$(VENV)/bin/python -m pip install -q torch==2.13.0
-	$(VENV)/bin/python -m pip install -q -e ".[test,bench,docs]" -e ./plugins/idkit-robust
+	$(VENV)/bin/python -m pip install -q -e ".[test,docs]" -e ./plugins/idkit-robust
+	touch $@
+
+# The peers the benchmarks measure (JAX + evosax, pyswarms: ~0.7 GB) only when benchmarking.
+BENCH_STAMP := $(VENV)/.bench-installed
+$(BENCH_STAMP): $(STAMP)
+	$(VENV)/bin/python -m pip install -q -e ".[bench]"
 	touch $@
 
 paper: $(STAMP)
@@ -32,6 +38,6 @@ test-all: docs
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
-bench: $(STAMP)
+bench: $(BENCH_STAMP)
 	$(VENV)/bin/python bench/estimators.py
 	$(VENV)/bin/python bench/rnea.py

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import torch
+from idkit.experiments.kuka import load_recording
 
 from idkit import registry
 from idkit.estimators.physical import (
@@ -25,7 +26,6 @@ from idkit.estimators.physical import (
     min_pseudo_inertia_eigenvalues,
     nearest_consistent,
 )
-from idkit.experiments.kuka import load_recording
 from idkit.problem import Problem, Samples
 from idkit.robots.urdf import URDFRobot
 from idkit.studies.validation import validate

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from idkit.registry import create
@@ -118,6 +119,23 @@ class Robot(ABC):
         raise NotImplementedError(f"{type(self).__name__} cannot map base to physical parameters")
 
 
+@dataclass(frozen=True)
+class NormStructure:
+    """What a cost computes, declared so that estimators can take a fused fast path.
+
+    A cost whose value is the product of matrix norms (names of ``idkit.costs.norms.NORMS``) of the
+    torque error ``E[..., n, N]`` — or, with ``relative``, of ``E`` divided by the denominator of
+    ``idkit.relative.relative_denominator(measured, floor)`` — declares it through
+    ``Cost.structure()``. Estimators then evaluate many such costs with few tensor ops (or a
+    compiled kernel) and never look at the cost's class; a cost without a structure is called as
+    it is.
+    """
+
+    norms: tuple[str, ...]
+    relative: bool = False
+    floor: float = 0.0
+
+
 class Cost(ABC):
     """A scalar cost of the torque error matrix, batched over leading dimensions.
 
@@ -131,6 +149,10 @@ class Cost(ABC):
     @abstractmethod
     def __call__(self, error: Tensor, measured: Tensor) -> Tensor:
         """Cost ``value[...]`` of ``error[..., n, N]`` given ``measured[n, N]``."""
+
+    def structure(self) -> NormStructure | None:
+        """The norm-product structure ``__call__`` computes, or ``None`` (the general path)."""
+        return None
 
 
 class Estimator(ABC):

@@ -13,26 +13,13 @@ from idkit import registry
 from idkit.registry import PluginLoadError
 from idkit.testing import build_for_checks, checks_for, problem_factory_for
 
-#: (kind, name, check) -> why it fails today. Strict xfail: once fixed, the XPASS says "remove me".
-_CALL_CHECK = "fit does not call problem.check_identifiable() yet (estimators are edited in another branch)"
-KNOWN_FAILURES: dict[tuple[str, str, str], str] = {
-    ("estimator", name, "check_estimator_too_few_equations"): _CALL_CHECK
-    for name in ("pso", "adam", "pso_f13_f14")
-}
-
 
 def _cases() -> list[pytest.param]:
     cases = []
     for kind in ("robot", "cost", "estimator", "excitation"):
         for name in registry.available(kind):  # reads metadata only; nothing is imported here
             for check in checks_for(kind):
-                marks = []
-                reason = KNOWN_FAILURES.get((kind, name, check.__name__))
-                if reason:
-                    marks.append(pytest.mark.xfail(reason=reason, strict=True))
-                cases.append(
-                    pytest.param(kind, name, check, id=f"{kind}-{name}-{check.__name__}", marks=marks)
-                )
+                cases.append(pytest.param(kind, name, check, id=f"{kind}-{name}-{check.__name__}"))
     return cases
 
 

@@ -15,8 +15,8 @@ from typing import ClassVar
 from torch import Tensor
 
 from idkit.costs.norms import NORMS
-from idkit.costs.relative import DEFAULT_FLOOR, relative_error
-from idkit.interfaces import Cost
+from idkit.interfaces import Cost, NormStructure
+from idkit.relative import DEFAULT_FLOOR, relative_error
 
 
 class NormProductCost(Cost):
@@ -31,12 +31,22 @@ class NormProductCost(Cost):
         e = self.error_matrix(error, measured)
         return math.prod(NORMS[name](e) for name in self.norms)
 
+    def structure(self) -> NormStructure | None:
+        """The declared norm product; ``None`` for a subclass that changes what is computed."""
+        own = type(self).__call__ is NormProductCost.__call__ and type(self).error_matrix in (
+            NormProductCost.error_matrix,
+            RelativeNormProductCost.error_matrix,
+        )
+        if not own or not self.norms:
+            return None
+        return NormStructure(tuple(self.norms), bool(self.relative), float(getattr(self, "floor", 0.0)))
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
 
 
 class RelativeNormProductCost(NormProductCost):
-    """The same product on the relative error (eq. 27); see ``idkit.costs.relative`` for ``floor``."""
+    """The same product on the relative error (eq. 27); see ``idkit.relative`` for ``floor``."""
 
     relative = True
 

@@ -34,7 +34,8 @@ from idkit.estimate import Estimate
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
-from idkit.estimators.swarm import Uniform
+from idkit.estimators.swarm import Draws, Uniform
+from idkit.estimators.trials import criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.runtime import resolve_threads, torch_threads
@@ -81,11 +82,12 @@ class AdamMultiStart(Estimator):
         self.threads = threads
         self.history = history
         self.label = label
-        if starts < 1 or steps < 1:
-            raise ValueError(f"adam needs starts >= 1 and steps >= 1, got {starts}, {steps}")
+        for name, value in (("starts", starts), ("steps", steps)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"adam option {name} must be an integer >= 1, got {value!r}")
         if not lr > 0 or not 0 < lr_final <= 1:
             raise ValueError(f"adam needs lr > 0 and 0 < lr_final <= 1, got lr={lr}, lr_final={lr_final}")
-        self._keep = KeepRule.parse(keep)
+        KeepRule.parse(keep)  # validate early
 
     def fit(self, problem: Problem) -> Estimate:
         """Minimise ``problem.cost`` (required)."""
@@ -95,21 +97,51 @@ class AdamMultiStart(Estimator):
 
     def fit_costs(self, problem: Problem, costs: Sequence[Cost]) -> list[Estimate]:
         """One estimate per cost; all costs' starts are one batched computation."""
-        costs = list(costs)
+        return self.fit_trials([problem], costs)[0]
+
+    def fit_trials(
+        self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None
+    ) -> list[list[Estimate]]:
+        """One estimate per trial and cost: trials × costs × starts as one batch per chunk.
+
+        As ``ParticleSwarm.fit_trials``: trial ``t``'s starting points come from its own seed, and
+        Adam's update is elementwise, so its estimates equal ``fit_costs(problems[t], costs)``
+        whatever ``chunk`` (trials per batch; ``None``: about ``CHUNK_ELEMENTS`` error elements).
+        """
+        problems, costs = list(problems), criteria(problems, costs)
+        for problem in problems:
+            problem.check_identifiable()
+
+        def trials_per_batch(problem: Problem) -> int:
+            return trial_chunk(
+                chunk, len(costs) * self.starts * problem.robot.n_joints * problem.samples.n_samples
+            )
+
+        return fit_in_batches(problems, trials_per_batch, lambda batch: self._fit_group(batch, costs))
+
+    def _fit_group(self, problems: list[Problem], costs: list[Cost]) -> list[list[Estimate]]:
+        """``fit_trials`` of one chunk of trials."""
         started = time.perf_counter()
-        objective = Objective(problem, costs, space=self.space, use_regressor=self.use_regressor)
+        keep = KeepRule.parse(self.keep)
+        objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
+        trials, count = len(problems), len(costs)
         n, samples = objective.shape
-        threads = resolve_threads(self.threads, len(costs) * self.starts * n * samples)
+        threads = resolve_threads(self.threads, objective.slots * self.starts * n * samples)
         lower, width = objective.lower, objective.upper - objective.lower
         with torch_threads(threads):
-            u = Uniform(problem.generator(), lower)((len(costs), self.starts, lower.shape[-1]))
+            draws = Draws([Uniform(p.generator(), lower) for p in problems])
+            u = draws.draw((objective.slots, self.starts, lower.shape[-1]))
             u.requires_grad_(True)
             optimiser = torch.optim.Adam([u], lr=self.lr, betas=tuple(self.betas), fused=True)
             low = self.lr * self.lr_final
 
-            def evaluate() -> torch.Tensor:  # [C, R]
-                error = objective.error(lower + width * u)  # [C, R, n, N], regressor where possible
-                return torch.stack([cost(error[c], objective.measured) for c, cost in enumerate(costs)])
+            def evaluate() -> torch.Tensor:  # [S, R]
+                x = (lower + width * u).view(trials, count, self.starts, -1)
+                values = []
+                for t in range(trials):
+                    error = objective.error(x[t], t)  # [C, R, n, N], regressor where possible
+                    values += [cost(error[c], objective.measured[t]) for c, cost in enumerate(costs)]
+                return torch.stack(values)
 
             history = []
             for step in range(self.steps):
@@ -129,20 +161,34 @@ class AdamMultiStart(Estimator):
             with torch.no_grad():
                 final = evaluate()  # at the projected last iterate
                 position = lower + width * u.detach()
-                mean, kept = aggregate(position, final, self._keep)
-                values = [objective.exact(c, mean[c]) for c in range(len(costs))]
-        common = common_details(problem, objective, costs, self._keep, threads, time.perf_counter() - started)
-        common.update(starts=self.starts, steps=self.steps, lr=self.lr, lr_final=self.lr_final)
-        return per_cost_estimates(
-            problem,
-            objective,
-            costs,
-            self.label or "Adam-{cost}",
-            position,
-            final,
-            kept,
-            mean,
-            values,
-            torch.stack(history) if self.history else None,  # [steps, C, R], cost before each step
-            common,
-        )
+                mean, kept = aggregate(position, final, keep)
+                values = [objective.exact(s, mean[s]) for s in range(objective.slots)]
+        wall = time.perf_counter() - started
+        stacked = torch.stack(history) if self.history else None  # [steps, S, R], cost before each step
+        estimates = []
+        for t, problem in enumerate(problems):
+            part = slice(t * count, (t + 1) * count)
+            common = common_details(problem, objective, costs, keep, threads, wall / trials)
+            common.update(
+                starts=self.starts,
+                steps=self.steps,
+                lr=self.lr,
+                lr_final=self.lr_final,
+                batched_trials=trials,
+            )
+            estimates.append(
+                per_cost_estimates(
+                    problem,
+                    objective,
+                    costs,
+                    self.label or "Adam-{cost}",
+                    position[part],
+                    final[part],
+                    kept[part],
+                    mean[part],
+                    values[part],
+                    None if stacked is None else stacked[:, part],
+                    common,
+                )
+            )
+        return estimates

@@ -17,7 +17,6 @@ from typing import Any, ClassVar
 import torch
 from torch import Tensor
 
-from idkit.costs.relative import DEFAULT_FLOOR
 from idkit.estimate import Estimate, jsonable
 from idkit.estimators.observation import (
     Conditioning,
@@ -31,6 +30,7 @@ from idkit.estimators.observation import (
 from idkit.estimators.uncertainty import uncertainty_details
 from idkit.interfaces import Estimator
 from idkit.problem import Problem
+from idkit.relative import DEFAULT_FLOOR
 from idkit.runtime import resolve_threads, torch_threads
 
 
@@ -52,7 +52,7 @@ class LinearEstimator(Estimator):
 
     Args:
         relative: solve the relative system of eqs. (36)–(37) (labels "LS-rel", ...).
-        floor: near-zero torque floor of the relative system (see ``idkit.costs.relative``).
+        floor: near-zero torque floor of the relative system (see ``idkit.relative``).
         max_cond: warn above this column-equilibrated condition number of ``W``; ``None`` =
             ``1/√eps`` of the problem's dtype (see ``idkit.estimators.observation``).
         threads: torch intra-op threads during the fit; ``None`` = ``idkit.runtime``'s size rule

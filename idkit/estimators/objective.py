@@ -1,7 +1,8 @@
 """Many costs of many parameter sets in one call: the hot loop of the search-based estimators.
 
-``Objective(problem, costs)`` maps search positions ``x[C, ..., D]`` (one slice per cost) to
-``cost[C, ...]``. It precomputes everything that depends only on the samples, once:
+``Objective(problems, costs)`` maps search positions ``x[S, ..., D]`` (one slice per trial and
+cost, ``S = T · C``) to ``cost[S, ...]``. It precomputes everything that depends only on the
+samples, once:
 
 - the search space: the robot's physical parameters in ``bounds()`` (the paper's way) or, for
   robots with ``search_space == "base"``, the base parameters in ``base_bounds()``;
@@ -10,7 +11,8 @@
   because ``tau = Y(q, qd, qdd) · alpha`` defines the regressor (tests check both paths agree);
   for relative costs ``T`` and ``Y`` are divided by the denominator of eq. (27) once, so the
   product gives ``E_rel`` directly;
-- the paper's norm-product costs (``idkit.costs.paper``), all at once through ``NormProducts``: the
+- costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 16), all at once
+  through ``NormProducts``: the
   same norms with fewer tensor ops (one ``|E|``, row and column sums from one matmul, the
   spectral norm in closed form). Values agree with the cost's own ``__call__`` to 1e-12 relative
   (tested), except the closed-form spectral norm where the two largest singular values
@@ -28,10 +30,9 @@ import torch
 from torch import Tensor
 
 from idkit.costs.norms import NORMS
-from idkit.costs.paper import NormProductCost, RelativeNormProductCost
-from idkit.costs.relative import relative_denominator
-from idkit.interfaces import Cost
-from idkit.problem import Problem
+from idkit.interfaces import Cost, NormStructure, Robot
+from idkit.problem import Problem, Samples
+from idkit.relative import relative_denominator
 
 SPACES = ("physical", "base")
 
@@ -138,14 +139,12 @@ class NormProducts:
         return out
 
 
-def is_norm_product(cost: Cost) -> bool:
-    """Whether ``cost`` is one of the plain norm products of ``idkit.costs.paper`` (not overridden)."""
-    return (
-        isinstance(cost, NormProductCost)
-        and type(cost).__call__ is NormProductCost.__call__
-        and type(cost).error_matrix in (NormProductCost.error_matrix, RelativeNormProductCost.error_matrix)
-        and bool(cost.norms)
-    )
+def fast_structure(cost: Cost) -> NormStructure | None:
+    """``cost.structure()`` when the fast path can evaluate it (known norms), else ``None``."""
+    structure = cost.structure()
+    if structure is None or not structure.norms or not set(structure.norms) <= set(NORMS):
+        return None
+    return structure
 
 
 def cost_label(cost: Cost) -> str:
@@ -154,12 +153,16 @@ def cost_label(cost: Cost) -> str:
 
 
 class Objective:
-    """Batched costs of search positions for one problem.
+    """Batched costs of search positions for one problem or a stack of trials.
+
+    Positions carry a leading *slot* dimension ``S = T · C``, trial-major: slot ``t · C + c`` is
+    evaluated with ``costs[c]`` on the samples of ``problems[t]``. With one problem (``T = 1``)
+    slots are costs.
 
     Args:
-        problem: robot, samples, device and dtype (its ``cost`` is not used here).
-        costs: ``C`` costs; positions carry a leading dimension of size ``C``, slice ``c`` is
-            evaluated with ``costs[c]``.
+        problems: one ``Problem`` or ``T`` trials of the same robot, sample count, device and dtype
+            (their ``cost`` is not used here; their samples differ).
+        costs: ``C`` costs.
         space: ``"physical"`` or ``"base"``; ``None`` follows ``robot.search_space``.
         use_regressor: predict torques by the regressor (requires one); ``None`` uses it when the
             robot has one.
@@ -167,11 +170,15 @@ class Objective:
 
     def __init__(
         self,
-        problem: Problem,
+        problems: Problem | Sequence[Problem],
         costs: Sequence[Cost],
         space: str | None = None,
         use_regressor: bool | None = None,
     ) -> None:
+        self.problems = [problems] if isinstance(problems, Problem) else list(problems)
+        if not self.problems:
+            raise ValueError("Objective needs at least one problem")
+        problem = self.problems[0]
         robot = problem.robot
         self.problem = problem
         self.costs = list(costs)
@@ -197,33 +204,50 @@ class Objective:
         self.lower, self.upper = (b.to(device=device, dtype=dtype) for b in box)
         if not bool((self.lower < self.upper).all()):
             raise ValueError(f"{type(robot).__name__}: empty search box {self.lower} .. {self.upper}")
-        s = problem.tensors()
-        self.samples = s
-        self.measured = s.measured_matrix()  # [n, N]
-        self.shape = tuple(self.measured.shape)
-        # Per cost, the divisor of the error: the relative denominator (eq. 27) for the paper's
-        # relative costs, 1 otherwise (other costs get the absolute error, as their contract says).
-        ones = torch.ones_like(self.measured)
-        self.fast = [c for c, cost in enumerate(self.costs) if is_norm_product(cost)]
-        self.others = [c for c in range(len(self.costs)) if c not in self.fast]
+        self.trials = [_same_setting(problem, p, t).tensors() for t, p in enumerate(self.problems)]
+        self.measured = torch.stack([s.measured_matrix() for s in self.trials])  # [T, n, N]
+        self.shape = tuple(self.measured.shape[1:])
+        # Per slot, the divisor of the error: the relative denominator (eq. 27) for costs that
+        # declare a relative norm structure, 1 otherwise (other costs get the absolute error, as
+        # their contract says).
+        self.structures = [fast_structure(cost) for cost in self.costs]
+        ones = torch.ones_like(self.measured[0])
         self.divisors = torch.stack(
             [
-                relative_denominator(self.measured, cost.floor)
-                if c in self.fast and isinstance(cost, RelativeNormProductCost)
+                relative_denominator(measured, structure.floor)
+                if structure is not None and structure.relative
                 else ones
-                for c, cost in enumerate(self.costs)
+                for measured in self.measured
+                for structure in self.structures
             ]
-        )  # [C, n, N]
-        self.products = NormProducts([self.costs[c].norms for c in self.fast], *self.shape, self.measured)
+        )  # [S, n, N]
+        count = len(self.costs)
+        self.fast = [t * count + c for t in range(len(self.trials)) for c in self.fast_costs]
+        self.others = [s for s in range(self.slots) if s not in set(self.fast)]
+        self.products = NormProducts(
+            [self.structures[s % count].norms for s in self.fast], *self.shape, self.measured
+        )
         if self.use_regressor:
-            y = robot.regressor(s.q, s.qd, s.qdd)  # [N, n, B]
-            # -Yᵀ as [B, n·N]: alpha[..., B] @ it is minus the prediction in the joints × samples layout.
-            minus_yt = -y.permute(2, 1, 0).reshape(y.shape[-1], -1)
-            self.absolute = (self.measured.reshape(-1), minus_yt.contiguous())
-            # Per cost, -Yᵀ / divisor and T / divisor, so that E (already divided) is one baddbmm.
-            divisors = self.divisors.reshape(len(self.costs), 1, -1)
-            self.linear = (minus_yt / divisors).contiguous()  # [C, B, n·N]
-            self.offset = (self.measured.reshape(1, -1) / divisors).contiguous()  # [C, 1, n·N]
+            # -Yᵀ per trial as [T, B, n·N]: alpha[..., B] @ it is minus the prediction in the
+            # joints × samples layout.
+            minus_yt = torch.stack([-_regressor_t(robot, s) for s in self.trials])
+            self.absolute = (self.measured.reshape(len(self.trials), 1, -1), minus_yt.contiguous())
+            # Per slot, -Yᵀ / divisor and T / divisor, so that E (already divided) is one baddbmm.
+            divisors = self.divisors.reshape(self.slots, 1, -1)
+            self.linear = (minus_yt.repeat_interleave(count, 0) / divisors).contiguous()  # [S, B, n·N]
+            self.offset = (
+                self.absolute[0].repeat_interleave(count, 0) / divisors
+            ).contiguous()  # [S, 1, n·N]
+
+    @property
+    def fast_costs(self) -> list[int]:
+        """Indices of the costs evaluated through their declared norm structure."""
+        return [c for c, structure in enumerate(self.structures) if structure is not None]
+
+    @property
+    def slots(self) -> int:
+        """``S = T · C``: the leading dimension of positions."""
+        return len(self.trials) * len(self.costs)
 
     @property
     def dimension(self) -> int:
@@ -239,42 +263,68 @@ class Objective:
         """Base parameters ``[..., B]`` of search positions ``x[..., D]`` (needs a regressor)."""
         return x if self.space == "base" else self.problem.robot.base_params(x)
 
-    def error(self, x: Tensor) -> Tensor:
-        """Torque error ``E[..., n, N] = measured − predicted`` at search positions ``x[..., D]``."""
+    def error(self, x: Tensor, trial: int = 0) -> Tensor:
+        """Torque error ``E[..., n, N] = measured − predicted`` of ``trial`` at positions ``x[..., D]``."""
         if self.use_regressor:
-            t, minus_yt = self.absolute
+            t, minus_yt = (a[trial] for a in self.absolute)
             return (t + self.base(x) @ minus_yt).view(*x.shape[:-1], *self.shape)
-        s = self.samples
+        s = self.trials[trial]
         predicted = self.problem.robot.inverse_dynamics(x, s.q, s.qd, s.qdd)
         return (s.tau - predicted).transpose(-1, -2)
 
-    def exact(self, index: int, x: Tensor) -> Tensor:
-        """Cost ``index`` at positions ``x[..., D]`` by the cost's own ``__call__`` (for reporting).
+    def exact(self, slot: int, x: Tensor) -> Tensor:
+        """Cost of ``slot`` at positions ``x[..., D]`` by the cost's own ``__call__`` (for reporting).
 
-        Physical space goes through ``Problem.error`` (inverse dynamics), base space through the
-        regressor.
+        Physical space goes through inverse dynamics, base space through the regressor.
         """
-        error = self.error(x) if self.space == "base" else self.problem.error(x)
-        return self.costs[index](error, self.measured)
+        trial, cost = divmod(slot, len(self.costs))
+        if self.space == "base":
+            error = self.error(x, trial)
+        else:
+            s = self.trials[trial]
+            error = (s.tau - self.problem.robot.inverse_dynamics(x, s.q, s.qd, s.qdd)).transpose(-1, -2)
+        return self.costs[cost](error, self.measured[trial])
 
     def __call__(self, x: Tensor) -> Tensor:
-        """``cost[C, ...]`` of positions ``x[C, ..., D]``: slice ``c`` by cost ``c``."""
-        count = len(self.costs)
-        if x.shape[0] != count:
-            raise ValueError(f"positions have {x.shape[0]} cost slices, the objective has {count}")
+        """``cost[S, ...]`` of positions ``x[S, ..., D]``: slot ``t · C + c`` by cost ``c`` on trial ``t``."""
+        if x.shape[0] != self.slots:
+            raise ValueError(f"positions have {x.shape[0]} slices, the objective has {self.slots} slots")
         batch = x.shape[1:-1]
+        count = len(self.costs)
         if self.use_regressor:
-            alpha = self.base(x).reshape(count, -1, self.linear.shape[1])
+            alpha = self.base(x).reshape(self.slots, -1, self.linear.shape[1])
             error = torch.baddbmm(self.offset, alpha, self.linear)  # T/d − alpha·Yᵀ/d, one op
-            error = error.view(count, *batch, *self.shape)
+            error = error.view(self.slots, *batch, *self.shape)
         else:
-            error = self.error(x) / self.divisors.view(count, *([1] * len(batch)), *self.shape)
+            per_trial = x.view(len(self.trials), count, *batch, x.shape[-1])
+            error = torch.cat([self.error(xt, t) for t, xt in enumerate(per_trial)])
+            error = error / self.divisors.view(self.slots, *([1] * len(batch)), *self.shape)
         if not self.others:
             return self.products(error)
-        out = error.new_empty((count, *batch))
+        out = error.new_empty((self.slots, *batch))
         if self.fast:
             index = torch.tensor(self.fast, device=error.device)
             out[index] = self.products(error[index])
-        for c in self.others:
-            out[c] = self.costs[c](error[c], self.measured)
+        for s in self.others:
+            out[s] = self.costs[s % count](error[s], self.measured[s // count])
         return out
+
+
+def _regressor_t(robot: Robot, samples: Samples) -> Tensor:
+    """``Yᵀ`` as ``[B, n·N]`` (joint-major columns) of the regressor ``Y[N, n, B]``."""
+    y = robot.regressor(samples.q, samples.qd, samples.qdd)
+    return y.permute(2, 1, 0).reshape(y.shape[-1], -1)
+
+
+def _same_setting(first: Problem, other: Problem, trial: int) -> Problem:
+    """``other`` if it can share a batch with ``first`` (same robot, shape, device, dtype)."""
+    if other.robot is not first.robot and type(other.robot) is not type(first.robot):
+        raise ValueError(f"trial {trial}: robot {type(other.robot).__name__} differs from trial 0's")
+    if other.samples.q.shape != first.samples.q.shape:
+        raise ValueError(
+            f"trial {trial}: samples have shape {tuple(other.samples.q.shape)}, trial 0 has "
+            f"{tuple(first.samples.q.shape)}; stacked trials need equal sample counts"
+        )
+    if str(other.device) != str(first.device) or other.torch_dtype != first.torch_dtype:
+        raise ValueError(f"trial {trial}: device/dtype differ from trial 0's")
+    return other

@@ -3,7 +3,7 @@
 ``W`` stacks the robot's regressor over the samples (eq. 8) and ``τ_s`` the measured torques
 (eq. 9), sample-major: rows ``i·n … i·n + n − 1`` belong to sample ``i``. The relative variant
 (eqs. 36–37) divides every row by its measured torque. Near-zero torques follow the one policy of
-``idkit.costs.relative`` (floored at ``floor × joint RMS``, with a ``RelativeFloorWarning``), so
+``idkit.relative`` (floored at ``floor × joint RMS``, with a ``RelativeFloorWarning``), so
 the LS-rel criterion ``‖τ_r − W_r α‖₂`` is exactly the relative PSO cost f9 = ‖E_rel‖_F. Where a
 torque is floored, ``τ_r`` is ``τ/floored`` rather than the paper's 1 — that keeps the identity.
 
@@ -31,12 +31,9 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from idkit.costs.relative import DEFAULT_FLOOR, relative_denominator
+from idkit.problem import IdentificationError as IdentificationError  # re-exported: the LS family raises it
 from idkit.problem import Problem
-
-
-class IdentificationError(ValueError):
-    """The data cannot identify the parameters (rank deficiency, no TLS solution, solver failure)."""
+from idkit.relative import DEFAULT_FLOOR, relative_denominator
 
 
 class IdentificationWarning(UserWarning):
@@ -64,7 +61,7 @@ def linear_system(problem: Problem, relative: bool = False, floor: float = DEFAU
     Args:
         problem: robot with a regressor, and samples ``[N, n]``.
         relative: divide each row by its (floored) measured torque.
-        floor: near-zero torque floor, a fraction of each joint's RMS (see ``idkit.costs.relative``).
+        floor: near-zero torque floor, a fraction of each joint's RMS (see ``idkit.relative``).
 
     Raises:
         IdentificationError: the robot has no linear regressor.

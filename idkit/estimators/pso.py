@@ -26,27 +26,43 @@ Presets (every field can be overridden by its own keyword):
 PSO's update (per-dimension ``r1``/``r2``, walls per dimension) is invariant to an affine rescaling
 of each coordinate, so searching a box normalised to [0, 1]^P would change nothing but rounding;
 the search runs in the robot's own units.
+
+Engines. ``"eager"`` is the functional torch swarm (``idkit.estimators.swarm``): any cost, any
+robot, any device. ``"native"`` runs each move as one compiled C call (``idkit.estimators.native``)
+for costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 16) on a robot
+with a regressor, on the CPU in float64; its compile step (well under a second with gcc) happens
+once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"`` wherever it
+applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"`` elsewhere
+(in a call with several costs, per cost: third-party costs without a structure run eager beside
+the others);
+``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record the choice. Both
+engines use the same random numbers; their trajectories agree to rounding.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
 
 import torch
+from torch import Tensor
 
 from idkit.estimate import Estimate
-from idkit.estimators import swarm
+from idkit.estimators import native, swarm
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
+from idkit.estimators.trials import CHUNK_ELEMENTS, criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.runtime import resolve_threads, torch_threads
 
-#: Error-tensor elements per chunk of runs (see ``fit_costs``); about 2 MB of float64.
-CHUNK_ELEMENTS = 1 << 18
+#: ``engine`` values: how the swarm's iterations are computed.
+ENGINES = ("auto", "eager", "native")
+
+#: Costs run by one engine: ``(cost indices, their objective, details to record, runner)``.
+EngineGroup = tuple[list[int], Objective, dict[str, Any], Callable[..., tuple[swarm.SwarmState, Tensor]]]
 
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {
@@ -88,6 +104,8 @@ class ParticleSwarm(Estimator):
         threads: torch intra-op threads; ``None`` picks by problem size (``idkit.runtime``).
         history: keep each run's best cost per iteration in ``details["history"]``.
         label: estimator label; default ``"PSO-<cost>"`` (e.g. ``PSO-f13``).
+        engine: ``"auto"`` (the native kernel where it applies, else eager torch), ``"eager"`` or
+            ``"native"`` (an error where it does not apply); see the module docstring.
     """
 
     conformance_options: ClassVar[dict[str, Any]] = {"runs": 3, "particles": 6, "iterations": 15}
@@ -110,6 +128,7 @@ class ParticleSwarm(Estimator):
         threads: int | None = None,
         history: bool = True,
         label: str | None = None,
+        engine: str = "auto",
     ) -> None:
         self.preset = preset
         self.runs = runs
@@ -127,34 +146,47 @@ class ParticleSwarm(Estimator):
         self.threads = threads
         self.history = history
         self.label = label
+        self.engine = engine
         self.settings()  # validate early: a bad option fails at construction, not mid-sweep
 
     def settings(self) -> dict[str, Any]:
-        """The preset with this instance's overrides applied (``velocity_limit`` may be None)."""
+        """The preset with this instance's overrides applied (``velocity_limit`` may be None).
+
+        Pure: validates and returns, sets nothing. Raises ``ValueError`` naming the bad option.
+        """
         if self.preset not in PRESETS:
             raise ValueError(f"unknown PSO preset {self.preset!r}; use one of {', '.join(PRESETS)}")
+        if self.engine not in ENGINES:
+            raise ValueError(f"unknown PSO engine {self.engine!r}; use one of {', '.join(ENGINES)}")
         resolved = dict(PRESETS[self.preset])
         for name in resolved:
             value = getattr(self, name)
             if value is not None:
                 resolved[name] = value
-        if self.runs < 1:
-            raise ValueError(f"runs must be >= 1, got {self.runs}")
+        for name, value in (
+            ("runs", self.runs),
+            ("particles", resolved["particles"]),
+            ("iterations", resolved["iterations"]),
+        ):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"pso option {name} must be an integer >= 1, got {value!r}")
         resolved["inertia"] = tuple(resolved["inertia"])
-        self._rules = swarm.SwarmRules(
-            c1=float(resolved["c1"]),
-            c2=float(resolved["c2"]),
-            inertia=(
-                float(resolved["inertia"][0]),
-                float(resolved["inertia"][1]),
-                int(resolved["inertia"][2]),
-            ),
-            boundary=resolved["boundary"],
-            velocity_limit=resolved["velocity_limit"],
-            per_particle=bool(resolved["per_particle"]),
-        )
-        self._keep = KeepRule.parse(self.keep)
+        self.rules(resolved)
+        KeepRule.parse(self.keep)
         return resolved
+
+    @staticmethod
+    def rules(settings: dict[str, Any]) -> swarm.SwarmRules:
+        """The swarm's update rule of resolved ``settings`` (validated by ``SwarmRules``)."""
+        inertia = settings["inertia"]
+        return swarm.SwarmRules(
+            c1=float(settings["c1"]),
+            c2=float(settings["c2"]),
+            inertia=(float(inertia[0]), float(inertia[1]), int(inertia[2])),
+            boundary=settings["boundary"],
+            velocity_limit=settings["velocity_limit"],
+            per_particle=bool(settings["per_particle"]),
+        )
 
     def fit(self, problem: Problem) -> Estimate:
         """Minimise ``problem.cost`` (required)."""
@@ -170,53 +202,201 @@ class ParticleSwarm(Estimator):
         same cost list → identical estimates). ``wall_time_s`` is the call's time divided by the
         number of costs; the total is in ``details["batch_wall_time_s"]``.
         """
+        return self.fit_trials([problem], costs)[0]
+
+    def fit_trials(
+        self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None
+    ) -> list[list[Estimate]]:
+        """One estimate per trial and cost: trials × costs × runs as one batched swarm per chunk.
+
+        Each trial is a ``Problem`` of the same robot, sample count, device and dtype (a study's
+        noise draws); its runs draw from its own seed (``problem.seed``), so trial ``t``'s
+        estimates equal ``fit_costs(problems[t], costs)`` and never depend on the other trials or
+        on ``chunk``.
+
+        Args:
+            problems: ``T`` trials (their ``cost`` is ignored).
+            costs: ``C`` costs, each fitted on every trial (``None``: the problems' shared cost).
+            chunk: trials per batched computation (trials of equal sample counts share one), to
+                bound memory; ``None`` picks it from the
+                problem size (about ``CHUNK_ELEMENTS`` error elements per chunk).
+
+        Returns:
+            ``T`` lists of ``C`` estimates; ``details["batched_trials"]`` says how many trials
+            shared the computation and ``details["engine"]`` which engine ran it.
+        """
         settings = self.settings()
-        costs = list(costs)
+        problems, costs = list(problems), criteria(problems, costs)
+        for problem in problems:
+            problem.check_identifiable()
+        trial_chunk(chunk, 1)  # check it
+
+        def per_run(problem: Problem) -> int:
+            """Error-tensor elements of one run of every cost on this trial."""
+            return len(costs) * settings["particles"] * problem.robot.n_joints * problem.samples.n_samples
+
+        def run_chunk(problem: Problem) -> int:
+            """Runs per chunk: big batches run as consecutive chunks of runs whose tensors stay in
+            the CPU cache (elementwise ops on [10,000 × 20 × 4] run ~4× slower per element than on
+            [500 × 20 × 4])."""
+            return max(1, CHUNK_ELEMENTS // per_run(problem))
+
+        def trials_per_batch(problem: Problem) -> int:
+            """Small trials are stacked instead, several per batch; a big one is a batch alone."""
+            whole = run_chunk(problem) >= self.runs
+            return trial_chunk(chunk, per_run(problem) * self.runs if whole else CHUNK_ELEMENTS)
+
+        def fit_batch(batch: list[Problem]) -> list[list[Estimate]]:
+            return self._fit_group(batch, costs, settings, run_chunk(batch[0]))
+
+        return fit_in_batches(problems, trials_per_batch, fit_batch)
+
+    def _fit_group(
+        self, problems: list[Problem], costs: list[Cost], settings: dict[str, Any], run_chunk: int
+    ) -> list[list[Estimate]]:
+        """``fit_trials`` of one chunk of trials."""
         started = time.perf_counter()
-        objective = Objective(problem, costs, space=self.space, use_regressor=self.use_regressor)
+        rules, keep = self.rules(settings), KeepRule.parse(self.keep)
+        objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
         n, samples = objective.shape
-        work = len(costs) * self.runs * settings["particles"] * n * samples
-        # Ops never see more than one chunk of runs, so the chunk's size decides the threads.
-        threads = resolve_threads(self.threads, min(work, CHUNK_ELEMENTS))
+        threads = resolve_threads(
+            self.threads, min(objective.slots * self.runs, run_chunk) * settings["particles"] * n * samples
+        )
+        count, trials = len(costs), len(problems)
+        engines: list[dict[str, Any]] = [{} for _ in costs]
         with torch_threads(threads), torch.inference_mode():
-            uniform = swarm.Uniform(problem.generator(), objective.lower)
-            # Big batches run as consecutive chunks of runs whose tensors stay in the CPU cache
-            # (elementwise ops on [10,000 × 20 × 4] run ~4× slower per element than on [500 × 20 × 4]).
-            chunk = max(1, CHUNK_ELEMENTS // (work // self.runs))
-            parts = [
-                swarm.run(
+            uniform = swarm.Draws([swarm.Uniform(p.generator(), objective.lower) for p in problems])
+            position = objective.lower.new_empty((objective.slots, self.runs, objective.dimension))
+            run_costs = objective.lower.new_empty((objective.slots, self.runs))
+            history = objective.lower.new_empty((settings["iterations"], objective.slots, self.runs))
+            for members, part, engine, runner in self._engines(problems, costs, objective):
+                chunks = [
+                    runner(
+                        part,
+                        (part.slots, min(run_chunk, self.runs - start)),
+                        settings,
+                        rules,
+                        uniform,
+                        threads,
+                    )
+                    for start in range(0, self.runs, run_chunk)
+                ]
+                slots = torch.tensor([t * count + c for t in range(trials) for c in members])
+                position[slots] = torch.cat([state.global_position for state, _ in chunks], dim=1)
+                run_costs[slots] = torch.cat([state.global_cost for state, _ in chunks], dim=1)
+                history[:, slots] = torch.cat([h for _, h in chunks], dim=2)
+                for c in members:
+                    engines[c] = engine
+            mean, kept = aggregate(position, run_costs, keep)
+            values = [objective.exact(s, mean[s]) for s in range(objective.slots)]
+        wall = time.perf_counter() - started
+        count = len(costs)
+        estimates = []
+        for t, problem in enumerate(problems):
+            part = slice(t * count, (t + 1) * count)
+            common = common_details(problem, objective, costs, keep, threads, wall / len(problems))
+            common.update(
+                preset=self.preset,
+                settings=settings,
+                evaluations_per_run=settings["particles"] * settings["iterations"],
+                batched_trials=len(problems),
+            )
+            estimates.append(
+                per_cost_estimates(
+                    problem,
                     objective,
-                    objective.lower,
-                    objective.upper,
-                    (len(costs), min(chunk, self.runs - start)),
-                    settings["particles"],
-                    settings["iterations"],
-                    self._rules,
-                    uniform,
+                    costs,
+                    self.label or "PSO-{cost}",
+                    position[part],
+                    run_costs[part],
+                    kept[part],
+                    mean[part],
+                    values[part],
+                    history[:, part] if self.history else None,
+                    common,
                 )
-                for start in range(0, self.runs, chunk)
-            ]
-            position = torch.cat([state.global_position for state, _ in parts], dim=1)  # [C, R, D]
-            run_costs = torch.cat([state.global_cost for state, _ in parts], dim=1)  # [C, R]
-            history = torch.cat([h for _, h in parts], dim=2)  # [iterations, C, R]
-            mean, kept = aggregate(position, run_costs, self._keep)
-            values = [objective.exact(c, mean[c]) for c in range(len(costs))]
-        common = common_details(problem, objective, costs, self._keep, threads, time.perf_counter() - started)
-        common.update(
-            preset=self.preset,
-            settings=settings,
-            evaluations_per_run=settings["particles"] * settings["iterations"],
-        )
-        return per_cost_estimates(
-            problem,
-            objective,
-            costs,
-            self.label or "PSO-{cost}",
-            position,
-            run_costs,
-            kept,
-            mean,
-            values,
-            history if self.history else None,
-            common,
-        )
+            )
+            for estimate, engine in zip(estimates[-1], engines, strict=True):
+                estimate.details.update(engine)
+        return estimates
+
+    def _engines(self, problems: list[Problem], costs: list[Cost], objective: Objective) -> list[EngineGroup]:
+        """Which costs run on which engine, and what ``details`` records about it (module docstring).
+
+        With ``"auto"``, costs that declare a norm structure run on the native kernel and the
+        others (third-party costs) on the eager engine, one after the other on the same random
+        streams; with ``"native"`` every cost must suit the kernel.
+        """
+
+        def subset(members: list[int]) -> Objective:
+            if len(members) == len(costs):
+                return objective
+            chosen = [costs[c] for c in members]
+            return Objective(problems, chosen, space=self.space, use_regressor=self.use_regressor)
+
+        def eager(members: list[int], why: str) -> EngineGroup:
+            return (
+                members,
+                subset(members),
+                {"engine": "eager", "engine_build": why, "engine_compile_s": 0.0},
+                _run_eager,
+            )
+
+        everything = list(range(len(costs)))
+        if self.engine == "eager":
+            return [eager(everything, "engine='eager' was asked for")]
+        fast = objective.fast_costs if self.engine == "auto" else everything
+        part = subset(fast) if fast else None
+        reason = "no cost declares a norm structure" if part is None else native.supports(part)
+        if reason is not None:
+            if self.engine == "native":
+                raise ValueError(
+                    f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'"
+                )
+            return [eager(everything, reason)]
+        base_map = native.robot_map(part)
+        _, how, seconds = native.kernel(base_map or native.NO_MAP)
+        how += "; base map in C" if base_map is not None else "; base map in torch (not translatable)"
+        seconds += native.map_seconds(part)
+        groups = [
+            (fast, part, {"engine": "native", "engine_build": how, "engine_compile_s": seconds}, _run_native)
+        ]
+        rest = [c for c in everything if c not in fast]
+        if rest:
+            groups.append(eager(rest, "the cost declares no norm structure (Cost.structure)"))
+        return groups
+
+
+def _run_eager(
+    objective: Objective,
+    batch: tuple[int, int],
+    settings: dict[str, Any],
+    rules: swarm.SwarmRules,
+    uniform: swarm.Draws,
+    threads: int,
+) -> tuple[swarm.SwarmState, Tensor]:
+    """The eager engine (torch's intra-op threads are already set to ``threads``)."""
+    return swarm.run(
+        objective,
+        objective.lower,
+        objective.upper,
+        batch,
+        settings["particles"],
+        settings["iterations"],
+        rules,
+        uniform,
+    )
+
+
+def _run_native(
+    objective: Objective,
+    batch: tuple[int, int],
+    settings: dict[str, Any],
+    rules: swarm.SwarmRules,
+    uniform: swarm.Draws,
+    threads: int,
+) -> tuple[swarm.SwarmState, Tensor]:
+    """The native engine: its C step splits the swarms over ``threads`` threads."""
+    return native.run(
+        objective, batch, settings["particles"], settings["iterations"], rules, uniform, threads
+    )

@@ -56,7 +56,6 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.costs.relative import DEFAULT_FLOOR
 from idkit.estimators.least_squares import LinearEstimator, Solution, smallest_singular_value
 from idkit.estimators.observation import (
     Conditioning,
@@ -64,6 +63,7 @@ from idkit.estimators.observation import (
     IdentificationWarning,
     LinearSystem,
 )
+from idkit.relative import DEFAULT_FLOOR
 
 SOLVERS = ("closed_form", "cvxpy")
 

@@ -107,7 +107,7 @@ def init(
     upper: Tensor,
     batch_shape: tuple[int, ...],
     particles: int,
-    uniform: Uniform,
+    uniform: Draws,
 ) -> SwarmState:
     """Uniform positions in the box, zero velocities, bests from one evaluation.
 
@@ -118,7 +118,7 @@ def init(
         particles: ``K``.
         uniform: the only source of randomness.
     """
-    u = uniform((*batch_shape, particles, lower.shape[-1]))
+    u = uniform.draw((*batch_shape, particles, lower.shape[-1]))
     position = lower + (upper - lower) * u
     cost = objective(position)
     empty = SwarmState(
@@ -220,12 +220,12 @@ class Uniform:
 
 def random_blocks(
     shape: tuple[int, ...], scale: Sequence[float], moves: int, uniform: Uniform
-) -> Iterator[Sequence[Tensor]]:
-    """Yield ``moves`` tuples of ``len(scale)`` tensors ``[*shape]``: uniform [0, 1) times ``scale``.
+) -> Iterator[Tensor]:
+    """Yield blocks ``[count, len(scale), *shape]`` of uniform [0, 1) numbers times ``scale``.
 
-    Drawn (and scaled) in blocks of many moves: one call per block instead of per move saves most
-    of the per-call overhead on small swarms. The block size depends only on ``shape``, so the
-    same seed gives the same numbers.
+    ``moves`` numbers per draw in all, in blocks of many moves: one call per block instead of per
+    move saves most of the per-call overhead on small swarms. The block size depends only on
+    ``shape``, so the same seed gives the same numbers.
     """
     draws = len(scale)
     per_move = draws * math.prod(shape)
@@ -235,10 +235,67 @@ def random_blocks(
     done = 0
     while done < moves:
         count = min(block, moves - done)
-        numbers = uniform((count, draws, *shape)).mul_(factor)
-        for move in numbers.unbind(0):
-            yield move.unbind(0)
+        yield uniform((count, draws, *shape)).mul_(factor)
         done += count
+
+
+class Draws:
+    """The random numbers of a batch of swarms whose leading dimension stacks ``T`` trials.
+
+    Each trial has its own stream (``Uniform``), and draws for shape ``[T · C, ...]`` take
+    ``[C, ...]`` from every trial's stream and stack them, so a trial's numbers never depend on
+    which other trials share the batch (or on the chunk size of a trial-batched study).
+    """
+
+    def __init__(self, streams: Sequence[Uniform]) -> None:
+        if not streams:
+            raise ValueError("Draws needs at least one stream")
+        self.streams = list(streams)
+
+    def _per_trial(self, shape: tuple[int, ...]) -> tuple[int, ...]:
+        trials = len(self.streams)
+        if shape[0] % trials:
+            raise ValueError(f"leading dimension {shape[0]} is not a multiple of {trials} trials")
+        return (shape[0] // trials, *shape[1:])
+
+    def draw(self, shape: tuple[int, ...]) -> Tensor:
+        """Uniform [0, 1) numbers ``[*shape]``; ``shape[0]`` is ``T ·`` the per-trial size."""
+        own = self._per_trial(shape)
+        parts = [stream(own) for stream in self.streams]
+        return parts[0] if len(parts) == 1 else torch.cat(parts)
+
+    def blocks(self, shape: tuple[int, ...], scale: Sequence[float], moves: int) -> Iterator[Tensor]:
+        """Yield blocks ``[count, len(scale), *shape]`` (uniform times ``scale``), ``moves`` in all."""
+        own = self._per_trial(shape)
+        for parts in zip(*(random_blocks(own, scale, moves, stream) for stream in self.streams), strict=True):
+            yield parts[0] if len(parts) == 1 else torch.cat(parts, dim=2)
+
+    def moves(self, shape: tuple[int, ...], scale: Sequence[float], moves: int) -> Iterator[Sequence[Tensor]]:
+        """Yield ``moves`` tuples of ``len(scale)`` tensors ``[*shape]``: uniform times ``scale``."""
+        for block in self.blocks(shape, scale, moves):
+            for move in block.unbind(0):
+                yield move.unbind(0)
+
+
+def move_shape(
+    batch_shape: tuple[int, ...], particles: int, lower: Tensor, rules: SwarmRules
+) -> tuple[tuple[int, ...], tuple[float, ...]]:
+    """Shape and scales of each move's random numbers (``c1·r1``, ``c2·r2``, the boundary's ``u``)."""
+    scale = (rules.c1, rules.c2, 1.0) if rules.boundary == "random" else (rules.c1, rules.c2)
+    return (*batch_shape, particles, 1 if rules.per_particle else lower.shape[-1]), scale
+
+
+def move_draws(
+    uniform: Draws,
+    batch_shape: tuple[int, ...],
+    particles: int,
+    iterations: int,
+    lower: Tensor,
+    rules: SwarmRules,
+) -> Iterator[Sequence[Tensor]]:
+    """The scaled random numbers of every move (``c1·r1``, ``c2·r2`` and the boundary's ``u``)."""
+    shape, scale = move_shape(batch_shape, particles, lower, rules)
+    return uniform.moves(shape, scale, iterations - 1)
 
 
 def run(
@@ -249,7 +306,7 @@ def run(
     particles: int,
     iterations: int,
     rules: SwarmRules,
-    uniform: Uniform,
+    uniform: Draws,
 ) -> tuple[SwarmState, Tensor]:
     """``iterations`` evaluations per particle (``init`` is the first), i.e. ``iterations − 1`` moves.
 
@@ -260,10 +317,7 @@ def run(
         raise ValueError(f"need particles >= 1 and iterations >= 1, got {particles}, {iterations}")
     state = init(objective, lower, upper, batch_shape, particles, uniform)
     history = [state.global_cost]
-    scale = (rules.c1, rules.c2, 1.0) if rules.boundary == "random" else (rules.c1, rules.c2)
-    shape = (*batch_shape, particles, 1 if rules.per_particle else lower.shape[-1])
-    numbers = random_blocks(shape, scale, iterations - 1, uniform)
-    for move, random in enumerate(numbers):
+    for move, random in enumerate(move_draws(uniform, batch_shape, particles, iterations, lower, rules)):
         state = step(state, objective, rules.weight(move), random, lower, upper, rules)
         history.append(state.global_cost)
     return state, torch.stack(history)

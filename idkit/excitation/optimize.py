@@ -251,7 +251,7 @@ def _swarm_search(
     """Each swarm's best unit-cube point ``[swarms, C]``."""
     lower, upper = torch.zeros(dims, **like), torch.ones(dims, **like)
     with torch.inference_mode():
-        uniform = swarm.Uniform(generator, lower)
+        uniform = swarm.Draws([swarm.Uniform(generator, lower)])
         state, _ = swarm.run(objective, lower, upper, (swarms,), particles, iterations, RULES, uniform)
     return state.global_position.clone()
 

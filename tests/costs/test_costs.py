@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from idkit import registry
-from idkit.costs.relative import RelativeFloorWarning, relative_denominator
+from idkit.relative import RelativeFloorWarning, relative_denominator
 
 
 def numpy_costs(e: np.ndarray) -> list[float]:

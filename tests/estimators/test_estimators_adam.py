@@ -68,7 +68,7 @@ def test_adam_options_and_errors(robot):
 def test_paper_final_estimate_is_the_mean_of_pso_f13_and_pso_f14(robot):
     samples = simulate(robot, "outliers", seed=0)
     problem = Problem(robot, samples, paper.f13(), seed=3)
-    final = registry.create("estimator", "pso_f13_f14", **CHEAP_PSO).fit(problem)
+    final = registry.create("estimator", "pso_f13_f14", pso=CHEAP_PSO).fit(problem)
     parts = ParticleSwarm(**CHEAP_PSO).fit_costs(problem, [paper.f13(), paper.f14()])
     assert final.estimator == "PSO-f13/f14"
     np.testing.assert_allclose(
@@ -80,4 +80,4 @@ def test_paper_final_estimate_is_the_mean_of_pso_f13_and_pso_f14(robot):
     assert final.details["costs_at_average"]["f14"] == pytest.approx(
         float(paper.f14()(problem.error(x), samples.measured_matrix())), rel=1e-12
     )
-    assert PaperFinalEstimate(**CHEAP_PSO).fit(Problem(robot, samples)).cost is None
+    assert PaperFinalEstimate(pso=CHEAP_PSO).fit(Problem(robot, samples)).cost is None

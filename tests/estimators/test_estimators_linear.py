@@ -18,13 +18,13 @@ from hypothesis import strategies as st
 
 from idkit import registry
 from idkit.costs.paper import f1, f9
-from idkit.costs.relative import RelativeFloorWarning
 from idkit.data.scenarios import simulate
 from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares, total_least_squares
 from idkit.estimators.observation import IdentificationError, IdentificationWarning, linear_system
 from idkit.estimators.robust_ls import RobustLeastSquares
 from idkit.interfaces import Robot
 from idkit.problem import Problem, Samples
+from idkit.relative import RelativeFloorWarning
 
 TRUE = np.array([5.0, 3.0, -0.5, 3.0])
 

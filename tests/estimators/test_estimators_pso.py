@@ -118,7 +118,7 @@ def test_objective_base_space_predicts_with_the_regressor(robot, noisy):
 
 
 def test_paper_inertia_schedule():
-    rules = pso_module.ParticleSwarm(preset="paper")._rules
+    rules = ParticleSwarm.rules(ParticleSwarm(preset="paper").settings())
     assert [rules.weight(m) for m in (0, 50, 100, 299)] == pytest.approx([0.9, 0.65, 0.4, 0.4])
 
 
@@ -134,7 +134,7 @@ def _reference_pso(f, lower, upper, particles, iterations, rules, uniform):
     gbest, gcost = pbest[g][:], pcost[g]
     history = [gcost]
     scale = (rules.c1, rules.c2)
-    for move, r in enumerate(swarm.random_blocks((particles, dim), scale, iterations - 1, uniform)):
+    for move, r in enumerate(swarm.Draws([uniform]).moves((particles, dim), scale, iterations - 1)):
         w = rules.weight(move)
         r1, r2 = r[0].tolist(), r[1].tolist()
         for k in range(particles):
@@ -154,7 +154,7 @@ def _reference_pso(f, lower, upper, particles, iterations, rules, uniform):
 
 
 def test_paper_preset_equals_a_textbook_loop():
-    rules = ParticleSwarm(preset="paper")._rules
+    rules = ParticleSwarm.rules(ParticleSwarm(preset="paper").settings())
     lower, upper = [-5.0, 0.0, 1.0], [5.0, 2.0, 3.0]
     shift = [4.7, 1.9, 1.2]  # optimum near the walls, so clamping happens
 
@@ -166,7 +166,7 @@ def test_paper_preset_equals_a_textbook_loop():
 
     lo, hi = torch.tensor(lower, dtype=torch.float64), torch.tensor(upper, dtype=torch.float64)
     state, history = swarm.run(
-        f_tensor, lo, hi, (), 7, 40, rules, swarm.Uniform(torch.Generator().manual_seed(3), lo)
+        f_tensor, lo, hi, (), 7, 40, rules, swarm.Draws([swarm.Uniform(torch.Generator().manual_seed(3), lo)])
     )
     gbest, gcost, ref_history = _reference_pso(
         f_list, lower, upper, 7, 40, rules, swarm.Uniform(torch.Generator().manual_seed(3), lo)

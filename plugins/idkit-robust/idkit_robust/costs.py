@@ -2,7 +2,7 @@
 
 Both act on the absolute error ``E = measured - predicted`` or, with ``relative=True``, on the
 relative error ``E / T`` of eq. (27), using idkit's near-zero policy for the measured torques
-``T`` (``idkit.costs.relative``: entries below ``floor`` x their joint's RMS are floored, with a
+``T`` (``idkit.relative``: entries below ``floor`` x their joint's RMS are floored, with a
 warning). Both average over the ``n x N`` entries, so their scale does not grow with ``N``.
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 
 import torch
-from idkit.costs.relative import DEFAULT_FLOOR, relative_error
 from idkit.interfaces import Cost
+from idkit.relative import DEFAULT_FLOOR, relative_error
 from torch import Tensor
 
 
@@ -36,7 +36,7 @@ class HuberCost(Cost):
         delta: the threshold between quadratic and linear, in the error's units: N m (or N) for
             the absolute error, a fraction for the relative error (0.1 = 10 %).
         relative: use the relative error ``E / T`` (eq. 27) instead of ``E``.
-        floor: near-zero policy of the relative error (``idkit.costs.relative``).
+        floor: near-zero policy of the relative error (``idkit.relative``).
     """
 
     def __init__(self, delta: float = 1.0, relative: bool = False, floor: float = DEFAULT_FLOOR) -> None:
@@ -67,7 +67,7 @@ class TrimmedCost(Cost):
     Args:
         trim: fraction of entries to drop, ``0 <= trim < 1``.
         relative: use the relative error ``E / T`` (eq. 27) instead of ``E``.
-        floor: near-zero policy of the relative error (``idkit.costs.relative``).
+        floor: near-zero policy of the relative error (``idkit.relative``).
     """
 
     def __init__(self, trim: float = 0.1, relative: bool = False, floor: float = DEFAULT_FLOOR) -> None:

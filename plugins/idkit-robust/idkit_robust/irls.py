@@ -23,10 +23,12 @@ import warnings
 from collections.abc import Callable
 
 import torch
-from idkit.costs.relative import DEFAULT_FLOOR, relative_denominator
 from idkit.estimate import Estimate, jsonable
+from idkit.estimators.observation import linear_system
 from idkit.interfaces import Estimator
 from idkit.problem import Problem
+from idkit.relative import DEFAULT_FLOOR
+from idkit.runtime import resolve_threads, torch_threads
 from torch import Tensor
 
 #: ``Phi^{-1}(3/4)``: the MAD of a standard normal variable.
@@ -80,7 +82,7 @@ class IRLS(Estimator):
         tol: stop when the relative change of ``alpha`` is at most ``tol`` (at least 100 machine
             epsilons of the problem's dtype: IRLS converges linearly, round-off sets the floor).
         relative: fit the relative error (eq. 27 via eqs. 36-37) instead of the absolute one.
-        floor: near-zero policy of the relative error (``idkit.costs.relative``).
+        floor: near-zero policy of the relative error (``idkit.relative``).
         threads: torch intra-op threads during the fit (restored afterwards); ``None`` keeps
             torch's setting. 1 by default: these are small solves, and on a busy 2-core machine
             two threads made a fit ~5x slower (measured, noisy).
@@ -150,13 +152,10 @@ class IRLS(Estimator):
 
     def fit(self, problem: Problem) -> Estimate:
         """Estimate base and physical parameters; ``[N, n]`` samples become ``N n`` equations."""
-        previous = torch.get_num_threads()
-        if self.threads is not None:
-            torch.set_num_threads(self.threads)
-        try:
+        if self.threads is None:
             return self._fit(problem)
-        finally:
-            torch.set_num_threads(previous)
+        with torch_threads(resolve_threads(self.threads, 0)):
+            return self._fit(problem)
 
     def _fit(self, problem: Problem) -> Estimate:
         robot = problem.robot
@@ -167,12 +166,9 @@ class IRLS(Estimator):
             )
         start = time.perf_counter()
         s = problem.tensors()
-        y = robot.regressor(s.q, s.qd, s.qdd)  # [N, n, B]
-        b = y.shape[-1]
-        w, t = y.reshape(-1, b), s.tau.reshape(-1)  # rows ordered (sample, joint)
-        if self.relative:
-            denominator = relative_denominator(s.tau.T, self.floor).T.reshape(-1)
-            w, t = w / denominator[:, None], t / denominator
+        system = linear_system(problem, self.relative, self.floor)  # rows ordered (sample, joint)
+        w, t = system.W, system.tau
+        b = w.shape[-1]
         rank = int(torch.linalg.matrix_rank(w))
         if rank < b:
             raise ValueError(

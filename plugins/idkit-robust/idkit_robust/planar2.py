@@ -93,25 +93,14 @@ class Planar2Robot(Robot):
     def nominal_params(self) -> Tensor:
         return torch.tensor(self.true_params, dtype=torch.float64)
 
-    def _check(self, q: Tensor, qd: Tensor, qdd: Tensor, params: Tensor | None = None) -> None:
-        for name, x in (("q", q), ("qd", qd), ("qdd", qdd)):
-            if x.ndim != 2 or x.shape[1] != 2 or x.shape != q.shape:
-                raise ValueError(
-                    f"planar2: {name} must be [N, 2] like q {tuple(q.shape)}, got {tuple(x.shape)}"
-                )
-        if params is not None and params.shape[-1:] != (8,):
-            raise ValueError(
-                f"planar2: params must be [..., 8] {self.param_names}, got shape {tuple(params.shape)}"
-            )
-
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Joint torques ``tau[..., N, 2]`` for ``params[..., 8]`` and states ``[N, 2]``."""
-        self._check(q, qd, qdd, params)
+        self.check_inputs(params, q, qd, qdd)
         return torch.einsum("snb,...b->...sn", self.regressor(q, qd, qdd), self.base_params(params))
 
     def regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """``Y[N, 2, 6]`` with ``tau = Y @ alpha``; columns in ``base_param_names`` order."""
-        self._check(q, qd, qdd)
+        self.check_inputs(None, q, qd, qdd)
         q1, q2 = q.unbind(-1)
         qd1, qd2 = qd.unbind(-1)
         qdd1, qdd2 = qdd.unbind(-1)

@@ -1,4 +1,5 @@
-"""The relative error of eq. (27), with an explicit policy for near-zero measured torques.
+"""The relative error of eq. (27), with an explicit policy for near-zero measured torques (core:
+used by relative costs, the least-squares family and plugins alike).
 
 Dividing by a measured torque that is zero or tiny turns a relative cost into ``inf``/``NaN`` or
 lets one sample dominate it. idkit's policy: an entry ``T_ij`` with ``|T_ij| < floor · RMS_i``
@@ -37,7 +38,7 @@ def relative_denominator(measured: Tensor, floor: float = DEFAULT_FLOOR) -> Tens
     if floor > 0 and bool(small.any()):
         warnings.warn(
             f"{int(small.sum())} measured torque(s) below {floor:g} x their joint's RMS were "
-            "floored for the relative error (see idkit.costs.relative)",
+            "floored for the relative error (see idkit.relative)",
             RelativeFloorWarning,
             stacklevel=3,
         )

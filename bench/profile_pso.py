@@ -1,0 +1,76 @@
+"""Where a PSO fit's time goes, per engine and batch size (the profile behind docs/speed.md).
+
+Run: ``python bench/profile_pso.py``. For one run, a 10-run estimate and one chunk of a 10,000-run
+batch (436 runs; paper preset, f13, ``torque_noise``, one thread) it prints the CPU time per move
+(of the 299 moves of a 300-iteration run; CPU time, because the machine is shared), per
+particle-move, and its split:
+
+- eager engine: torch ops per move and their summed self time (``torch.profiler``), and the rest
+  (Python between ops);
+- native engine: the kernel loop (base map, costs and moves in C) and the whole estimator around
+  it (objective set-up, random blocks, aggregation, exact cost, ``Estimate``).
+"""
+
+from __future__ import annotations
+
+import time
+
+import torch
+from torch.profiler import ProfilerActivity, profile
+
+from idkit.costs import paper
+from idkit.data.scenarios import simulate
+from idkit.estimators import native, swarm
+from idkit.estimators.objective import Objective
+from idkit.estimators.pso import ParticleSwarm
+from idkit.problem import Problem
+from idkit.robots.cylindrical import CylindricalRobot
+
+ITERATIONS = 300
+
+
+def main() -> None:
+    torch.set_num_threads(1)
+    robot = CylindricalRobot()
+    problem = Problem(robot, simulate(robot, "torque_noise", seed=0), paper.f13(), seed=0)
+    objective = Objective(problem, [paper.f13()])
+    rules = ParticleSwarm.rules(ParticleSwarm(preset="paper").settings())
+    print("| runs | engine | µs CPU per move (ns per particle-move) | split |\n| --- | --- | --- | --- |")
+    for runs in (1, 10, 436):  # 436 = the chunk of runs a 10,000-run batch is cut into
+        draws = lambda: swarm.Draws([swarm.Uniform(problem.generator(), objective.lower)])  # noqa: E731
+        shape = (1, runs)
+        # eager: ops per move from the profiler
+        swarm.run(objective, objective.lower, objective.upper, shape, 20, ITERATIONS, rules, draws())
+        start = time.process_time()
+        swarm.run(objective, objective.lower, objective.upper, shape, 20, ITERATIONS, rules, draws())
+        wall = time.process_time() - start
+        with profile(activities=[ProfilerActivity.CPU]) as prof:
+            swarm.run(objective, objective.lower, objective.upper, shape, 20, ITERATIONS, rules, draws())
+        events = [e for e in prof.key_averages() if e.key.startswith("aten::")]
+        ops = sum(e.count for e in events) / (ITERATIONS - 1)
+        op_time = sum(e.self_cpu_time_total for e in events) / (ITERATIONS - 1)
+        move = wall / (ITERATIONS - 1)
+        print(
+            f"| {runs} | eager | {move * 1e6:.0f} ({move / runs / 20 * 1e9:.0f}) | {ops:.0f} aten calls per "
+            f"move (views included), {op_time:.0f} µs self time under the profiler |"
+        )
+        # native: the kernel loop vs the whole estimator around it
+        native.run(objective, shape, 20, ITERATIONS, rules, draws())
+        start = time.process_time()
+        native.run(objective, shape, 20, ITERATIONS, rules, draws())
+        loop = time.process_time() - start
+        pso = ParticleSwarm(preset="paper", runs=runs, threads=1, history=False)
+        pso.fit(problem)
+        start = time.process_time()
+        pso.fit(problem)
+        whole = time.process_time() - start
+        move = loop / (ITERATIONS - 1)
+        print(
+            f"| {runs} | native | {move * 1e6:.1f} ({move / runs / 20 * 1e9:.0f}) | loop {loop * 1e3:.2f} ms "
+            f"(in C, blocks of moves per call); whole fit {whole * 1e3:.2f} ms: the rest is set-up, "
+            "aggregation, exact cost, Estimate |"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,141 @@
+"""The native PSO engine against the eager torch engine (itself checked against a textbook loop)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from idkit.costs import paper
+from idkit.data.scenarios import simulate
+from idkit.estimators import native, swarm
+from idkit.estimators.objective import Objective
+from idkit.estimators.pso import ParticleSwarm
+from idkit.interfaces import Cost
+from idkit.problem import Problem
+from idkit.robots.cylindrical import CylindricalRobot
+
+ALL_COSTS = [getattr(paper, f"f{i}")() for i in range(1, 17)]
+RULES = {
+    "paper (clamp)": swarm.SwarmRules(),
+    "constriction (reflect)": swarm.SwarmRules(1.49618, 1.49618, (0.7298, 0.5, 10), "reflect"),
+    "random walls, per particle": swarm.SwarmRules(1.3, 1.7, (0.9, 0.4, 5), "random", per_particle=True),
+    "clamp, v_max": swarm.SwarmRules(1.3, 1.7, (0.9, 0.4, 5), velocity_limit=0.2),
+}
+# Trajectories agree to rounding only while no comparison is decided by rounding. A velocity limit
+# moves m2 and m3 by exactly ±v_max, which keeps m2 + m3 — all that joint 2's torque sees — equal,
+# so max-type costs (f3–f8, f11–f16) can tie exactly and either engine may keep either particle.
+# With v_max, only the sum-type costs are compared step by step.
+COSTS = {name: ALL_COSTS for name in RULES} | {
+    "clamp, v_max": [paper.f1(), paper.f2(), paper.f9(), paper.f10()]
+}
+
+needs_kernel = pytest.mark.skipif(native.kernel()[0] is None, reason="no C compiler for the native kernel")
+
+
+@pytest.fixture(scope="module")
+def problem():
+    robot = CylindricalRobot()
+    return Problem(robot, simulate(robot, "outliers", seed=1), paper.f13(), seed=5)
+
+
+def _draws(seed: int, like: torch.Tensor) -> swarm.Draws:
+    return swarm.Draws([swarm.Uniform(torch.Generator().manual_seed(seed), like)])
+
+
+@needs_kernel
+@pytest.mark.parametrize("name", RULES)
+def test_native_step_equals_the_eager_step_for_every_paper_cost(problem, name):
+    rules = RULES[name]
+    objective = Objective(problem, COSTS[name])
+    shape = (objective.slots, 3)
+    eager_state, eager_history = swarm.run(
+        objective, objective.lower, objective.upper, shape, 5, 12, rules, _draws(7, objective.lower)
+    )
+    state, history = native.run(objective, shape, 5, 12, rules, _draws(7, objective.lower))
+    np.testing.assert_allclose(history.numpy(), eager_history.numpy(), rtol=1e-9, atol=0)
+    np.testing.assert_allclose(
+        state.global_position.numpy(), eager_state.global_position.numpy(), rtol=1e-9, atol=1e-12
+    )
+    np.testing.assert_allclose(state.position.numpy(), eager_state.position.numpy(), rtol=1e-9, atol=1e-12)
+
+
+@needs_kernel
+def test_native_engine_estimate_matches_eager_and_is_reproducible(problem):
+    options = {"preset": "paper", "runs": 4, "particles": 8, "iterations": 40}
+    eager = ParticleSwarm(engine="eager", **options).fit(problem)
+    fast = ParticleSwarm(engine="native", **options).fit(problem)
+    again = ParticleSwarm(engine="auto", **options).fit(problem)
+    assert fast.details["engine"] == "native" and eager.details["engine"] == "eager"
+    assert fast.params == again.params  # same seed, same engine: identical numbers
+    np.testing.assert_allclose(fast.vector(), eager.vector(), rtol=1e-6)
+    assert fast.cost == pytest.approx(eager.cost, rel=1e-6)
+
+
+class _Unstructured(Cost):
+    """A third-party cost without a declared structure."""
+
+    def __call__(self, error: torch.Tensor, measured: torch.Tensor) -> torch.Tensor:
+        return error.abs().sum(dim=(-2, -1))
+
+
+class _Overridden(paper.f1):
+    """A subclass that changes what f1 computes must lose f1's declared structure."""
+
+    def __call__(self, error: torch.Tensor, measured: torch.Tensor) -> torch.Tensor:
+        return 2 * super().__call__(error, measured)
+
+
+def test_costs_without_structure_take_the_eager_path(problem):
+    assert paper.f13().structure().norms == ("1", "inf") and paper.f13().structure().relative
+    assert _Overridden().structure() is None and _Unstructured().structure() is None
+    options = {"runs": 2, "particles": 5, "iterations": 5}
+    other, f1 = ParticleSwarm(**options).fit_costs(problem, [_Unstructured(), paper.f1()])
+    assert other.details["engine"] == "eager" and "no norm structure" in other.details["engine_build"]
+    assert f1.details["engine"] == "native"  # the structured cost still takes the kernel
+    alone = ParticleSwarm(**options).fit_costs(problem, [_Unstructured()])[0]
+    assert alone.details["engine"] == "eager" and "no cost declares" in alone.details["engine_build"]
+    with pytest.raises(ValueError, match="engine='native' is impossible"):
+        ParticleSwarm(engine="native", **options).fit_costs(problem, [_Overridden()])
+
+
+def test_no_compiler_falls_back_to_eager(problem, monkeypatch):
+    monkeypatch.setattr(native, "kernel", lambda *_: (None, "no C compiler found (set CC)", 0.0))
+    estimate = ParticleSwarm(runs=2, particles=5, iterations=5).fit(problem)
+    assert estimate.details["engine"] == "eager" and "no C compiler" in estimate.details["engine_build"]
+
+
+def test_kernel_is_built_once_and_cached_on_disk(tmp_path, monkeypatch):
+    monkeypatch.setenv("IDKIT_CACHE_DIR", str(tmp_path))
+    native.kernel.cache_clear()
+    try:
+        library, how, _ = native.kernel()
+        if library is None:
+            pytest.skip(how)
+        assert how.startswith("compiled") and list((tmp_path / "native").glob("pso_step-*.so"))
+        native.kernel.cache_clear()
+        assert native.kernel()[1] == "cached"
+    finally:
+        monkeypatch.undo()
+        native.kernel.cache_clear()
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+def test_cuda_runs_the_same_code(problem):
+    from dataclasses import replace
+
+    cuda = replace(problem, device="cuda")
+    estimate = ParticleSwarm(runs=3, particles=6, iterations=15).fit(cuda)
+    assert estimate.details["device"].startswith("cuda") and estimate.details["engine"] == "eager"
+    cpu = ParticleSwarm(runs=3, particles=6, iterations=15, engine="eager").fit(problem)
+    assert np.isfinite(estimate.vector()).all() and estimate.cost == pytest.approx(cpu.cost, rel=0.5)
+
+
+@needs_kernel
+def test_threads_split_swarms_without_changing_numbers(problem, monkeypatch):
+    monkeypatch.setattr(native, "PARTICLES_PER_THREAD", 1)  # split even this small batch
+    objective = Objective(problem, [paper.f13(), paper.f6()])
+    rules = RULES["constriction (reflect)"]
+    one = native.run(objective, (objective.slots, 5), 4, 8, rules, _draws(3, objective.lower), threads=1)
+    three = native.run(objective, (objective.slots, 5), 4, 8, rules, _draws(3, objective.lower), threads=3)
+    assert torch.equal(one[1], three[1]) and torch.equal(one[0].position, three[0].position)
