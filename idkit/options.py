@@ -154,6 +154,8 @@ def describe(annotation: Any, article: bool = True) -> str:
     if origin is typing.Annotated:
         return describe(args[0], article)
     if origin in (typing.Union, types.UnionType):
+        if Any in args:  # e.g. a plugin spec: a name, a mapping or a ready object
+            return "anything"
         return " or ".join(describe(a, article) for a in args)
     if origin is typing.Literal:
         return " or ".join(repr(a) for a in args)

@@ -68,9 +68,8 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
     study = task.study_function()
     report = task.report_module()
     resolved = OmegaConf.to_container(cfg, resolve=True)
-    takes = inspect.signature(study).parameters
-    kwargs = arguments(cfg.task, resolved, takes)
-    if "checkpoint" in takes:  # a long study saves its partial report as it goes
+    kwargs = arguments(cfg.task, resolved, study)
+    if "checkpoint" in inspect.signature(study).parameters:  # a long study saves its partial report as it goes
         kwargs["checkpoint"] = lambda partial: _write(report, partial, resolved, run_dir, plots=False)
     try:
         result = study(**kwargs)

@@ -133,7 +133,7 @@ def test_each_task_config_is_its_study_signature(hydra_compose, overrides):
     cfg = OmegaConf.to_container(hydra_compose(*overrides), resolve=True)
     task = TASKS[cfg["task"]]
     takes = inspect.signature(task.study_function()).parameters
-    kwargs = arguments(cfg["task"], cfg, takes)
+    kwargs = arguments(cfg["task"], cfg, task.study_function())
     assert set(kwargs) <= set(takes)
     section = cfg.get(task.section or "", {})
     assert set(section) <= set(kwargs)
@@ -141,19 +141,42 @@ def test_each_task_config_is_its_study_signature(hydra_compose, overrides):
 
 
 def test_a_key_the_task_does_not_take_is_an_error(hydra_compose):
-    import inspect
-
     from idkit.studies import kuka, paper
 
     cfg = OmegaConf.to_container(hydra_compose("+experiment=kuka", "cost=f13"), resolve=True)
     with pytest.raises(ValueError, match="^the kuka task takes no cost \\(got cost=f13\\)"):
-        arguments("kuka", cfg, inspect.signature(kuka.run).parameters)
+        arguments("kuka", cfg, kuka.run)
     cfg = OmegaConf.to_container(hydra_compose("+experiment=paper", "+paper.trials=3"), resolve=True)
     with pytest.raises(ValueError, match="paper.trials is not an option of the paper task"):
-        arguments("paper", cfg, inspect.signature(paper.run).parameters)
+        arguments("paper", cfg, paper.run)
     cfg = OmegaConf.to_container(hydra_compose("+experiment=paper", "n_samples=30"), resolve=True)
     with pytest.raises(ValueError, match="the paper task takes no n_samples"):
-        arguments("paper", cfg, inspect.signature(paper.run).parameters)
+        arguments("paper", cfg, paper.run)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (("seed=abc",), "setting 'seed' must be an int, got 'abc' (str)"),
+        (("n_samples=2.5",), "setting 'n_samples' must be an int or None, got 2.5 (float)"),
+        (("+experiment=robustness", "trials=many"), "setting 'trials' must be an int, got 'many'"),
+        (("+experiment=kuka", "kuka.stride=x"), "setting 'kuka.stride' must be an int, got 'x'"),
+        (("+experiment=paper", "paper.costs=f13"), "setting 'paper.costs' must be a list of anything"),
+    ],
+)
+def test_every_argument_is_checked_against_the_study_annotation(hydra_compose, overrides, message):
+    from idkit.options import OptionError
+
+    cfg = OmegaConf.to_container(hydra_compose(*overrides), resolve=True)
+    with pytest.raises(OptionError) as err:
+        arguments(cfg["task"], cfg, TASKS[cfg["task"]].study_function())
+    assert str(err.value).startswith(message), str(err.value)
+
+
+def test_arguments_arrive_converted(hydra_compose):
+    cfg = OmegaConf.to_container(hydra_compose("seed='7'", "n_samples=20.0"), resolve=True)
+    kwargs = arguments("single", cfg, TASKS["single"].study_function())
+    assert (kwargs["seed"], kwargs["n_samples"]) == (7, 20)
 
 
 def test_third_party_plugin_is_a_config_without_yaml(tmp_path, monkeypatch, hydra_compose):
