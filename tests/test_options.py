@@ -21,12 +21,36 @@ if TYPE_CHECKING:
 
 def test_wrong_types_name_plugin_option_value_and_type():
     cases = [
-        ("estimator", "pso", "particles", "abc", "must be an int or None, got 'abc' (str); input should be "
-         "a valid integer, unable to parse string as an integer"),
-        ("estimator", "pso", "particles", 1.5, "must be an int or None, got 1.5 (float); input should be "
-         "a valid integer, got a number with a fractional part"),
-        ("robot", "cylindrical", "g", "abc", "must be a float, got 'abc' (str); input should be a valid number"),
-        ("estimator", "ls", "relative", "maybe", "must be a bool (true/false, yes/no, on/off or 1/0), got 'maybe'"),
+        (
+            "estimator",
+            "pso",
+            "particles",
+            "abc",
+            "must be an int or None, got 'abc' (str); input should be "
+            "a valid integer, unable to parse string as an integer",
+        ),
+        (
+            "estimator",
+            "pso",
+            "particles",
+            1.5,
+            "must be an int or None, got 1.5 (float); input should be "
+            "a valid integer, got a number with a fractional part",
+        ),
+        (
+            "robot",
+            "cylindrical",
+            "g",
+            "abc",
+            "must be a float, got 'abc' (str); input should be a valid number",
+        ),
+        (
+            "estimator",
+            "ls",
+            "relative",
+            "maybe",
+            "must be a bool (true/false, yes/no, on/off or 1/0), got 'maybe'",
+        ),
         ("estimator", "adam", "betas", "0.9", "must be a list of float, got '0.9' (str)"),
         ("estimator", "pso", "inertia", [0.7, "x", 3], "must be a list of float or None, got [0.7, 'x', 3]"),
     ]
@@ -44,7 +68,14 @@ def test_unambiguous_strings_are_converted():
     with pytest.raises(OptionError, match=r"; item 1 = 'x': input should be a valid number, unable to parse"):
         registry.create("estimator", "pso", inertia=[0.7, "x", 3])
     assert registry.create("robot", "cylindrical", g="9.5").g == 9.5
-    for text, value in (("yes", True), ("No", False), ("1", True), ("0", False), ("TRUE", True), ("off", False)):
+    for text, value in (
+        ("yes", True),
+        ("No", False),
+        ("1", True),
+        ("0", False),
+        ("TRUE", True),
+        ("off", False),
+    ):
         assert registry.create("estimator", "ls", relative=text).relative is value
 
 
@@ -82,7 +113,8 @@ def test_plain_settings():
     assert check_setting("seed", "7", int) == 7
     assert check_setting("plots", "no", bool) is False
     with pytest.raises(
-        OptionError, match=r"^setting 'seed' must be an int, got 'abc' \(str\); input should be a valid integer"
+        OptionError,
+        match=r"^setting 'seed' must be an int, got 'abc' \(str\); input should be a valid integer",
     ):
         check_setting("seed", "abc", int)
     with pytest.raises(OptionError, match=r"^setting 'plots' must be a bool .*got 'maybe' \(str\)"):
@@ -134,7 +166,9 @@ def test_containers_enums_and_unresolvable_annotations():
     assert check(pair=["3", "0.5"]) == {"pair": (3, 0.5)}  # pydantic: a fixed tuple becomes a tuple
     with pytest.raises(OptionError, match=r"; tuple should have at most 2 items after validation, not 3$"):
         check(pair=[1, 2, 3])
-    with pytest.raises(OptionError, match=r"option 'table' .*got \{'k': 'v'\} \(dict\); input should be a valid int"):
+    with pytest.raises(
+        OptionError, match=r"option 'table' .*got \{'k': 'v'\} \(dict\); input should be a valid int"
+    ):
         check(table={"k": "v"})
     assert check(color="r") == {"color": Color.RED}  # pydantic: an enum by value (not by name)
     with pytest.raises(OptionError, match="must be Color, got 'BLUE'"):

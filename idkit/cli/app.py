@@ -69,7 +69,9 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
     report = task.report_module()
     resolved = OmegaConf.to_container(cfg, resolve=True)
     kwargs = arguments(cfg.task, resolved, study)
-    if "checkpoint" in inspect.signature(study).parameters:  # a long study saves its partial report as it goes
+    if (
+        "checkpoint" in inspect.signature(study).parameters
+    ):  # a long study saves its partial report as it goes
         kwargs["checkpoint"] = lambda partial: _write(report, partial, resolved, run_dir, plots=False)
     try:
         result = study(**kwargs)

@@ -12,7 +12,12 @@ from __future__ import annotations
 import sys
 from typing import NoReturn
 
-from hydra.errors import CompactHydraException, ConfigCompositionException, MissingConfigException
+from hydra.errors import (
+    CompactHydraException,
+    ConfigCompositionException,
+    MissingConfigException,
+    OverrideParseException,
+)
 from omegaconf.errors import ConfigAttributeError, ConfigKeyError
 
 from idkit import registry
@@ -41,7 +46,7 @@ def unknown_key_message(error: ConfigAttributeError | ConfigKeyError) -> str:
     node, ``full_key`` the dotted key the user typed).
     """
     key, node, full_key = str(error.key), error.parent_node, str(error.full_key)
-    valid = [str(k) for k in node.keys() if k != NAME_KEY and k != "hydra"] if node is not None else []
+    valid = [str(k) for k in node if k not in (NAME_KEY, "hydra")] if node is not None else []
     listed = ", ".join(closest_first(key, valid)) or "none"
     section = full_key.rpartition(".")[0]
     if not section:
@@ -55,8 +60,9 @@ def one_line(exc: BaseException) -> str | None:
     """The one-line message for a refused input, or ``None`` for an error that is not one (a bug).
 
     Covers Hydra's unknown config name (``MissingConfigException``), an override of a key the
-    config does not have (``ConfigCompositionException`` caused by OmegaConf's struct check), any
-    other compact Hydra error, a bad override value Hydra refuses with a ``ValueError``, and
+    config does not have (``ConfigCompositionException`` caused by OmegaConf's struct check), an
+    override Hydra cannot parse (``OverrideParseException``), any other compact Hydra error, a
+    bad override value Hydra refuses with a ``ValueError`` (``cost=null`` for a group), and
     :data:`USER_ERRORS`.
     """
     if isinstance(exc, MissingConfigException) and exc.missing_cfg_file and exc.options:
@@ -67,6 +73,8 @@ def one_line(exc: BaseException) -> str | None:
         cause, (ConfigAttributeError, ConfigKeyError)
     ):
         return unknown_key_message(cause)
+    if isinstance(exc, OverrideParseException):  # its message does not say which override
+        return f"cannot read {exc.override!r}: {str(exc).splitlines()[0]} (see `idkit --hydra-help`)"
     if isinstance(exc, (CompactHydraException, *USER_ERRORS)):
         return _flat(str(exc))
     return None
@@ -75,4 +83,3 @@ def one_line(exc: BaseException) -> str | None:
 def _flat(text: str) -> str:
     """One line: Hydra's messages wrap and indent; the cause is on their first lines."""
     return " ".join(part.strip() for part in text.strip().splitlines() if part.strip())
-

@@ -5,8 +5,9 @@ section (``paper.costs`` → ``paper.run(costs=...)``) and the top-level keys it
 (``robot``, ``estimator``, ``cost``, ``scenario``, ``seed``, ``trials`` ...). A top-level key that is
 set but not in the signature — ``idkit +experiment=kuka cost=f13`` — is an error, as is a section
 key the study does not take, and every value is checked against the study's annotation
-(:func:`idkit.options.check_setting`: ``seed=abc`` is refused before anything runs). Adding a task = a study function, a report module (``text``,
-``write``), a config section and one line in :data:`TASKS`.
+(:func:`idkit.options.check_setting`: ``seed=abc`` is refused before anything runs). Adding a
+task = a study function, a report module (``text``, ``write``), a config section and one line in
+:data:`TASKS`.
 """
 
 from __future__ import annotations

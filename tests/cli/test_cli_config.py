@@ -5,7 +5,6 @@ from __future__ import annotations
 import textwrap
 
 import pytest
-from hydra import compose, initialize_config_module
 from hydra.core.global_hydra import GlobalHydra
 from hydra.errors import ConfigCompositionException, MissingConfigException
 from omegaconf import OmegaConf
@@ -17,21 +16,6 @@ from idkit.cli.source import RegistryConfigSource
 from idkit.cli.tasks import TASKS, arguments
 from idkit.registry import MISSING
 from idkit.studies.build import constructor_options
-
-
-@pytest.fixture
-def hydra_compose():
-    """``compose(overrides)`` over idkit's primary config with the registry source registered."""
-    setup()
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module="idkit.conf", version_base="1.3"):
-
-        def _compose(*overrides: str, hydra_cfg: bool = False):
-            return compose("config", overrides=list(overrides), return_hydra_config=hydra_cfg)
-
-        yield _compose
-    GlobalHydra.instance().clear()
-
 
 UNWRITABLE = object()  # a default no config can hold
 
