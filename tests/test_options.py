@@ -6,9 +6,10 @@ import enum
 import inspect
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Annotated, Literal, Protocol
 
 import pytest
+from annotated_types import Ge
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -206,3 +207,27 @@ def test_conversion_is_idempotent(value):
         except OptionError:
             continue
         assert check_setting("v", once, annotation) == once
+
+
+def test_annotated_constraints_are_enforced_with_the_type():
+    def swarm(particles: Annotated[int, Ge(1)] | None = None):
+        return particles
+
+    assert check_options("estimator", "swarm", swarm, {"particles": "3"}) == {"particles": 3}
+    with pytest.raises(OptionError) as err:
+        check_options("estimator", "swarm", swarm, {"particles": 0})
+    assert str(err.value) == (
+        "estimator 'swarm' option 'particles' must be an int or None, got 0 (int); "
+        "input should be greater than or equal to 1"
+    )
+
+
+class Shaped(Protocol):
+    def shape(self) -> tuple[int, ...]: ...
+
+
+def test_a_protocol_pydantic_cannot_validate_is_left_to_the_constructor():
+    def factory(thing: Shaped | None = None):
+        return thing
+
+    assert check_options("robot", "toy", factory, {"thing": 3}) == {"thing": 3}
