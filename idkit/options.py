@@ -5,54 +5,55 @@ A plugin's options are its constructor's keyword arguments, so their annotations
 of the wrong type fails with one line naming the plugin, the option, the value and the expected
 type — not mid-fit, and never silently (``relative="maybe"`` is truthy and would change the run).
 
-The rule: **a value is accepted if it already has the annotated type, or if it is a string (what
-a command line passes) that spells a value of that type exactly.** In detail:
+The rule is pydantic's **lax mode** (``pydantic.TypeAdapter(annotation).validate_python``): a
+value is accepted if it has the annotated type or converts to it by pydantic's conversion table
+(https://docs.pydantic.dev/latest/concepts/conversion_table/), which is what a command line needs —
+it passes strings and YAML scalars. The cases that matter here:
 
 ========================  =====================================================================
 annotation                accepted
 ========================  =====================================================================
-``int``                   an integer (not a bool); a whole float (``40.0`` → 40); a string of a
-                          whole number (``"40"``, ``"1e3"``). ``1.5``, ``"abc"``, ``True``: error.
-``float``                 an int or float (not a bool); a string of a number (``"0.5"``,
-                          ``"inf"``). NaN in any form: error.
-``bool``                  ``True``/``False``; the ints 0 and 1; the strings true/false, yes/no,
-                          1/0 (any case). ``"maybe"``, ``2``, ``0.5``: error.
+``int``                   an int; a whole float (``40.0`` → 40); a string of a whole number
+                          (``"40"``, ``" 40 "``, ``"40.0"``); a bool (``True`` → 1).
+                          ``1.5``, ``"abc"``, ``"1e3"``: error.
+``float``                 an int or float; a string of a number (``"0.5"``, ``"inf"``).
+                          NaN in any form: error (idkit's rule on top of pydantic's).
+``bool``                  ``True``/``False``; 0 and 1; the strings true/false, yes/no, on/off,
+                          y/n, t/f, 1/0 (any case). ``"maybe"``, ``2``: error.
 ``str``                   a string; an int or float is written as its string (a command line
-                          reads ``label=2024`` as a number). A bool: error.
-``Literal[a, b]``         one of the choices (after the conversions above for the choice's type).
-``X | None``              ``None``, or a value accepted for ``X``.
-``X | Y``                 the first member the value already has; else the first that converts.
+                          reads ``label=2024`` as a number; pydantic's ``coerce_numbers_to_str``).
+                          A bool: error.
+``Literal[a, b]``         one of the choices, exactly (the message lists them closest first).
+``X | None``, ``X | Y``   a value already of a member's type wins (``"1"`` stays a str in
+                          ``int | str``); else the first member it converts to.
 ``Sequence[X]``,          a list or tuple (not a string) whose items are accepted for ``X``;
-``list[X]``,              a fixed ``tuple[X, Y]`` also needs the right length.
-``tuple[X, ...]``
+``list[X]``, ``tuple``    a fixed ``tuple[X, Y]`` needs the right length and becomes a tuple.
 ``Mapping[K, V]``         a mapping whose keys and values are accepted for ``K`` and ``V``.
-an ``Enum``               a member, or a member's name or value.
+an ``Enum``               a member or a member's value.
 any other class           an instance of it.
-``Any``, none, or an      anything (the constructor has the last word).
-unresolvable annotation
+``Any``, none, or an      anything (the constructor has the last word): so is an annotation
+unresolvable annotation   pydantic cannot build a validator for (a non-runtime Protocol).
 ========================  =====================================================================
 
 ``None`` is also accepted where the default is ``None`` (a common ``x: float = None`` slip). Values
-that pass are handed over converted (``"40"`` → ``40``); range checks (``particles >= 1``) stay
-with the plugin, which knows its own limits.
+that pass are handed over converted (``"40"`` → ``40``). Range checks stay with the plugin, or in
+its annotation: ``particles: Annotated[int, annotated_types.Ge(1)]`` is enforced here too.
 """
 
 from __future__ import annotations
 
 import collections.abc
 import difflib
-import enum
 import functools
 import inspect
 import math
-import numbers
 import types
 import typing
 from collections.abc import Callable, Mapping
 from typing import Any
 
-_TRUE = frozenset({"true", "yes", "1"})
-_FALSE = frozenset({"false", "no", "0"})
+if typing.TYPE_CHECKING:
+    from pydantic import TypeAdapter
 
 
 class OptionError(ValueError, TypeError):
@@ -61,14 +62,6 @@ class OptionError(ValueError, TypeError):
     Both a ``ValueError`` and a ``TypeError`` (as scikit-learn's ``InvalidParameterError``), so
     callers that caught the constructor's ``TypeError`` for an unknown keyword still catch it.
     """
-
-
-class _Rejected(Exception):
-    """Internal: ``value`` does not fit one annotation; ``hint`` says why, for the message."""
-
-    def __init__(self, hint: str = "") -> None:
-        super().__init__(hint)
-        self.hint = hint
 
 
 # --- the public functions ----------------------------------------------------------------------
@@ -95,79 +88,46 @@ def check_options(
         return dict(options)
     takes_any = any(p.kind is p.VAR_KEYWORD for p in parameters.values())
     keywords = [k for k, p in parameters.items() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
-    hints = _annotations(factory)
+    hints = type_hints(factory)
     checked: dict[str, Any] = {}
     for option, value in options.items():
         if option not in keywords:
             if takes_any:
                 checked[option] = value
                 continue
-            close = difflib.get_close_matches(option, keywords, n=len(keywords), cutoff=0.0)
-            listed = ", ".join(close) if close else "none"
+            listed = ", ".join(closest_first(option, keywords)) or "none"
             raise OptionError(f"{where} has no option {option!r}; its options (closest first): {listed}")
         default = parameters[option].default
         checked[option] = _check(f"{where} option {option!r}", value, hints.get(option, Any), default)
     return checked
 
 
-def check_setting(name: str, value: Any, annotation: Any) -> Any:
+def check_setting(name: str, value: Any, annotation: Any, default: Any = inspect.Parameter.empty) -> Any:
     """A plain setting (``seed``, ``plots``) checked against ``annotation`` by the same rule, converted.
 
     Example: ``check_setting("seed", "7", int)`` returns ``7``; ``check_setting("plots", "maybe",
-    bool)`` raises ``OptionError: setting 'plots' must be a bool (true/false, yes/no or 1/0), got
-    'maybe' (str)``.
+    bool)`` raises ``OptionError: setting 'plots' must be a bool (true/false, yes/no, on/off or
+    1/0), got 'maybe' (str); input should be a valid boolean, unable to interpret input``.
+    ``default``: a ``None`` default also accepts ``None``.
     """
-    return _check(f"setting {name!r}", value, annotation, inspect.Parameter.empty)
+    return _check(f"setting {name!r}", value, annotation, default)
 
 
-def describe(annotation: Any, article: bool = True) -> str:
-    """A short readable form of an annotation: ``an int or None``, ``a list of float``, ``'a' or 'b'``."""
-    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
-    if annotation is Any or annotation is inspect.Parameter.empty:
-        return "anything"
-    if annotation is type(None) or annotation is None:
-        return "None"
-    if origin is typing.Annotated:
-        return describe(args[0], article)
-    if origin in (typing.Union, types.UnionType):
-        return " or ".join(describe(a, article) for a in args)
-    if origin is typing.Literal:
-        return " or ".join(repr(a) for a in args)
-    if origin is tuple and args and args[-1] is not Ellipsis:
-        return f"a list of {len(args)} ({', '.join(describe(a, False) for a in args)})"
-    if origin in _SEQUENCES:
-        return f"a list of {describe(args[0], False)}" if args else "a list"
-    if origin in _MAPPINGS:
-        return (
-            f"a mapping of {describe(args[0], False)} to {describe(args[1], False)}" if args else "a mapping"
-        )
-    if annotation is bool and article:
-        return "a bool (true/false, yes/no or 1/0)"
-    if annotation in (int, float, str) and article:
-        return {int: "an int", float: "a float", str: "a str"}[annotation]
-    if isinstance(annotation, type):
-        return annotation.__name__
-    return str(annotation)
-
-
-# --- reading a factory's signature -----------------------------------------------------------
-
-
-def _parameters(factory: Callable[..., Any]) -> Mapping[str, inspect.Parameter] | None:
-    try:
-        return inspect.signature(factory).parameters
-    except (TypeError, ValueError):  # builtins and C extensions without a signature
-        return None
+def closest_first(word: str, names: typing.Iterable[str]) -> list[str]:
+    """``names`` ordered by similarity to ``word`` (``difflib``), the closest first."""
+    names = list(names)
+    return difflib.get_close_matches(word, names, n=len(names), cutoff=0.0) if names else []
 
 
 @functools.cache
-def _annotations(factory: Callable[..., Any]) -> dict[str, Any]:
+def type_hints(function: Callable[..., Any]) -> dict[str, Any]:
     """Each parameter's annotation, evaluated; one that cannot be evaluated is left out (unchecked).
 
     ``typing.get_type_hints`` fails as a whole when one annotation names a ``TYPE_CHECKING``-only
-    import, so annotations are evaluated one by one in the function's module.
+    import, so annotations are evaluated one by one in the function's module. A class stands for
+    its ``__init__``.
     """
-    function = factory.__init__ if isinstance(factory, type) else factory
+    function = function.__init__ if isinstance(function, type) else function
     function = inspect.unwrap(function)
     raw = getattr(function, "__annotations__", {})
     namespace = getattr(function, "__globals__", {})
@@ -184,202 +144,125 @@ def _annotations(factory: Callable[..., Any]) -> dict[str, Any]:
     return hints
 
 
-# --- checking one value ----------------------------------------------------------------------
+def describe(annotation: Any, article: bool = True) -> str:
+    """A short readable form of an annotation: ``an int or None``, ``a list of float``, ``'a' or 'b'``."""
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if annotation is Any or annotation is inspect.Parameter.empty:
+        return "anything"
+    if annotation is type(None) or annotation is None:
+        return "None"
+    if origin is typing.Annotated:
+        return describe(args[0], article)
+    if origin in (typing.Union, types.UnionType):
+        if Any in args:  # e.g. a plugin spec: a name, a mapping or a ready object
+            return "anything"
+        return " or ".join(describe(a, article) for a in args)
+    if origin is typing.Literal:
+        return " or ".join(repr(a) for a in args)
+    if origin is tuple and args and args[-1] is not Ellipsis:
+        return f"a list of {len(args)} ({', '.join(describe(a, False) for a in args)})"
+    if origin in _SEQUENCES:
+        return f"a list of {describe(args[0], False)}" if args else "a list"
+    if origin in _MAPPINGS:
+        return (
+            f"a mapping of {describe(args[0], False)} to {describe(args[1], False)}" if args else "a mapping"
+        )
+    if annotation is bool and article:
+        return "a bool (true/false, yes/no, on/off or 1/0)"
+    if annotation in (int, float, str) and article:
+        return {int: "an int", float: "a float", str: "a str"}[annotation]
+    if isinstance(annotation, type):
+        return annotation.__name__
+    return str(annotation)
+
+
+# --- checking one value ------------------------------------------------------------------------
 
 _SEQUENCES = (list, tuple, collections.abc.Sequence, collections.abc.MutableSequence)
 _MAPPINGS = (dict, collections.abc.Mapping, collections.abc.MutableMapping)
+#: pydantic error types that only restate the expected type, which the message already names.
+_RESTATED = {"literal_error", "enum", "is_instance_of", "none_required", "callable_type"}
+
+
+def _parameters(factory: Callable[..., Any]) -> Mapping[str, inspect.Parameter] | None:
+    try:
+        return inspect.signature(factory).parameters
+    except (TypeError, ValueError):  # builtins and C extensions without a signature
+        return None
+
+
+@functools.lru_cache(maxsize=512)
+def _adapter(annotation: Any) -> TypeAdapter | None:
+    """pydantic's lax-mode validator for ``annotation``; ``None`` if pydantic cannot build one.
+
+    pydantic is imported here, on the first option checked, so ``idkit --help`` never pays for it.
+    """
+    from pydantic import ConfigDict, PydanticSchemaGenerationError, TypeAdapter
+    from pydantic_core import SchemaError
+
+    config = ConfigDict(coerce_numbers_to_str=True, arbitrary_types_allowed=True)
+    try:
+        return TypeAdapter(annotation, config=config)
+    except (PydanticSchemaGenerationError, SchemaError, TypeError, NameError):
+        return None
 
 
 def _check(where: str, value: Any, annotation: Any, default: Any) -> Any:
     if value is None and default is None:
         return None
+    if annotation is Any or annotation is inspect.Parameter.empty:
+        return value
     try:
-        return _convert(value, annotation)
-    except _Rejected as rejected:
-        hint = f"; {rejected.hint}" if rejected.hint else ""
-        raise OptionError(
-            f"{where} must be {describe(annotation)}, got {value!r} ({type(value).__name__}){hint}"
-        ) from None
+        adapter = _adapter(annotation)
+    except TypeError:  # an unhashable annotation: not cached, not checked
+        adapter = None
+    if adapter is None:
+        return value
+    from pydantic import ValidationError
+
+    got = f"got {value!r} ({type(value).__name__})"
+    try:
+        converted = adapter.validate_python(value)
+    except ValidationError as error:
+        hint = _hint(error.errors(include_url=False), value, annotation)
+        raise OptionError(f"{where} must be {describe(annotation)}, {got}{hint}") from None
+    if _has_nan(converted):
+        raise OptionError(f"{where} must be {describe(annotation)}, {got}; NaN is never a valid option")
+    return converted
 
 
-def _convert(value: Any, annotation: Any) -> Any:
-    """``value`` converted to fit ``annotation``, or ``_Rejected``."""
+def _hint(errors: list[dict[str, Any]], value: Any, annotation: Any) -> str:
+    """``"; <why>"`` from pydantic's most specific error, or closest choices for a literal."""
+    error = max(errors, key=lambda e: len(e["loc"]))
+    if error["type"] in ("literal_error", "enum") and isinstance(value, str):
+        choices = [c for c in _literal_choices(annotation) if isinstance(c, str)]
+        close = closest_first(value, choices)
+        return f"; closest: {', '.join(repr(c) for c in close)}" if close else ""
+    if error["type"] in _RESTATED or (error["type"].endswith("_type") and len(error["loc"]) <= 1):
+        return ""
+    message = error["msg"][:1].lower() + error["msg"][1:]
+    if error["loc"] and isinstance(error["loc"][-1], int):
+        index = error["loc"][-1]
+        sequence = value if isinstance(value, collections.abc.Sequence) else None
+        item = f" = {sequence[index]!r}" if sequence is not None and index < len(sequence) else ""
+        return f"; item {index}{item}: {message}"
+    return f"; {message}"
+
+
+def _literal_choices(annotation: Any) -> list[Any]:
     origin, args = typing.get_origin(annotation), typing.get_args(annotation)
-    if annotation is Any or annotation is inspect.Parameter.empty or isinstance(annotation, typing.TypeVar):
-        return value
-    if annotation is None or annotation is type(None):
-        if value is None:
-            return None
-        raise _Rejected()
-    if origin is typing.Annotated:
-        return _convert(value, args[0])
-    if origin in (typing.Union, types.UnionType):
-        return _convert_union(value, args)
     if origin is typing.Literal:
-        return _convert_literal(value, args)
-    if origin in _SEQUENCES or annotation in _SEQUENCES:
-        return _convert_sequence(value, origin or annotation, args)
-    if origin in _MAPPINGS or annotation in _MAPPINGS:
-        return _convert_mapping(value, args)
-    if annotation in _SCALARS:
-        return _SCALARS[annotation](value)
-    if isinstance(annotation, type) and issubclass(annotation, enum.Enum):
-        return _convert_enum(value, annotation)
-    if isinstance(annotation, type):
-        try:
-            if isinstance(value, annotation):
-                return value
-        except TypeError:  # e.g. a Protocol that is not runtime-checkable
-            return value
-        raise _Rejected()
-    return value  # Callable[...], type[...], forward references: not checked
+        return list(args)
+    if origin in (typing.Union, types.UnionType, typing.Annotated):
+        return [c for a in args for c in _literal_choices(a)]
+    return []
 
 
-def _is_instance(value: Any, annotation: Any) -> bool:
-    """Whether ``value`` fits ``annotation`` as it is, without conversion (picks a union member)."""
-    if annotation in _EXACT:
-        return _EXACT[annotation](value)
-    try:
-        return _convert(value, annotation) is value
-    except _Rejected:
-        return False
-
-
-def _convert_union(value: Any, members: tuple[Any, ...]) -> Any:
-    for member in members:  # a member the value already is wins: "1" stays a str in `int | str`
-        if _is_instance(value, member):
-            return value
-    hints = []
-    for member in members:
-        try:
-            return _convert(value, member)
-        except _Rejected as rejected:
-            if rejected.hint:
-                hints.append(rejected.hint)
-    raise _Rejected("; ".join(hints))
-
-
-def _convert_literal(value: Any, choices: tuple[Any, ...]) -> Any:
-    for choice in choices:
-        try:
-            if _SCALARS.get(type(choice), lambda v: v)(value) == choice:
-                return choice
-        except _Rejected:
-            continue
-    if isinstance(value, str):
-        names = [c for c in choices if isinstance(c, str)]
-        close = difflib.get_close_matches(value, names, n=len(names), cutoff=0.0)
-        if close:
-            raise _Rejected(f"closest: {', '.join(repr(c) for c in close)}")
-    raise _Rejected()
-
-
-def _convert_sequence(value: Any, container: Any, args: tuple[Any, ...]) -> Any:
-    if isinstance(value, (str, bytes)) or not isinstance(value, collections.abc.Sequence):
-        raise _Rejected("give a list, e.g. [1, 2]")
-    items = list(value)
-    if container is tuple and args and args[-1] is not Ellipsis:
-        if len(items) != len(args):
-            raise _Rejected(f"needs {len(args)} items, got {len(items)}")
-        kinds = list(args)
-    else:
-        kinds = [args[0] if args else Any] * len(items)
-    converted = []
-    for index, (item, kind) in enumerate(zip(items, kinds, strict=True)):
-        try:
-            converted.append(_convert(item, kind))
-        except _Rejected as rejected:
-            hint = f" ({rejected.hint})" if rejected.hint else ""
-            raise _Rejected(f"item {index} = {item!r} is not {describe(kind, False)}{hint}") from None
-    if all(a is b for a, b in zip(converted, items, strict=True)):
-        return value
-    return tuple(converted) if isinstance(value, tuple) else converted
-
-
-def _convert_mapping(value: Any, args: tuple[Any, ...]) -> Any:
-    if not isinstance(value, collections.abc.Mapping):
-        raise _Rejected()
-    key_type, value_type = args if args else (Any, Any)
-    converted = {}
-    for key, item in value.items():
-        try:
-            converted[_convert(key, key_type)] = _convert(item, value_type)
-        except _Rejected as rejected:
-            hint = f" ({rejected.hint})" if rejected.hint else ""
-            raise _Rejected(f"entry {key!r}: {item!r} is not {describe(value_type, False)}{hint}") from None
-    return value if all(converted.get(k) is v for k, v in value.items()) else converted
-
-
-def _convert_enum(value: Any, annotation: type[enum.Enum]) -> Any:
-    if isinstance(value, annotation):
-        return value
-    for member in annotation:
-        if value in (member.name, member.value):
-            return member
-    names = [m.name for m in annotation]
-    raise _Rejected(f"the choices are {', '.join(names)}")
-
-
-def _to_int(value: Any) -> int:
-    if isinstance(value, bool):
-        raise _Rejected()
-    if isinstance(value, numbers.Integral):
-        return value  # type: ignore[return-value]
-    if not isinstance(value, (str, numbers.Real)):
-        raise _Rejected()
-    if isinstance(value, str):
-        try:
-            return int(value.strip())  # exact for any size, where a float would round
-        except ValueError:
-            pass
-    number = _to_float(value)
-    if not (math.isfinite(number) and float(number).is_integer()):
-        raise _Rejected("not a whole number")
-    return int(number)
-
-
-def _to_float(value: Any) -> float:
-    if isinstance(value, bool):
-        raise _Rejected()
-    if isinstance(value, numbers.Real):
-        number = value
-    elif isinstance(value, str):
-        try:
-            number = float(value.strip())
-        except ValueError:
-            raise _Rejected("not a number") from None
-    else:
-        raise _Rejected()
-    if math.isnan(number):
-        raise _Rejected("NaN is never a valid option")
-    return number  # type: ignore[return-value]
-
-
-def _to_bool(value: Any) -> bool:
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower() if isinstance(value, (str, numbers.Integral)) else None
-    if text in _TRUE:
-        return True
-    if text in _FALSE:
-        return False
-    raise _Rejected("other strings would silently count as true")
-
-
-def _to_str(value: Any) -> str:
-    if isinstance(value, str):
-        return value
-    if isinstance(value, numbers.Real) and not isinstance(value, bool):
-        return str(value)
-    raise _Rejected()
-
-
-_SCALARS: dict[Any, Callable[[Any], Any]] = {int: _to_int, float: _to_float, bool: _to_bool, str: _to_str}
-
-#: Values a scalar annotation takes as they are (an int is a float, a bool is not an int).
-_EXACT: dict[Any, Callable[[Any], bool]] = {
-    int: lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool),
-    float: lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool) and not math.isnan(v),
-    bool: lambda v: isinstance(v, bool),
-    str: lambda v: isinstance(v, str),
-}
+def _has_nan(value: Any) -> bool:
+    if isinstance(value, float):
+        return math.isnan(value)
+    if isinstance(value, (list, tuple)):
+        return any(_has_nan(v) for v in value)
+    if isinstance(value, dict):
+        return any(_has_nan(v) for v in value.values())
+    return False

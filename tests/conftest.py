@@ -32,3 +32,22 @@ def kuka_dir() -> Path:
     if not (KUKA_DIR / "measurements_1.npz").exists():
         pytest.skip(f"KUKA LWR4+ recordings not found in {KUKA_DIR} (they are not part of this repo)")
     return KUKA_DIR
+
+
+@pytest.fixture
+def hydra_compose():
+    """``compose(overrides)`` over idkit's primary config with the registry source registered."""
+    from hydra import compose, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+
+    from idkit.cli.app import setup
+
+    setup()
+    GlobalHydra.instance().clear()
+    with initialize_config_module(config_module="idkit.conf", version_base="1.3"):
+
+        def _compose(*overrides: str, hydra_cfg: bool = False):
+            return compose("config", overrides=list(overrides), return_hydra_config=hydra_cfg)
+
+        yield _compose
+    GlobalHydra.instance().clear()

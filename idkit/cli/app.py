@@ -10,6 +10,7 @@ unique. ``task`` runs the study named by ``cfg.task`` with its config section as
 from __future__ import annotations
 
 import inspect
+import os
 import sys
 import uuid
 from pathlib import Path
@@ -19,17 +20,21 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.plugins import Plugins
 from hydra.errors import CompactHydraException
+from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
-from idkit import registry
+from idkit.cli import errors
 from idkit.cli.source import RegistryConfigSource, RegistrySearchPath
 from idkit.cli.tasks import arguments, get_task
+from idkit.options import check_setting
 
 HELP_FLAGS = ("--help", "-h", "--hydra-help")
 
-#: Errors caused by what the user asked for: reported as one clear message and exit status 1,
-#: not as a traceback (HYDRA_FULL_ERROR=1 still shows the traceback).
-USER_ERRORS = (registry.PluginError, ValueError, TypeError, FileNotFoundError, FileExistsError, LookupError)
+#: Hydra's switch for full tracebacks. Set by the user, every error shows its traceback; otherwise
+#: ``main`` sets it for Hydra (which then raises instead of printing) and prints one line itself.
+FULL_ERROR = "HYDRA_FULL_ERROR"
+#: Read when the command starts, before ``main`` sets the switch for Hydra.
+TRACEBACKS_REQUESTED = os.environ.get(FULL_ERROR) == "1"
 
 #: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
 INTERRUPTED = 130
@@ -63,9 +68,10 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
     study = task.study_function()
     report = task.report_module()
     resolved = OmegaConf.to_container(cfg, resolve=True)
-    takes = inspect.signature(study).parameters
-    kwargs = arguments(cfg.task, resolved, takes)
-    if "checkpoint" in takes:  # a long study saves its partial report as it goes
+    kwargs = arguments(cfg.task, resolved, study)
+    if (
+        "checkpoint" in inspect.signature(study).parameters
+    ):  # a long study saves its partial report as it goes
         kwargs["checkpoint"] = lambda partial: _write(report, partial, resolved, run_dir, plots=False)
     try:
         result = study(**kwargs)
@@ -77,7 +83,7 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
             file=sys.stderr,
         )
         sys.exit(INTERRUPTED)
-    written = _write(report, result, resolved, run_dir, plots=cfg.plots)
+    written = _write(report, result, resolved, run_dir, plots=check_setting("plots", cfg.plots, bool))
     print(report.text(result))
     print(f"results: {written['result']}")
     return result
@@ -93,13 +99,30 @@ def task(cfg: DictConfig) -> Any:
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     try:
         return _run(cfg, run_dir)
-    except USER_ERRORS as exc:
-        raise CompactHydraException(f"idkit: {exc}") from exc
+    except errors.USER_ERRORS as exc:
+        if HydraConfig.get().mode == RunMode.RUN and not TRACEBACKS_REQUESTED:
+            errors.fail(str(exc))  # before Hydra adds "Error executing job with overrides: ..."
+        # a sweep goes on; the summary callback records the failed job's cause
+        raise CompactHydraException(f"{errors.PREFIX}{exc}") from exc
     except KeyboardInterrupt:
         print(f"idkit: interrupted; nothing was written to {run_dir}", file=sys.stderr)
         sys.exit(INTERRUPTED)
 
 
 def main() -> None:
+    """Run the command; a refused input ends in one line on stderr and exit status 1 (``errors``)."""
     setup(names_only=any(arg in HELP_FLAGS for arg in sys.argv[1:]))
-    hydra.main(version_base="1.3", config_path="pkg://idkit.conf", config_name="config")(task)()
+    app = hydra.main(version_base="1.3", config_path="pkg://idkit.conf", config_name="config")(task)
+    if TRACEBACKS_REQUESTED:
+        app()
+        return
+    os.environ[FULL_ERROR] = "1"
+    try:
+        app()
+    except Exception as exc:
+        message = errors.one_line(exc)
+        if message is None:
+            raise  # not a refused input but a bug: keep the traceback
+        errors.fail(message)
+    finally:
+        os.environ.pop(FULL_ERROR, None)

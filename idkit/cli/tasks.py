@@ -4,8 +4,10 @@ The config maps onto the study's signature one to one: a task's arguments are th
 section (``paper.costs`` → ``paper.run(costs=...)``) and the top-level keys its signature names
 (``robot``, ``estimator``, ``cost``, ``scenario``, ``seed``, ``trials`` ...). A top-level key that is
 set but not in the signature — ``idkit +experiment=kuka cost=f13`` — is an error, as is a section
-key the study does not take. Adding a task = a study function, a report module (``text``,
-``write``), a config section and one line in :data:`TASKS`.
+key the study does not take, and every value is checked against the study's annotation
+(:func:`idkit.options.check_setting`: ``seed=abc`` is refused before anything runs). Adding a
+task = a study function, a report module (``text``, ``write``), a config section and one line in
+:data:`TASKS`.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
+
+from idkit.options import check_setting, type_hints
 
 
 @dataclass(frozen=True)
@@ -61,18 +65,21 @@ def _describe(value: Any) -> str:
     return repr(value)
 
 
-def arguments(name: str, config: Mapping[str, Any], takes: Mapping[str, inspect.Parameter]) -> dict[str, Any]:
+def arguments(name: str, config: Mapping[str, Any], study: Callable[..., Any]) -> dict[str, Any]:
     """The keyword arguments of task ``name``'s study from a resolved config (plain dict).
 
     Args:
         name: the task.
         config: the resolved config without ``hydra``.
-        takes: the study's parameters (``inspect.signature(study).parameters``).
+        study: the task's study function; its signature says which keys it takes and its
+            annotations what they must be.
 
     Raises:
         ValueError: a set top-level key the study does not take, or an unknown section key.
+        idkit.options.OptionError: a value its annotation rejects (also a ``ValueError``).
     """
     task = get_task(name)
+    takes = inspect.signature(study).parameters
     options = ", ".join(k for k in takes if k not in SUPPLIED)
     section = dict(config.get(task.section) or {}) if task.section else {}
     for key in section:
@@ -89,4 +96,13 @@ def arguments(name: str, config: Mapping[str, Any], takes: Mapping[str, inspect.
         elif value is not None:
             got = f"{key}={_describe(value)}"
             raise ValueError(f"the {name} task takes no {key} (got {got}); it takes {options}")
-    return kwargs
+    hints = type_hints(study)
+    return {
+        key: check_setting(_setting(task, key, section), value, hints.get(key, Any), takes[key].default)
+        for key, value in kwargs.items()
+    }
+
+
+def _setting(task: Task, key: str, section: Mapping[str, Any]) -> str:
+    """The key as the user wrote it: ``paper.costs`` for a section key, ``seed`` at the top."""
+    return f"{task.section}.{key}" if key in section else key

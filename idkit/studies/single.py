@@ -175,6 +175,7 @@ def run(
     cost_obj = build("cost", cost)
     estimator_obj = build("estimator", estimator)
     problem = Problem(robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype)
+    problem.check_identifiable()  # for every estimator, a third party's included, before its fit
     fitted = estimator_obj.fit(problem)
     label = estimator_label(estimator, cost, with_cost=searches_cost(estimator_obj))
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"

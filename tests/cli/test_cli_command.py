@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -38,13 +39,13 @@ def test_help_lists_the_registry_without_importing_torch(tmp_path):
             main()
         except SystemExit:
             pass
-        print("torch imported:", "torch" in sys.modules)
+        print("torch imported:", "torch" in sys.modules, "pydantic imported:", "pydantic" in sys.modules)
         """
     )
     out = subprocess.run(
         [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True
     )
-    assert "torch imported: False" in out.stdout
+    assert "torch imported: False pydantic imported: False" in out.stdout
     assert "estimator: " in out.stdout and "pso" in out.stdout and "f13" in out.stdout
     assert "scenario: all_noise, clean, outliers, state_noise, torque_noise" in out.stdout  # from the presets
     assert not (tmp_path / "outputs").exists()
@@ -73,22 +74,104 @@ def test_the_issue_command_writes_the_documented_results(tmp_path):
     assert Path.cwd() != run_dir  # hydra.job.chdir=False: the process stayed where it started
 
 
+#: Issue 12's bad inputs: (arguments, what the one line ``idkit`` prints instead must say).
+#: Files named here are made by ``bad_files``; every command starts with ``plots=false``.
+BAD_INPUTS = [
+    (["estimator.particles=abc"], "estimator 'pso' option 'particles' must be an int or None, got 'abc'"),
+    (["estimator.particles=1.5"], "estimator 'pso' option 'particles' must be an int or None, got 1.5"),
+    (["estimator.particles=0"], "particles"),  # the range check: estimators (speed branch)
+    (["robot.g=abc"], "robot 'cylindrical' option 'g' must be a float, got 'abc'"),
+    (["seed=abc"], "setting 'seed' must be an int, got 'abc'"),
+    (["estimator=ls", "plots=maybe"], "setting 'plots' must be a bool"),
+    (["estimator=ls", "estimator.relative=maybe"], "estimator 'ls' option 'relative' must be a bool"),
+    (["estimator=ls", "device=cuda"], "device 'cuda' requested but CUDA is not available"),
+    (["estimator=ls", "data=empty.npz"], "empty.npz: not a NumPy .npz archive"),
+    (["estimator=ls", "data=no-arrays.npz"], "no-arrays.npz: the .npz archive contains no arrays"),
+    (["estimator=ls", "data=text.npz"], "text.npz: not a NumPy .npz archive"),
+    (["estimator=ls", "data=strings.npz"], "strings.npz: array 'q' has dtype <U1 (text)"),
+    (["estimator=ls", "data=folder"], "folder is a directory, not a samples file"),
+    (["estimator=ls", "data=no-such-file.npz"], "samples file not found: no-such-file.npz"),
+    (
+        ["estimator=pso", "cost=f13", "n_samples=1"],
+        "robot CylindricalRobot: 1 sample × 3 joints = 3 equations",
+    ),
+    (
+        ["estimator=adam", "cost=f13", "n_samples=1"],
+        "robot CylindricalRobot: 1 sample × 3 joints = 3 equations",
+    ),
+    (["estimator=pso_f13_f14", "~cost", "n_samples=1"], "robot CylindricalRobot: 1 sample × 3 joints"),
+    (["cost=f133"], "unknown cost 'f133'; available costs (closest first): f13, "),
+    (["estimator=psoo"], "unknown estimator 'psoo'; available estimators (closest first): pso, "),
+    (["robot=cylindricl"], "unknown robot 'cylindricl'; available robots (closest first): cylindrical, "),
+    (["+experiment=kukaa"], "unknown experiment 'kukaa'; available experiments (closest first): kuka, "),
+    (["+scenario=outlier"], "unknown scenario 'outlier'; available scenarios (closest first): outliers, "),
+    (
+        ["estimator.particls=40"],
+        "estimator 'pso' has no option 'particls'; its options (closest first): particles, ",
+    ),
+    (["seeed=1"], "there is no setting 'seeed'; the settings (closest first): seed, "),
+    (["+experiment=kuka", "cost=f13"], "the kuka task takes no cost (got cost=f13)"),
+    (["+scenario=outliers", "data=recording.npz", "estimator=ls"], "give either data= (measured samples) or"),
+    (["estimator=ls", "hydra.run.dir=other-run"], "other-run already holds the result of another run"),
+]
+
+
+def bad_files(folder: Path) -> None:
+    """The bad data files of :data:`BAD_INPUTS`, and a folder holding another run's result."""
+    import numpy as np
+
+    (folder / "empty.npz").write_bytes(b"")
+    np.savez(folder / "no-arrays.npz")
+    (folder / "text.npz").write_text("q,qd,qdd,tau\n")
+    text = np.array([["a", "b", "c"]])
+    np.savez(folder / "strings.npz", q=text, qd=text, qdd=text, tau=text)
+    (folder / "folder").mkdir()
+    (folder / "other-run").mkdir()
+    (folder / "other-run" / "result.json").write_text(json.dumps({"run_id": "another run"}))
+
+
 @pytest.mark.integration
-def test_bad_input_fails_with_a_clear_message(tmp_path):
-    unknown = idkit("estimator=psoo", cwd=tmp_path)
-    assert unknown.returncode != 0
-    assert "Could not find 'estimator/psoo'" in unknown.stderr and "pso_f13_f14" in unknown.stderr
-    assert "Traceback" not in unknown.stderr
-    missing = idkit("estimator=ls", "data=no-such-file.npz", cwd=tmp_path)
-    assert missing.returncode != 0
-    assert "idkit:" in missing.stderr and "no-such-file.npz" in missing.stderr
-    assert "Traceback" not in missing.stderr
-    unused = idkit("+experiment=kuka", "cost=f13", cwd=tmp_path)
-    assert unused.returncode != 0 and "Traceback" not in unused.stderr
-    assert "idkit: the kuka task takes no cost (got cost=f13)" in unused.stderr
-    both = idkit("+scenario=outliers", "data=recording.npz", "estimator=ls", cwd=tmp_path)
-    assert both.returncode != 0 and "Traceback" not in both.stderr
-    assert "give either data= (measured samples) or scenario= (a simulation), not both" in both.stderr
+def test_each_bad_input_ends_in_one_line_naming_its_cause(tmp_path):
+    """Issue 12's edges from the real ``idkit`` command: exit status 1, no traceback, one line."""
+    import concurrent.futures
+
+    import torch
+
+    bad_files(tmp_path)
+    command = shutil.which("idkit", path=Path(sys.executable).parent)
+    assert command, "the idkit console script is not installed next to this Python"
+    cases = [
+        (args, line)
+        for args, line in BAD_INPUTS
+        if "device=cuda" not in args or not torch.cuda.is_available()
+    ]
+
+    def run(args: list[str]) -> subprocess.CompletedProcess:
+        env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
+        return subprocess.run(
+            [command, "plots=false", *args],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=3) as pool:  # each pays the torch import
+        outcomes = list(pool.map(run, [args for args, _ in cases]))
+    wrong = []
+    for (args, line), out in zip(cases, outcomes, strict=True):
+        said = [text for text in out.stderr.splitlines() if text.strip()]
+        if (
+            out.returncode != 1
+            or "Traceback" in out.stderr + out.stdout
+            or said != said[:1]
+            or not (said and said[0].startswith("idkit: ") and line in said[0])
+        ):
+            wrong.append(f"idkit {' '.join(args)}: exit {out.returncode}, stderr {out.stderr[-600:]!r}")
+    assert not wrong, "\n".join(wrong)
+    other = json.loads((tmp_path / "other-run" / "result.json").read_text())
+    assert other == {"run_id": "another run"}  # the refused run left the other run's result alone
 
 
 @pytest.mark.integration

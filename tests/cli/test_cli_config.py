@@ -5,7 +5,6 @@ from __future__ import annotations
 import textwrap
 
 import pytest
-from hydra import compose, initialize_config_module
 from hydra.core.global_hydra import GlobalHydra
 from hydra.errors import ConfigCompositionException, MissingConfigException
 from omegaconf import OmegaConf
@@ -17,21 +16,6 @@ from idkit.cli.source import RegistryConfigSource
 from idkit.cli.tasks import TASKS, arguments
 from idkit.registry import MISSING
 from idkit.studies.build import constructor_options
-
-
-@pytest.fixture
-def hydra_compose():
-    """``compose(overrides)`` over idkit's primary config with the registry source registered."""
-    setup()
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module="idkit.conf", version_base="1.3"):
-
-        def _compose(*overrides: str, hydra_cfg: bool = False):
-            return compose("config", overrides=list(overrides), return_hydra_config=hydra_cfg)
-
-        yield _compose
-    GlobalHydra.instance().clear()
-
 
 UNWRITABLE = object()  # a default no config can hold
 
@@ -133,7 +117,7 @@ def test_each_task_config_is_its_study_signature(hydra_compose, overrides):
     cfg = OmegaConf.to_container(hydra_compose(*overrides), resolve=True)
     task = TASKS[cfg["task"]]
     takes = inspect.signature(task.study_function()).parameters
-    kwargs = arguments(cfg["task"], cfg, takes)
+    kwargs = arguments(cfg["task"], cfg, task.study_function())
     assert set(kwargs) <= set(takes)
     section = cfg.get(task.section or "", {})
     assert set(section) <= set(kwargs)
@@ -141,19 +125,42 @@ def test_each_task_config_is_its_study_signature(hydra_compose, overrides):
 
 
 def test_a_key_the_task_does_not_take_is_an_error(hydra_compose):
-    import inspect
-
     from idkit.studies import kuka, paper
 
     cfg = OmegaConf.to_container(hydra_compose("+experiment=kuka", "cost=f13"), resolve=True)
     with pytest.raises(ValueError, match="^the kuka task takes no cost \\(got cost=f13\\)"):
-        arguments("kuka", cfg, inspect.signature(kuka.run).parameters)
+        arguments("kuka", cfg, kuka.run)
     cfg = OmegaConf.to_container(hydra_compose("+experiment=paper", "+paper.trials=3"), resolve=True)
     with pytest.raises(ValueError, match="paper.trials is not an option of the paper task"):
-        arguments("paper", cfg, inspect.signature(paper.run).parameters)
+        arguments("paper", cfg, paper.run)
     cfg = OmegaConf.to_container(hydra_compose("+experiment=paper", "n_samples=30"), resolve=True)
     with pytest.raises(ValueError, match="the paper task takes no n_samples"):
-        arguments("paper", cfg, inspect.signature(paper.run).parameters)
+        arguments("paper", cfg, paper.run)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (("seed=abc",), "setting 'seed' must be an int, got 'abc' (str)"),
+        (("n_samples=2.5",), "setting 'n_samples' must be an int or None, got 2.5 (float)"),
+        (("+experiment=robustness", "trials=many"), "setting 'trials' must be an int, got 'many'"),
+        (("+experiment=kuka", "kuka.stride=x"), "setting 'kuka.stride' must be an int, got 'x'"),
+        (("+experiment=paper", "paper.costs=f13"), "setting 'paper.costs' must be a list of anything"),
+    ],
+)
+def test_every_argument_is_checked_against_the_study_annotation(hydra_compose, overrides, message):
+    from idkit.options import OptionError
+
+    cfg = OmegaConf.to_container(hydra_compose(*overrides), resolve=True)
+    with pytest.raises(OptionError) as err:
+        arguments(cfg["task"], cfg, TASKS[cfg["task"]].study_function())
+    assert str(err.value).startswith(message), str(err.value)
+
+
+def test_arguments_arrive_converted(hydra_compose):
+    cfg = OmegaConf.to_container(hydra_compose("seed='7'", "n_samples=20.0"), resolve=True)
+    kwargs = arguments("single", cfg, TASKS["single"].study_function())
+    assert (kwargs["seed"], kwargs["n_samples"]) == (7, 20)
 
 
 def test_third_party_plugin_is_a_config_without_yaml(tmp_path, monkeypatch, hydra_compose):

@@ -132,3 +132,22 @@ def test_scenario_and_data_together_is_an_error(tmp_path, cylindrical):
 def test_n_samples_is_the_one_knob_for_the_number_of_samples():
     result = single.run(estimator="ls", cost=None, scenario="outliers", n_samples=25)
     assert result.data["scenario"]["n_samples"] == 25 and result.data["scenario"]["n_outliers"] == 10
+
+
+def test_too_few_equations_are_refused_before_any_estimator_fits():
+    """The study checks identifiability itself, so an estimator that does not is covered too."""
+    from idkit.estimate import Estimate
+    from idkit.interfaces import Estimator
+    from idkit.problem import IdentificationError
+
+    class Unchecked(Estimator):
+        fitted = False
+
+        def fit(self, problem):
+            Unchecked.fitted = True
+            return Estimate("unchecked", dict.fromkeys(problem.robot.param_names, 0.0), 0.0, 0.0)
+
+    with pytest.raises(IdentificationError, match=r"1 sample × 3 joints = 3 equations < 4"):
+        idkit.run(estimator=Unchecked(), cost="f13", n_samples=1)
+    assert not Unchecked.fitted
+    assert idkit.run(estimator=Unchecked(), cost="f13", n_samples=2).estimate.params["m2"] == 0.0

@@ -1,0 +1,85 @@
+"""What the command line prints when the input is wrong: one line naming the cause, exit status 1.
+
+Hydra reports a config it cannot compose in many lines (an unknown ``cost=f133`` lists every cost
+sorted f1, f10, f11 … and then the config search path; an option typo prints the OmegaConf node).
+:func:`one_line` turns those errors, and idkit's own (:data:`USER_ERRORS`, raised by a study or a
+plugin), into one line: the unknown name or key and the valid ones, closest first. Anything else is
+a bug and keeps its traceback; ``HYDRA_FULL_ERROR=1`` shows the traceback of every error.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import NoReturn
+
+from hydra.errors import (
+    CompactHydraException,
+    ConfigCompositionException,
+    MissingConfigException,
+    OverrideParseException,
+)
+from omegaconf.errors import ConfigAttributeError, ConfigKeyError
+
+from idkit import registry
+from idkit.options import closest_first
+from idkit.registry import NAME_KEY
+
+#: Errors caused by what the user asked for (a study's or plugin's refusal of its input).
+USER_ERRORS = (registry.PluginError, ValueError, TypeError, FileNotFoundError, FileExistsError, LookupError)
+
+#: Exit status of a refused input.
+USAGE = 1
+
+PREFIX = "idkit: "
+
+
+def fail(message: str) -> NoReturn:
+    """Print ``idkit: <message>`` on stderr and exit with :data:`USAGE`."""
+    print(message if message.startswith(PREFIX) else PREFIX + message, file=sys.stderr)
+    sys.exit(USAGE)
+
+
+def unknown_key_message(error: ConfigAttributeError | ConfigKeyError) -> str:
+    """``estimator 'pso' has no option 'particls'; its options (closest first): particles, …``.
+
+    ``error`` is OmegaConf's refusal of a key a struct node does not have (``parent_node`` is that
+    node, ``full_key`` the dotted key the user typed).
+    """
+    key, node, full_key = str(error.key), error.parent_node, str(error.full_key)
+    valid = [str(k) for k in node if k not in (NAME_KEY, "hydra")] if node is not None else []
+    listed = ", ".join(closest_first(key, valid)) or "none"
+    section = full_key.rpartition(".")[0]
+    if not section:
+        return f"there is no setting {key!r}; the settings (closest first): {listed}"
+    if node is not None and NAME_KEY in node:
+        return f"{section} {node[NAME_KEY]!r} has no option {key!r}; its options (closest first): {listed}"
+    return f"{section} has no key {key!r}; its keys (closest first): {listed}"
+
+
+def one_line(exc: BaseException) -> str | None:
+    """The one-line message for a refused input, or ``None`` for an error that is not one (a bug).
+
+    Covers Hydra's unknown config name (``MissingConfigException``), an override of a key the
+    config does not have (``ConfigCompositionException`` caused by OmegaConf's struct check), an
+    override Hydra cannot parse (``OverrideParseException``), any other compact Hydra error, a
+    bad override value Hydra refuses with a ``ValueError`` (``cost=null`` for a group), and
+    :data:`USER_ERRORS`.
+    """
+    if isinstance(exc, MissingConfigException) and exc.missing_cfg_file and exc.options:
+        group, _, name = exc.missing_cfg_file.rpartition("/")
+        return registry.unknown_name_message(group or "config", name, list(exc.options))
+    cause = exc.__cause__
+    if isinstance(exc, ConfigCompositionException) and isinstance(
+        cause, (ConfigAttributeError, ConfigKeyError)
+    ):
+        return unknown_key_message(cause)
+    if isinstance(exc, OverrideParseException):  # its message does not say which override
+        return f"cannot read {exc.override!r}: {str(exc).splitlines()[0]} (see `idkit --hydra-help`)"
+    if isinstance(exc, (CompactHydraException, *USER_ERRORS)):
+        return _flat(str(exc))
+    return None
+
+
+def _flat(text: str) -> str:
+    """One line: Hydra's messages wrap and indent; the cause is on their first lines."""
+    return " ".join(part.strip() for part in text.strip().splitlines() if part.strip())

@@ -1,0 +1,69 @@
+"""A refused command-line input becomes one line naming its cause (in process, fast)."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import pytest
+from hydra.core.global_hydra import GlobalHydra
+
+from idkit.cli import app, errors
+
+
+def refusal(compose, *overrides: str) -> str:
+    """The one line for the error Hydra raises composing ``overrides``."""
+    with pytest.raises(Exception) as err:
+        compose(*overrides)
+    line = errors.one_line(err.value)
+    assert line is not None and "\n" not in line, line
+    return line
+
+
+def test_unknown_names_list_the_closest_first(hydra_compose):
+    line = refusal(hydra_compose, "cost=f133")
+    assert line.startswith("unknown cost 'f133'; available costs (closest first): f13, ")
+    assert "search path" not in line
+    assert refusal(hydra_compose, "robot=cylindricl").startswith(
+        "unknown robot 'cylindricl'; available robots (closest first): cylindrical, "
+    )
+    assert refusal(hydra_compose, "+experiment=kukaa") == (
+        "unknown experiment 'kukaa'; available experiments (closest first): kuka, paper, robustness"
+    )
+
+
+def test_a_key_typo_lists_the_valid_keys_closest_first(hydra_compose):
+    line = refusal(hydra_compose, "estimator.particls=40")
+    assert line.startswith(
+        "estimator 'pso' has no option 'particls'; its options (closest first): particles, "
+    )
+    assert "_name_" not in line
+    line = refusal(hydra_compose, "seeed=1")
+    assert line.startswith("there is no setting 'seeed'; the settings (closest first): seed, ")
+    assert "hydra" not in line
+    line = refusal(hydra_compose, "+experiment=paper", "paper.costz=[f1]")
+    assert line.startswith("paper has no key 'costz'; its keys (closest first): costs, ")
+
+
+def test_other_hydra_refusals_are_flattened_to_one_line(hydra_compose):
+    assert "particles" in refusal(hydra_compose, "estimator.particles=[")
+
+
+def test_user_errors_pass_and_bugs_keep_their_traceback():
+    assert errors.one_line(ValueError("stride must be >= 1")) == "stride must be >= 1"
+    assert errors.one_line(FileNotFoundError("x.npz")) == "x.npz"
+    assert errors.one_line(ZeroDivisionError("division by zero")) is None
+    assert errors.one_line(RuntimeError("bug")) is None
+
+
+def test_main_prints_one_line_and_exits_1(monkeypatch, capsys):
+    monkeypatch.setattr(sys, "argv", ["idkit", "estimator=psoo"])
+    monkeypatch.delenv(app.FULL_ERROR, raising=False)
+    GlobalHydra.instance().clear()
+    with pytest.raises(SystemExit) as exit_:
+        app.main()
+    GlobalHydra.instance().clear()
+    assert exit_.value.code == errors.USAGE
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1 and said[0].startswith("idkit: unknown estimator 'psoo'; available estimators")
+    assert app.FULL_ERROR not in os.environ  # set for Hydra during the run only
