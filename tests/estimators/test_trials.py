@@ -114,7 +114,7 @@ def test_non_positive_counts_name_the_option(name, option, value):
 
 
 def test_a_fractional_count_is_refused_by_the_option_check_before_the_constructor():
-    with pytest.raises(ValueError, match="option 'particles' must be an int .* not a whole number"):
+    with pytest.raises(ValueError, match="option 'particles' must be an int .* fractional part"):
         registry.create("estimator", "pso", particles=2.5)
 
 
