@@ -14,7 +14,9 @@ Pure computation: no files, no text.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -43,6 +45,16 @@ class Validation:
     relative: np.ndarray
     rel_all: float
     nrms_limit: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scores for ``result.json`` (per-joint lists in robot order; no torque traces)."""
+        return {
+            "samples": int(self.measured.shape[0]),
+            "rms": self.rms.tolist(),
+            "relative": self.relative.tolist(),
+            "rel_all": self.rel_all,
+            "nrms_limit": self.nrms_limit,
+        }
 
 
 def effort_limits(robot: Robot) -> np.ndarray | None:
@@ -107,3 +119,11 @@ def validate(
         rel_all=float(np.linalg.norm(error) / np.linalg.norm(measured)),
         nrms_limit=nrms,
     )
+
+
+def validate_files(
+    robot: Robot, params: Mapping[str, float], held_out: Sequence[Samples]
+) -> list[Validation]:
+    """:func:`validate` of an estimate's parameter map (``Estimate.params``) on each held-out recording."""
+    vector = torch.tensor([float(params[name]) for name in robot.param_names], dtype=torch.float64)
+    return [validate(robot, samples, vector) for samples in held_out]
