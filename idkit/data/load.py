@@ -24,7 +24,7 @@ import numpy as np
 from idkit.data.io import FLOBAROID_KEYS, load_samples
 from idkit.data.preprocess import PreprocessOptions, preprocess_with_times
 from idkit.data.recording import FLOBAROID_RECORDING_KEYS, load_recording
-from idkit.problem import Samples
+from idkit.problem import SAMPLE_ARRAYS, Samples
 
 APPLY = ("auto", "on", "off")
 
@@ -68,7 +68,7 @@ def file_kind(path: str | Path) -> FileKind:
 
 
 def load_data_file(
-    path: str | Path, options: PreprocessOptions | None = None, apply: str = "auto"
+    path: str | Path, options: PreprocessOptions | None = None, apply: str = "auto", stride: int = 1
 ) -> tuple[Samples, np.ndarray | None, bool]:
     """Samples from one file (module doc): ``(samples, times[N] or None, preprocessed)``.
 
@@ -76,6 +76,7 @@ def load_data_file(
         path: ``.npz`` or ``.csv`` file of samples or of a raw recording.
         options: preprocessing options (default :class:`PreprocessOptions`).
         apply: ``"auto"``, ``"on"`` or ``"off"`` (module doc).
+        stride: keep every ``stride``-th sample (after preprocessing, which sees them all).
 
     Raises:
         ValueError: ``apply`` unknown; ``"on"`` for a file without timestamps; ``"off"`` (or
@@ -90,8 +91,8 @@ def load_data_file(
             raise ValueError(
                 f"{path}: a raw recording (no accelerations qdd); preprocess it (preprocess=auto or on)"
             )
-        samples = load_samples(path, keys=FLOBAROID_KEYS if kind.flobaroid else None)
-        times = _times(path, kind) if kind.timestamps else None
+        samples = load_samples(path, keys=FLOBAROID_KEYS if kind.flobaroid else None, stride=stride)
+        times = _times(path, kind)[::stride] if kind.timestamps else None
         return samples, times, False
     if not kind.timestamps:
         raise ValueError(
@@ -100,7 +101,9 @@ def load_data_file(
         )
     keys: Mapping[str, str] | None = FLOBAROID_RECORDING_KEYS if kind.flobaroid else None
     samples, times = preprocess_with_times(load_recording(path, keys=keys), options)
-    return samples, times, True
+    if stride > 1:
+        samples = Samples(*(getattr(samples, k)[::stride] for k in SAMPLE_ARRAYS))
+    return samples, times[::stride], True
 
 
 def _times(path: str | Path, kind: FileKind) -> np.ndarray:

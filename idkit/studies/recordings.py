@@ -71,8 +71,10 @@ def as_paths(files: Any) -> list[Any]:
     return list(files)
 
 
-def load_files(robot: Robot, files: Any, preprocess: Any = None, role: str = "data") -> list[DataFile]:
-    """Load every file of ``data=`` or ``validate=`` (``role``) for ``robot``.
+def load_files(
+    robot: Robot, files: Any, preprocess: Any = None, role: str = "data", stride: int = 1
+) -> list[DataFile]:
+    """Load every file of ``data=`` or ``validate=`` (``role``) for ``robot``; ``stride`` thins them.
 
     Raises:
         ValueError: an empty list, or a file whose number of joints is not the robot's (naming the
@@ -87,7 +89,7 @@ def load_files(robot: Robot, files: Any, preprocess: Any = None, role: str = "da
         if isinstance(path, Samples):
             loaded.append(DataFile("<Samples>", path, None, False))
             continue
-        samples, times, done = load_data_file(os.fspath(path), options, apply)
+        samples, times, done = load_data_file(os.fspath(path), options, apply, stride)
         loaded.append(DataFile(os.fspath(path), samples, times, done))
     for item in loaded:
         if item.samples.n_joints != robot.n_joints:

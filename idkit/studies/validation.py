@@ -103,14 +103,22 @@ def validate(
         effort: effort limits ``[n]`` for ``nrms_limit``; ``None`` = the robot's, if it declares them.
     """
     predicted = predict(robot, samples, params, base_params).detach().cpu().double().numpy()
-    measured = samples.tau.detach().cpu().double().numpy()
+    effort = effort_limits(robot) if effort is None else effort
+    return score(samples.tau.detach().cpu().double().numpy(), predicted, effort)
+
+
+def score(measured: np.ndarray, predicted: np.ndarray, effort: np.ndarray | None = None) -> Validation:
+    """The metrics of the module doc for measured and predicted torques ``[N, n]`` (any source of the
+    prediction, e.g. another recording's torques replayed); ``effort[n]`` for ``nrms_limit``."""
+    measured, predicted = np.asarray(measured, dtype=np.float64), np.asarray(predicted, dtype=np.float64)
     error = measured - predicted
     rms = np.sqrt((error**2).mean(0))
     scale = np.sqrt((measured**2).mean(0))
-    effort = effort_limits(robot) if effort is None else np.asarray(effort, dtype=np.float64)
     nrms = None
-    if effort is not None and np.isfinite(effort).all() and (effort > 0).all():
-        nrms = float(np.sqrt(((error / effort) ** 2).mean()))
+    if effort is not None:
+        effort = np.asarray(effort, dtype=np.float64)
+        if np.isfinite(effort).all() and (effort > 0).all():
+            nrms = float(np.sqrt(((error / effort) ** 2).mean()))
     return Validation(
         predicted=predicted,
         measured=measured,
