@@ -131,7 +131,7 @@ def test_the_issue_command_fits_validates_and_writes_identified_urdf(files, tmp_
 def test_data_list_is_stacked_and_each_file_preprocessed_alone(files, tmp_path):
     result, data = command(
         *robot_args(files), f"data=[{files['train']},{files['train2']}]", "estimator=ls", "~cost",
-        "plots=false", out=tmp_path,
+        "plots=false", "identified_urdf=false", out=tmp_path,
     )
     options = PreprocessOptions()
     trim = int(np.ceil(3.0 / options.cutoff * RATE))
@@ -148,7 +148,8 @@ def test_samples_files_are_used_as_they_are_unless_preprocess_on(files, tmp_path
     tau = robot.inverse_dynamics(truth(robot), *map(torch.from_numpy, (q, qd, qdd))).numpy()
     path = files["folder"] / "samples.npz"
     np.savez(path, t=t, q=q, qd=qd, qdd=qdd, tau=tau)
-    kept, _ = command(*robot_args(files), f"data={path}", "estimator=ls", "~cost", "plots=false", out=tmp_path / "a")
+    quiet = ["estimator=ls", "~cost", "plots=false", "identified_urdf=false"]
+    kept, _ = command(*robot_args(files), f"data={path}", *quiet, out=tmp_path / "a")
     assert "preprocess" not in kept.data
     np.testing.assert_allclose(
         [kept.estimate.params[n] for n in robot.param_names if n.endswith((".fc", ".fv", ".offset"))],
@@ -156,8 +157,7 @@ def test_samples_files_are_used_as_they_are_unless_preprocess_on(files, tmp_path
         rtol=1e-6,
     )
     filtered, data = command(
-        *robot_args(files), f"data={path}", "preprocess=on", "preprocess.cutoff=5", "estimator=ls", "~cost",
-        "plots=false", out=tmp_path / "b",
+        *robot_args(files), f"data={path}", "preprocess=on", "preprocess.cutoff=5", *quiet, out=tmp_path / "b",
     )
     assert data["data"]["preprocess"]["cutoff"] == 5.0
     assert data["payload"]["estimate"]["details"]["uncertainty"]["dof"] < 3 * t.size - 14
