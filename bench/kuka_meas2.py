@@ -28,27 +28,42 @@ def main() -> None:
     torch.set_num_threads(1)
     rigid = URDFRobot(str(KUKA / "kuka_lwr4.urdf"))
     own = [f.samples for f in load_files(rigid, FILES)]
-    print("| training derivatives | low-speed term | prior | meas. 1 | meas. 2 | meas. 3 | meas. 2 / 3 (same filter) | min eig |")
+    columns = "meas. 1 | meas. 2 | meas. 3 | meas. 2 / 3 (same filter) | min eig"
+    print(f"| training derivatives | low-speed term | prior | {columns} |")
     print("|---|---|---:|---:|---:|---:|---:|---:|")
     for cutoff in (None, 2.0, 4.0, 10.0):
         if cutoff is None:
             train, filtered, source = own[0], None, "files' own"
         else:
             loaded = load_files(rigid, FILES, {"apply": "on", "cutoff": cutoff})
-            train, filtered, source = loaded[0].samples, [f.samples for f in loaded], f"idkit filter {cutoff:g} Hz"
+            train, filtered, source = (
+                loaded[0].samples,
+                [f.samples for f in loaded],
+                f"idkit filter {cutoff:g} Hz",
+            )
         for stribeck in (None, 0.05):
-            robot = URDFRobot(str(KUKA / "kuka_lwr4.urdf"), friction=True, offset=True, stribeck_velocity=stribeck)
+            robot = URDFRobot(
+                str(KUKA / "kuka_lwr4.urdf"), friction=True, offset=True, stribeck_velocity=stribeck
+            )
             problem = Problem(robot, train)
             for weight in (0.0, 10.0, 30.0, 100.0, 300.0):
                 estimate = PhysicallyConsistentLS(prior_weight=weight).fit(problem)
                 params = torch.tensor([estimate.params[n] for n in robot.param_names], dtype=torch.float64)
                 scores = [100 * validate(robot, s, params).rel_all for s in own]
-                same = "–" if filtered is None else " / ".join(
-                    f"{100 * validate(robot, s, params).rel_all:.2f} %" for s in filtered[1:]
+                same = (
+                    "–"
+                    if filtered is None
+                    else " / ".join(f"{100 * validate(robot, s, params).rel_all:.2f} %" for s in filtered[1:])
                 )
                 eig = float(min_pseudo_inertia_eigenvalues(robot, params).min())
-                cells = [source, "0.05 rad/s" if stribeck else "no", f"{weight:g}",
-                         *(f"{v:.2f} %" for v in scores), same, f"{eig:.1e}"]
+                cells = [
+                    source,
+                    "0.05 rad/s" if stribeck else "no",
+                    f"{weight:g}",
+                    *(f"{v:.2f} %" for v in scores),
+                    same,
+                    f"{eig:.1e}",
+                ]
                 print("| " + " | ".join(cells) + " |", flush=True)
 
 

@@ -20,12 +20,12 @@ from pathlib import Path
 import torch
 
 from idkit import registry
+from idkit.data.load import load_data_file
 from idkit.estimators.physical import (
     PhysicallyConsistentLS,
     min_pseudo_inertia_eigenvalues,
     nearest_consistent,
 )
-from idkit.data.load import load_data_file
 from idkit.problem import Problem, Samples
 from idkit.robots.urdf import URDFRobot
 from idkit.studies.validation import validate

@@ -30,7 +30,8 @@ def text(study: KukaStudy) -> str:
     p = study.provenance
     if p.status == "partial":
         lines += [f"PARTIAL: {p.done} of {p.requested} model variants (interrupted).", ""]
-    header = ["model", "friction", "offset", *(f"j{j + 1}" for j in range(n)), "‖E‖/‖T‖", "NRMS/limit", "min eig"]
+    joints = [f"j{j + 1}" for j in range(n)]
+    header = ["model", "friction", "offset", *joints, "‖E‖/‖T‖", "NRMS/limit", "min eig"]
     for rec in (*study.test, study.train):
         lines += [f"### {rec}" + (" (training data)" if rec == study.train else " (held out)"), ""]
         table: list[list[Any]] = []

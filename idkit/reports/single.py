@@ -67,7 +67,8 @@ def _uncertainty_lines(uncertainty: Mapping[str, Any] | None, base: Mapping[str,
         value = base.get(name)
         shown = "" if value is None else f"{value:12.5g}"
         lines.append(f"{name:<24}{shown:>12}{_percent(pct):>12}")
-    lines.append(f"regressor rank {uncertainty.get('rank')} · condition number {uncertainty.get('cond', float('nan')):.3g}")
+    cond = uncertainty.get("cond", float("nan"))
+    lines.append(f"regressor rank {uncertainty.get('rank')} · condition number {cond:.3g}")
     unidentifiable = uncertainty.get("unidentifiable") or []
     lines.append("unidentifiable: " + ("; ".join(unidentifiable) if unidentifiable else "none"))
     return lines
@@ -143,6 +144,4 @@ def _validation_plot(label: str, held: HeldOut, path: Path) -> Path:
         times = np.arange(scores.measured.shape[0], dtype=np.float64)
         keep = times < PLOT_SAMPLES
     title = f"{label}: held-out {held.file} (‖E‖/‖T‖ {100 * scores.rel_all:.2f} %)"
-    return figures.traces(
-        times[keep], scores.measured[keep], {label: scores.predicted[keep]}, title, path
-    )
+    return figures.traces(times[keep], scores.measured[keep], {label: scores.predicted[keep]}, title, path)

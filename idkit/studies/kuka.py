@@ -72,7 +72,12 @@ DEFAULT_ESTIMATORS: tuple[Spec, ...] = (
     "pcls",
     {"_name_": "pcls", "prior_weight": 300.0},
 )
-DEFAULT_MODELS: tuple[tuple[Any, ...], ...] = ((False, False), (True, False), (True, True), (True, True, 0.05))
+DEFAULT_MODELS: tuple[tuple[Any, ...], ...] = (
+    (False, False),
+    (True, False),
+    (True, True),
+    (True, True, 0.05),
+)
 #: Two recordings "follow the same trajectory" when their positions agree sample by sample to this (rad).
 REPEAT_TOLERANCE = 0.01
 CAD = "CAD"
@@ -218,7 +223,9 @@ def _repeat_rows(
 def _model(spec: Sequence[Any]) -> tuple[bool, bool, float | None]:
     """``(friction, offset, stribeck_velocity)`` of a ``models`` entry (two or three values)."""
     if len(spec) not in (2, 3):
-        raise ValueError(f"kuka.models: each entry is [friction, offset] or [friction, offset, v_s], got {spec}")
+        raise ValueError(
+            f"kuka.models: each entry is [friction, offset] or [friction, offset, v_s], got {spec}"
+        )
     stribeck = float(spec[2]) if len(spec) == 3 and spec[2] is not None else None
     if stribeck is not None and not spec[0]:
         raise ValueError(f"kuka.models: the low-speed friction term ({spec}) needs friction=true")

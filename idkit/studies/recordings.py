@@ -10,7 +10,7 @@ no filter runs across a seam).
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -56,7 +56,8 @@ def preprocess_options(spec: Any) -> tuple[PreprocessOptions, str]:
     unknown = sorted(set(options) - known)
     if unknown:
         raise ValueError(
-            f"preprocess.{unknown[0]} is not a preprocessing option; they are apply, {', '.join(sorted(known))}"
+            f"preprocess.{unknown[0]} is not a preprocessing option; "
+            f"they are apply, {', '.join(sorted(known))}"
         )
     return PreprocessOptions(**options), apply
 

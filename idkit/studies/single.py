@@ -121,13 +121,21 @@ def _scenario_spec(scenario: Any) -> Any:
     return scenario
 
 
-def _describe_files(files: list[DataFile], preprocess: Any) -> dict[str, Any]:
-    """``result.json``'s ``data``: ``{"file": path}`` or ``{"files": [...]}``, and the preprocessing."""
+def _describe_files(
+    files: list[DataFile], preprocess: Any, source: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """``result.json``'s ``data``: ``{"file": path}`` or ``{"files": [...]}`` for training files (no
+    ``source``), or ``source`` plus ``validate`` files; and the preprocessing options with the files
+    they were applied to."""
     paths = [f.path for f in files]
-    out: dict[str, Any] = {"file": paths[0]} if len(paths) == 1 else {"files": paths}
-    if any(f.preprocessed for f in files):
+    if source is None:
+        out: dict[str, Any] = {"file": paths[0]} if len(paths) == 1 else {"files": paths}
+    else:
+        out = {**source, "validate": paths}
+    processed = [*(out.get("preprocess") or {}).get("files", []), *(f.path for f in files if f.preprocessed)]
+    if processed:
         options, _ = preprocess_options(preprocess)
-        out["preprocess"] = {"files": [f.path for f in files if f.preprocessed], **vars(options)}
+        out["preprocess"] = {"files": processed, **vars(options)}
     return out
 
 
@@ -228,6 +236,8 @@ def run(
         robot_obj, scenario, seed=seed, data=data, n_samples=n_samples, params=params, preprocess=preprocess
     )
     held_out = [] if validate is None else load_files(robot_obj, validate, preprocess, role="validate")
+    if held_out:
+        source = _describe_files(held_out, preprocess, source)
     cost_obj = build("cost", cost)
     estimator_obj = build("estimator", estimator)
     problem = Problem(robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype)
@@ -244,8 +254,6 @@ def run(
             for kind, spec in (("robot", robot), ("estimator", estimator), ("cost", cost))
         },
     )
-    if held_out:
-        provenance.data = {**(provenance.data or {}), "validate": [f.path for f in held_out]}
     scores = validate_files(robot_obj, fitted.params, [f.samples for f in held_out])
     return RunResult(
         replace(fitted, estimator=label),

@@ -48,7 +48,9 @@ def test_apply_modes(tmp_path):
     assert done and samples.n_samples == 400 - 2 * trim and times[0] == pytest.approx(trim / 100.0)
     # idkit's filter recomputes the (exact, slow) accelerations to within the stated (ωh)²/12 order
     middle = slice(20, -20)
-    np.testing.assert_allclose(samples.qdd.numpy()[middle], qdd[trim:-trim][middle], atol=2e-2 * np.abs(qdd).max())
+    np.testing.assert_allclose(
+        samples.qdd.numpy()[middle], qdd[trim:-trim][middle], atol=2e-2 * np.abs(qdd).max()
+    )
     with pytest.raises(ValueError, match=r"s\.npz: preprocessing needs timestamps"):
         load_data_file(tmp_path / "s.npz", options, "on")
     with pytest.raises(ValueError, match=r"r\.npz: a raw recording \(no accelerations qdd\)"):

@@ -110,7 +110,8 @@ def test_the_issue_command_fits_validates_and_writes_identified_urdf(files, tmp_
     # held-out file to well under 1 %.
     assert validation["rel_all"] < 0.01 and len(validation["rms"]) == 3
     assert data["data"]["file"] == str(files["train"]) and data["data"]["validate"] == [str(files["test"])]
-    assert data["data"]["preprocess"]["cutoff"] == 10.0  # raw CSV: preprocessed by default
+    assert data["data"]["preprocess"]["cutoff"] == 10.0  # raw CSVs: preprocessed by default
+    assert data["data"]["preprocess"]["files"] == [str(files["train"]), str(files["test"])]
     uncertainty = data["payload"]["estimate"]["details"]["uncertainty"]
     assert uncertainty["rank"] == len(robot.base_param_names)
     assert set(data["files"]) >= {"identified_urdf", "validation_plot_1", "result"}
@@ -130,8 +131,13 @@ def test_the_issue_command_fits_validates_and_writes_identified_urdf(files, tmp_
 
 def test_data_list_is_stacked_and_each_file_preprocessed_alone(files, tmp_path):
     result, data = command(
-        *robot_args(files), f"data=[{files['train']},{files['train2']}]", "estimator=ls", "~cost",
-        "plots=false", "identified_urdf=false", out=tmp_path,
+        *robot_args(files),
+        f"data=[{files['train']},{files['train2']}]",
+        "estimator=ls",
+        "~cost",
+        "plots=false",
+        "identified_urdf=false",
+        out=tmp_path,
     )
     options = PreprocessOptions()
     trim = int(np.ceil(3.0 / options.cutoff * RATE))
@@ -153,11 +159,20 @@ def test_samples_files_are_used_as_they_are_unless_preprocess_on(files, tmp_path
     assert "preprocess" not in kept.data
     np.testing.assert_allclose(
         [kept.estimate.params[n] for n in robot.param_names if n.endswith((".fc", ".fv", ".offset"))],
-        [float(v) for n, v in zip(robot.param_names, truth(robot), strict=True) if n.endswith((".fc", ".fv", ".offset"))],
+        [
+            float(v)
+            for n, v in zip(robot.param_names, truth(robot), strict=True)
+            if n.endswith((".fc", ".fv", ".offset"))
+        ],
         rtol=1e-6,
     )
     filtered, data = command(
-        *robot_args(files), f"data={path}", "preprocess=on", "preprocess.cutoff=5", *quiet, out=tmp_path / "b",
+        *robot_args(files),
+        f"data={path}",
+        "preprocess=on",
+        "preprocess.cutoff=5",
+        *quiet,
+        out=tmp_path / "b",
     )
     assert data["data"]["preprocess"]["cutoff"] == 5.0
     assert data["payload"]["estimate"]["details"]["uncertainty"]["dof"] < 3 * t.size - 14
@@ -167,8 +182,10 @@ def test_the_preprocess_group_is_the_options_dataclass(files):
     setup()
     GlobalHydra.instance().clear()
     with initialize_config_module(config_module="idkit.conf", version_base="1.3"):
-        groups = {name: OmegaConf.to_container(compose("config", overrides=[f"preprocess={name}"]).preprocess)
-                  for name in ("auto", "on", "off")}
+        groups = {
+            name: OmegaConf.to_container(compose("config", overrides=[f"preprocess={name}"]).preprocess)
+            for name in ("auto", "on", "off")
+        }
     GlobalHydra.instance().clear()
     for name, node in groups.items():
         options, apply = preprocess_options(node)
@@ -201,23 +218,38 @@ def test_recording_with_other_joints_is_named(files, tmp_path):
     lines = files["train"].read_text().splitlines()
     keep = [0, 1, 2, 4, 5]  # t, q1, q2, tau1, tau2
     two.write_text("\n".join(",".join(line.split(",")[k] for k in keep) for line in lines) + "\n")
-    for role, args in (("data", [f"data={two}"]), ("validate", [f"data={files['train']}", f"validate=[{two}]"])):
-        with pytest.raises(ValueError, match=rf"^{role} file .*two_joints\.csv has 2 joints but robot URDFRobot "
-                           r"\(.*cylindrical\.urdf\) has 3: theta1, d2, d3$"):
+    for role, args in (
+        ("data", [f"data={two}"]),
+        ("validate", [f"data={files['train']}", f"validate=[{two}]"]),
+    ):
+        with pytest.raises(
+            ValueError,
+            match=rf"^{role} file .*two_joints\.csv has 2 joints but robot URDFRobot "
+            r"\(.*cylindrical\.urdf\) has 3: theta1, d2, d3$",
+        ):
             command(*robot_args(files), *args, "estimator=ls", "~cost", out=tmp_path)
 
 
 def test_urdf_without_inertials_is_refused_by_pcls(files, tmp_path):
     bare = files["folder"] / "bare.urdf"
     bare.write_text(re.sub(r"<inertial>.*?</inertial>", "", ASSET.read_text(), flags=re.S))
-    args = ["robot=urdf", f"robot.urdf={bare}", "robot.friction=true", f"data={files['train']}", "estimator=pcls"]
+    args = [
+        "robot=urdf",
+        f"robot.urdf={bare}",
+        "robot.friction=true",
+        f"data={files['train']}",
+        "estimator=pcls",
+    ]
     with pytest.raises(ValueError, match=r"^urdf: link\(s\) 'link1', 'link2', 'link3' have no <inertial>"):
         command(*args, out=tmp_path)
 
 
 @pytest.mark.parametrize(
     ("status", "message"),
-    [("infeasible", r"^pcls: the constraints are infeasible"), ("solver_error", r"^pcls: the conic solver failed")],
+    [
+        ("infeasible", r"^pcls: the constraints are infeasible"),
+        ("solver_error", r"^pcls: the conic solver failed"),
+    ],
 )
 def test_infeasible_program_and_solver_failure_are_one_line(files, tmp_path, monkeypatch, status, message):
     cp = pytest.importorskip("cvxpy")
@@ -235,8 +267,13 @@ def test_infeasible_program_and_solver_failure_are_one_line(files, tmp_path, mon
 
 def test_identified_urdf_can_be_turned_off_and_other_robots_write_none(files, tmp_path):
     _, data = command(
-        *robot_args(files), f"data={files['train']}", "estimator=ls", "~cost", "identified_urdf=false",
-        "plots=false", out=tmp_path / "a",
+        *robot_args(files),
+        f"data={files['train']}",
+        "estimator=ls",
+        "~cost",
+        "identified_urdf=false",
+        "plots=false",
+        out=tmp_path / "a",
     )
     assert "identified_urdf" not in data["files"]
     result, data = command("estimator=ls", "~cost", "n_samples=30", "plots=false", out=tmp_path / "b")
@@ -247,17 +284,35 @@ def test_identified_urdf_can_be_turned_off_and_other_robots_write_none(files, tm
 def test_the_issue_command_as_a_subprocess(files, tmp_path):
     args = [*robot_args(files), f"data={files['train']}", f"validate=[{files['test']}]", "estimator=pcls"]
     out = subprocess.run(
-        [sys.executable, "-c", "from idkit.cli import main; main()", *args, f"hydra.run.dir={tmp_path / 'run'}"],
-        capture_output=True, text=True, timeout=300, cwd=tmp_path,
+        [
+            sys.executable,
+            "-c",
+            "from idkit.cli import main; main()",
+            *args,
+            f"hydra.run.dir={tmp_path / 'run'}",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
     )
     assert out.returncode == 0, out.stderr
     assert "held-out validation" in out.stdout and (tmp_path / "run" / "identified.urdf").is_file()
     data = json.loads((tmp_path / "run" / "result.json").read_text())
     assert data["payload"]["validation"][str(files["test"])]["rel_all"] < 0.01
     bad = subprocess.run(
-        [sys.executable, "-c", "from idkit.cli import main; main()", *args, "preprocess.cutoff=150",
-         f"hydra.run.dir={tmp_path / 'bad'}"],
-        capture_output=True, text=True, timeout=300, cwd=tmp_path,
+        [
+            sys.executable,
+            "-c",
+            "from idkit.cli import main; main()",
+            *args,
+            "preprocess.cutoff=150",
+            f"hydra.run.dir={tmp_path / 'bad'}",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
     )
     assert bad.returncode == 1
     assert re.search(r"^idkit: preprocess \(.*train\.csv\): cutoff 150 Hz is not below", bad.stderr, re.M)

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from idkit.reports import kuka as report
 from idkit.data.load import load_data_file
+from idkit.reports import kuka as report
 from idkit.studies.kuka import run, urdf_joint_data
 
 
@@ -94,7 +94,11 @@ def test_pcls_rows_are_consistent_and_generalise_better_than_ls(kuka_dir, tmp_pa
 @pytest.mark.kuka
 def test_idkit_filter_replaces_the_files_derivatives_on_request(kuka_dir):
     study = run(
-        kuka_dir, estimators=("ls",), models=((True, True),), test=("measurements_2",), stride=5,
+        kuka_dir,
+        estimators=("ls",),
+        models=((True, True),),
+        test=("measurements_2",),
+        stride=5,
         preprocess={"apply": "on", "cutoff": 5.0},
     )
     assert study.provenance.data["preprocess"]["cutoff"] == 5.0
