@@ -188,3 +188,42 @@ def stack_samples(parts: Sequence[Samples], labels: Sequence[str] | None = None)
     return Samples(
         *(torch.cat([getattr(p, k).to(device=device, dtype=dtype) for p in parts]) for k in SAMPLE_ARRAYS)
     )
+
+
+def save_recording(recording: Recording, path: str | Path, velocities: bool = False) -> Path:
+    """Write ``recording`` as a raw CSV (``t, q1..qn, tau1..taun`` and, with ``velocities``, ``qd1..``)
+    that :func:`load_recording` reads back; 17 significant digits round-trip float64."""
+    n = recording.n_joints
+    columns = [recording.t[:, None], recording.q, recording.tau]
+    header = ["t", *(f"q{j}" for j in range(1, n + 1)), *(f"tau{j}" for j in range(1, n + 1))]
+    if velocities:
+        if recording.qd is None:
+            raise ValueError(f"{recording.source}: no velocities to write")
+        columns.append(recording.qd)
+        header += [f"qd{j}" for j in range(1, n + 1)]
+    path = Path(path)
+    np.savetxt(path, np.hstack(columns), fmt="%.17g", delimiter=",", header=",".join(header), comments="")
+    return path
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """``python -m idkit.data.recording IN OUT.csv``: a recording (e.g. a FloBaRoID/KUKA ``.npz``) as a
+    raw CSV of timestamps, positions and torques — what a robot controller logs."""
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m idkit.data.recording", description=main.__doc__)
+    parser.add_argument("source", help=".npz or .csv recording (FloBaRoID array names are recognised)")
+    parser.add_argument("target", help="the raw .csv to write (t, q1.., tau1..)")
+    parser.add_argument("--velocities", action="store_true", help="also write the measured qd1..qdn")
+    args = parser.parse_args(argv)
+    keys = None
+    if Path(args.source).suffix.lower() == ".npz":
+        with np.load(args.source, allow_pickle=False) as data:
+            keys = FLOBAROID_RECORDING_KEYS if FLOBAROID_RECORDING_KEYS["t"] in data.files else None
+    recording = load_recording(args.source, keys=keys)
+    path = save_recording(recording, args.target, velocities=args.velocities)
+    print(f"{path}: {recording.t.size} samples, {recording.n_joints} joints")
+
+
+if __name__ == "__main__":
+    main()

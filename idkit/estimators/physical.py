@@ -79,6 +79,9 @@ NOISE_FLOOR = 1e-10
 #: coefficient ``fs`` may be negative (friction building up over ``v_s`` after a reversal) as long as
 #: the friction at low speed opposes the motion: ``fc + fs >= 0``.
 NONNEGATIVE_SUFFIXES = (".fc", ".fv")
+#: A solution whose pseudo-inertia eigenvalue is below ``-PSD_TOLERANCE × max|J|`` of its link is
+#: not consistent: an inaccurate solver status ended outside the cone (refused, not returned).
+PSD_TOLERANCE = 1e-6
 #: A CAD pseudo-inertia is lifted to ``J0 + eps λ_max(J0) 1`` when it is (nearly) singular, e.g. a
 #: thin rod or a point mass, so that the divergence to it is finite.
 PRIOR_REGULARISATION = 1e-6
@@ -236,10 +239,28 @@ def solve_consistent(
     params = torch.as_tensor(unit * z.value, dtype=torch.float64)
     inertials = params[: 10 * nb].reshape(nb, 10)
     jv = pseudo_inertia(inertials).numpy()
+    lowest = np.linalg.eigvalsh(jv)[:, 0]
+    outside = [
+        f"{name} ({value:.3g})"
+        for name, value, size in zip(robot.link_names, lowest, np.abs(jv).max((1, 2)), strict=True)
+        if value < -PSD_TOLERANCE * size
+    ]
+    if outside:
+        smallest = float(np.linalg.eigvalsh(j0)[:, 0].min())
+        hint = (
+            f"the CAD pseudo-inertias are near-singular (smallest eigenvalue {smallest:.3g}): lower "
+            "prior_weight or give the URDF's links non-degenerate inertias"
+            if prior_weight > 0
+            else "try the other solver (solver=clarabel or scs)"
+        )
+        raise IdentificationError(
+            f"{who}: {used} ended with status {status!r} outside the constraints: pseudo-inertia not "
+            f"positive semidefinite for {', '.join(outside)}; {hint}"
+        )
     residual = (R @ K @ params.numpy() - b) / scale
     return ConsistentSolution(
         params=params,
-        min_eigenvalues=torch.as_tensor(np.linalg.eigvalsh(jv)[:, 0]),
+        min_eigenvalues=torch.as_tensor(lowest),
         divergence=torch.as_tensor([_divergence(jv[i], j0[i]) for i in range(nb)]),
         data_term=float(residual @ residual),
         status=status,

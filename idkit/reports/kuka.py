@@ -13,7 +13,8 @@ from idkit.studies.kuka import CAD, KukaStudy, variant
 
 
 def text(study: KukaStudy) -> str:
-    """One table per recording: per joint ``RMS N·m (rel %)``, ``‖E‖/‖T‖``, ``NRMS/limit``."""
+    """One table per recording: per joint ``RMS N·m (rel %)``, ``‖E‖/‖T‖``, ``NRMS/limit`` and the
+    smallest pseudo-inertia eigenvalue over the links (how many links are negative)."""
     rows = study.rows
     if not rows:
         return "No model variant finished.\n"
@@ -22,23 +23,45 @@ def text(study: KukaStudy) -> str:
     lines = [
         f"Identified on `{study.train}` ({every}); RMS torque error per joint, N·m (in brackets: relative "
         "to the measured torque RMS of that joint); ‖E‖/‖T‖ over all joints; NRMS/limit normalised by "
-        "the URDF effort limits.",
+        "the URDF effort limits; min eig: the smallest pseudo-inertia eigenvalue over the links (in "
+        "brackets: links with a negative one, i.e. not physically consistent).",
         "",
     ]
     p = study.provenance
     if p.status == "partial":
         lines += [f"PARTIAL: {p.done} of {p.requested} model variants (interrupted).", ""]
-    header = ["model", "friction", "offset", *(f"j{j + 1}" for j in range(n)), "‖E‖/‖T‖", "NRMS/limit"]
+    joints = [f"j{j + 1}" for j in range(n)]
+    header = ["model", "friction", "offset", *joints, "‖E‖/‖T‖", "NRMS/limit", "min eig"]
     for rec in (*study.test, study.train):
         lines += [f"### {rec}" + (" (training data)" if rec == study.train else " (held out)"), ""]
         table: list[list[Any]] = []
         for r in (r for r in rows if r["recording"] == rec):
-            cells = [r["model"], "yes" if r["friction"] else "no", "yes" if r["offset"] else "no"]
+            cells = [r["model"], _friction(r), "yes" if r["offset"] else "no"]
             cells += [f"{r[f'rms_j{j + 1}']:.3f} ({100 * r[f'rel_j{j + 1}']:.0f} %)" for j in range(n)]
-            cells += [f"{100 * r['rel_all']:.2f} %", f"{100 * r['nrms_limit']:.3f} %"]
+            cells += [f"{100 * r['rel_all']:.2f} %", _percent(r["nrms_limit"]), _eigenvalue(r)]
             table.append(cells)
-        lines += [markdown_table(header, table, align="lll" + "r" * (n + 2)), ""]
+        lines += [markdown_table(header, table, align="lll" + "r" * (n + 3)), ""]
     return "\n".join(lines)
+
+
+def _variant(row: dict[str, Any]) -> str:
+    return variant(row["model"], row["friction"], row["offset"], row.get("stribeck"))
+
+
+def _friction(row: dict[str, Any]) -> str:
+    if not row["friction"]:
+        return "no"
+    return f"yes + low-speed ({row['stribeck']:g} rad/s)" if row.get("stribeck") else "yes"
+
+
+def _percent(value: float | None) -> str:
+    return "–" if value is None else f"{100 * value:.3f} %"
+
+
+def _eigenvalue(row: dict[str, Any]) -> str:
+    if row.get("min_eig") is None:
+        return "–"
+    return f"{row['min_eig']:.1e} ({row['links_negative']})"
 
 
 def _plot(study: KukaStudy, path: Path) -> Path | None:
@@ -47,13 +70,13 @@ def _plot(study: KukaStudy, path: Path) -> Path | None:
     if traces is None or not traces.predicted:
         return None
     scored = [r for r in study.rows if r["recording"] == traces.recording]
-    scored = [r for r in scored if variant(r["model"], r["friction"], r["offset"]) in traces.predicted]
+    scored = [r for r in scored if _variant(r) in traces.predicted]
     best = sorted(scored, key=lambda r: r["rel_all"])
     cad = next((r for r in best if r["model"] == CAD), None)
     fitted = [r for r in best if r["model"] != CAD]
     rigid = next((r for r in fitted if not r["friction"]), None)
     chosen = [r for r in (cad, rigid, *fitted[:1]) if r is not None]
-    labelled = [variant(r["model"], r["friction"], r["offset"]) for r in chosen]
+    labelled = [_variant(r) for r in chosen]
     predicted = {key: traces.predicted[key] for key in labelled}
     return figures.traces(
         traces.times, traces.measured, predicted, f"KUKA LWR4+ held-out torques, {traces.recording}", path

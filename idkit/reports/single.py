@@ -1,4 +1,10 @@
-"""The ``single`` task's report: a text table, ``result.json``, ``history.csv`` and plots."""
+"""The ``single`` task's report: a text table, ``result.json``, ``history.csv``, plots, ``identified.urdf``.
+
+The table lists the estimate; for least-squares-type fits (``details["uncertainty"]``) each base
+parameter's relative standard deviation, the regressor's rank and condition number and the
+combinations the data cannot identify; with ``validate=`` files, their per-joint RMS errors and
+``‖E‖/‖T‖``.
+"""
 
 from __future__ import annotations
 
@@ -7,13 +13,19 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from idkit.estimate import HistoryError, history_table
 from idkit.reports import files
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
-from idkit.studies.single import RunResult
+from idkit.studies.single import HeldOut, RunResult
 
 HISTORY_FILE = "history.csv"
+URDF_FILE = "identified.urdf"
+#: Held-out torque plots show the first this many seconds (files with timestamps) or samples.
+PLOT_SECONDS = 20.0
+PLOT_SAMPLES = 2000
 
 
 def _source(data: Mapping[str, Any] | None) -> Any:
@@ -40,7 +52,48 @@ def text(result: RunResult) -> str:
     if result.parameter_error is not None:
         tail += f" · mean |rel. error| {100 * result.parameter_error:.2f} %"
     lines.append(tail)
+    lines += _uncertainty_lines(est.details.get("uncertainty"), est.base_params or {})
+    lines += _validation_lines(result)
     return "\n".join(lines)
+
+
+def _uncertainty_lines(uncertainty: Mapping[str, Any] | None, base: Mapping[str, float]) -> list[str]:
+    """Base parameters with their relative standard deviation, rank, condition, unidentifiable part."""
+    if not uncertainty:
+        return []
+    rel = uncertainty.get("std_rel_pct") or {}
+    lines = ["", f"{'base parameter':<24}{'estimate':>12}{'std':>12}"]
+    for name, pct in rel.items():
+        value = base.get(name)
+        shown = "" if value is None else f"{value:12.5g}"
+        lines.append(f"{name:<24}{shown:>12}{_percent(pct):>12}")
+    cond = uncertainty.get("cond", float("nan"))
+    lines.append(f"regressor rank {uncertainty.get('rank')} · condition number {cond:.3g}")
+    unidentifiable = uncertainty.get("unidentifiable") or []
+    lines.append("unidentifiable: " + ("; ".join(unidentifiable) if unidentifiable else "none"))
+    return lines
+
+
+def _percent(value: Any) -> str:
+    if value is None or not isinstance(value, (int, float)) or value != value:
+        return "n/a"
+    return "inf" if value == float("inf") else f"{value:.3g} %"
+
+
+def _validation_lines(result: RunResult) -> list[str]:
+    if not result.validation:
+        return []
+    n = len(result.validation[0].scores.rms)
+    lines = ["", "held-out validation: RMS torque error per joint, ‖E‖/‖T‖ over all joints"]
+    lines.append(f"{'file':<32}" + "".join(f"{'j' + str(j + 1):>9}" for j in range(n)) + f"{'‖E‖/‖T‖':>10}")
+    for held in result.validation:
+        cells = "".join(f"{v:9.3g}" for v in held.scores.rms)
+        lines.append(f"{_short(held.file):<32}{cells}{100 * held.scores.rel_all:9.2f} %")
+    return lines
+
+
+def _short(path: str, width: int = 31) -> str:
+    return path if len(path) <= width else "…" + path[-(width - 1) :]
 
 
 def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[str, str]:
@@ -72,4 +125,23 @@ def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[st
                 path=out / "estimate.png",
             )
         )
+    if result.urdf is not None:
+        written["identified_urdf"] = str(files.write_text(out / URDF_FILE, result.urdf))
+    if plots:
+        for k, held in enumerate(result.validation):
+            path = out / f"validation_{k + 1}.png"
+            written[f"validation_plot_{k + 1}"] = str(_validation_plot(label, held, path))
     return write_result(out, result.provenance, result.payload(), written)
+
+
+def _validation_plot(label: str, held: HeldOut, path: Path) -> Path:
+    """Measured vs predicted torques on the start of a held-out file (x: time, else sample index)."""
+    scores = held.scores
+    if held.times is not None:
+        times = held.times
+        keep = times - times[0] <= PLOT_SECONDS
+    else:
+        times = np.arange(scores.measured.shape[0], dtype=np.float64)
+        keep = times < PLOT_SAMPLES
+    title = f"{label}: held-out {held.file} (‖E‖/‖T‖ {100 * scores.rel_all:.2f} %)"
+    return figures.traces(times[keep], scores.measured[keep], {label: scores.predicted[keep]}, title, path)

@@ -8,12 +8,18 @@ real robot, so the only honest score is prediction: identify on ``measurements_1
 ``measurements_2`` and ``measurements_3``, the RMS torque error per joint (N·m) and relative to the
 RMS of the measured torque, for the a-priori CAD model and for every estimator and model variant.
 
-Model variants (``models``: ``(friction, offset)`` pairs of ``URDFRobot``): the rigid body alone, plus
-Coulomb + viscous friction per joint (the paper's eq. (1) terms), plus a constant torque offset per
-joint (torque-sensor bias). The CAD rows use the URDF's inertial values; with friction, also the
-URDF's ``<dynamics friction= damping=>`` values as Coulomb and viscous coefficients.
+Model variants (``models``: ``(friction, offset)`` or ``(friction, offset, stribeck_velocity)`` of
+``URDFRobot``): the rigid body alone, plus Coulomb + viscous friction per joint (the paper's eq. (1)
+terms), plus a constant torque offset per joint (torque-sensor bias), plus the low-speed friction
+term ``fs exp(-(qd/v_s)²) sign(qd)``. The CAD rows use the URDF's inertial values; with friction, also
+the URDF's ``<dynamics friction= damping=>`` values as Coulomb and viscous coefficients. Every row
+carries the smallest pseudo-inertia eigenvalue over the links (``min_eig``, ``< 0``: not physically
+consistent) and how many links are negative.
 
-Metrics (per recording; ``E = measured − predicted`` over ``N`` samples and ``n = 7`` joints):
+The recordings are read by :func:`idkit.data.load.load_data_file` (the files' own derivatives by
+default; ``preprocess={apply: on, ...}`` recomputes them with idkit's filter) and scored by
+:func:`idkit.studies.validation.validate`. Metrics (per recording; ``E = measured − predicted`` over
+``N`` samples and ``n = 7`` joints):
 
 * ``rms_j`` = ``sqrt(mean_t E_tj²)`` (N·m) and ``rel_j = rms_j / sqrt(mean_t τ_tj²)``;
 * ``rel_all = ‖E‖_F / ‖T‖_F``, dominated by the big joints 2 and 4 (≈ 25 and 11 N·m RMS);
@@ -42,12 +48,14 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.data.io import FLOBAROID_KEYS, load_samples
+from idkit.estimators.physical import min_pseudo_inertia_eigenvalues
 from idkit.problem import Problem, Samples
 from idkit.robots.urdf import URDFRobot
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.labels import searches_cost, unique_labels
+from idkit.studies.recordings import DataFile, load_files, preprocess_options
 from idkit.studies.result import Provenance, StudyInterrupted
+from idkit.studies.validation import Validation, score, validate
 
 URDF_NAME = "kuka_lwr4.urdf"
 #: The estimators run by default: the linear family (RLS in closed form; the cvxpy SOCP has the
@@ -61,30 +69,26 @@ DEFAULT_ESTIMATORS: tuple[Spec, ...] = (
     {"_name_": "rls", "solver": "closed_form"},
     {"_name_": "pso", "runs": 4, "history": False},
     {"_name_": "adam", "starts": 4, "history": False},
+    "pcls",
+    {"_name_": "pcls", "prior_weight": 300.0},
 )
-DEFAULT_MODELS: tuple[tuple[bool, bool], ...] = ((False, False), (True, False), (True, True))
+DEFAULT_MODELS: tuple[tuple[Any, ...], ...] = (
+    (False, False),
+    (True, False),
+    (True, True),
+    (True, True, 0.05),
+)
 #: Two recordings "follow the same trajectory" when their positions agree sample by sample to this (rad).
 REPEAT_TOLERANCE = 0.01
 CAD = "CAD"
 
 
-def load_recording(path: Path, stride: int = 1) -> tuple[Samples, np.ndarray]:
-    """One FloBaRoID recording: ``Samples`` through ``load_samples`` and its ``times[N]`` from 0 (s)."""
-    samples = load_samples(path, keys=FLOBAROID_KEYS, stride=stride)
-    with np.load(path, allow_pickle=False) as data:
-        if "times" not in data.files:
-            raise ValueError(f"{path}: no 'times' array (has {sorted(data.files)})")
-        times = np.asarray(data["times"][::stride], dtype=np.float64)
-    return samples, times - times[0]
-
-
 def urdf_joint_data(urdf: Path, joint_names: Sequence[str]) -> dict[str, np.ndarray]:
-    """Per joint (in ``joint_names`` order): ``effort`` limit, CAD ``coulomb`` and ``viscous`` friction."""
+    """Per joint (in ``joint_names`` order): CAD ``coulomb`` and ``viscous`` friction."""
     joints = {j.get("name"): j for j in ET.parse(urdf).getroot().findall("joint")}
-    out: dict[str, list[float]] = {"effort": [], "coulomb": [], "viscous": []}
+    out: dict[str, list[float]] = {"coulomb": [], "viscous": []}
     for name in joint_names:
-        limit, dynamics = joints[name].find("limit"), joints[name].find("dynamics")
-        out["effort"].append(float(limit.get("effort", "nan")) if limit is not None else float("nan"))
+        dynamics = joints[name].find("dynamics")
         out["coulomb"].append(float(dynamics.get("friction", 0.0)) if dynamics is not None else 0.0)
         out["viscous"].append(float(dynamics.get("damping", 0.0)) if dynamics is not None else 0.0)
     return {k: np.array(v) for k, v in out.items()}
@@ -101,16 +105,20 @@ def cad_params(robot: URDFRobot, joint_data: dict[str, np.ndarray]) -> Tensor:
     return params
 
 
-def torque_metrics(measured: Tensor, predicted: Tensor, effort: np.ndarray) -> dict[str, float]:
-    """RMS error per joint (N·m), relative per joint, ``rel_all`` and ``nrms_limit`` (module doc)."""
-    error = (measured - predicted).double()
-    rms = error.square().mean(0).sqrt()
-    scale = measured.double().square().mean(0).sqrt()
-    out = {f"rms_j{j + 1}": float(v) for j, v in enumerate(rms)}
-    out.update({f"rel_j{j + 1}": float(v) for j, v in enumerate(rms / scale)})
-    out["rel_all"] = float(error.norm() / measured.double().norm())
-    out["nrms_limit"] = float((error / torch.as_tensor(effort, dtype=error.dtype)).square().mean().sqrt())
+def scores(validation: Validation) -> dict[str, float | None]:
+    """A row's metrics: ``rms_j*`` (N·m), ``rel_j*``, ``rel_all``, ``nrms_limit`` (module doc)."""
+    out: dict[str, float | None] = {f"rms_j{j + 1}": float(v) for j, v in enumerate(validation.rms)}
+    out.update({f"rel_j{j + 1}": float(v) for j, v in enumerate(validation.relative)})
+    out["rel_all"] = validation.rel_all
+    out["nrms_limit"] = validation.nrms_limit
     return out
+
+
+def consistency(robot: URDFRobot, params: Tensor) -> dict[str, float | int]:
+    """``min_eig``: the smallest pseudo-inertia eigenvalue over the links; ``links_negative``: how many
+    links have a negative one (``-1e-10`` allows the solver's zero where an LMI is active)."""
+    eigenvalues = min_pseudo_inertia_eigenvalues(robot, params)
+    return {"min_eig": float(eigenvalues.min()), "links_negative": int((eigenvalues < -1e-10).sum())}
 
 
 def data_check(samples: Samples, times: np.ndarray) -> dict[str, float]:
@@ -132,9 +140,10 @@ def data_check(samples: Samples, times: np.ndarray) -> dict[str, float]:
     }
 
 
-def variant(label: str, friction: bool, offset: bool) -> str:
+def variant(label: str, friction: bool, offset: bool, stribeck: float | None = None) -> str:
     """``"LS + friction + offset"``: an estimator label with its model variant."""
-    return label + (" + friction" if friction else "") + (" + offset" if offset else "")
+    low_speed = f" + low-speed friction ({stribeck:g} rad/s)" if stribeck else ""
+    return label + (" + friction" if friction else "") + low_speed + (" + offset" if offset else "")
 
 
 @dataclass
@@ -153,8 +162,9 @@ class KukaStudy:
 
     Attributes:
         rows: one per (model, variant, recording): ``model`` (``"CAD"`` or the estimator label),
-            ``friction``, ``offset``, ``recording``, ``split`` (``"train"``/``"test"``),
-            ``fit_time_s`` and the metrics of :func:`torque_metrics`.
+            ``friction``, ``offset``, ``stribeck`` (velocity scale or ``None``), ``recording``,
+            ``split`` (``"train"``/``"test"``), ``fit_time_s``, the metrics of :func:`scores` and
+            :func:`consistency`.
         estimates: per fit, the model variant and the ``Estimate`` as a dict.
         data_check: per recording, :func:`data_check`.
         traces: the first held-out recording's torques (``None`` without a test recording).
@@ -182,15 +192,15 @@ class KukaStudy:
 
 
 def _repeat_rows(
-    recordings: dict[str, tuple[Samples, np.ndarray]], train: str, test: Sequence[str], effort: np.ndarray
+    recordings: dict[str, DataFile], train: str, test: Sequence[str], robot: URDFRobot
 ) -> list[dict[str, Any]]:
     """Rows scoring a test recording's torques against the training torques where both follow the
     same trajectory (same length, positions within ``REPEAT_TOLERANCE``): the repeatability floor
     that no model of the joint states alone can be expected to beat."""
-    reference = recordings[train][0]
+    reference = recordings[train].samples
     rows = []
     for name in test:
-        samples = recordings[name][0]
+        samples = recordings[name].samples
         same_shape = samples.q.shape == reference.q.shape
         if same_shape and float((samples.q - reference.q).abs().max()) < REPEAT_TOLERANCE:
             rows.append(
@@ -198,25 +208,41 @@ def _repeat_rows(
                     "model": f"{train} torques (same trajectory)",
                     "friction": False,
                     "offset": False,
+                    "stribeck": None,
                     "recording": name,
                     "split": "test",
                     "fit_time_s": 0.0,
-                    **torque_metrics(samples.tau, reference.tau, effort),
+                    **scores(score(samples.tau.numpy(), reference.tau.numpy(), robot.effort_limits)),
+                    "min_eig": None,
+                    "links_negative": None,
                 }
             )
     return rows
+
+
+def _model(spec: Sequence[Any]) -> tuple[bool, bool, float | None]:
+    """``(friction, offset, stribeck_velocity)`` of a ``models`` entry (two or three values)."""
+    if len(spec) not in (2, 3):
+        raise ValueError(
+            f"kuka.models: each entry is [friction, offset] or [friction, offset, v_s], got {spec}"
+        )
+    stribeck = float(spec[2]) if len(spec) == 3 and spec[2] is not None else None
+    if stribeck is not None and not spec[0]:
+        raise ValueError(f"kuka.models: the low-speed friction term ({spec}) needs friction=true")
+    return bool(spec[0]), bool(spec[1]), stribeck
 
 
 def run(
     data_dir: str | Path,
     *,
     estimators: Sequence[Spec] = DEFAULT_ESTIMATORS,
-    models: Sequence[Sequence[bool]] = DEFAULT_MODELS,
+    models: Sequence[Sequence[Any]] = DEFAULT_MODELS,
     train: str = "measurements_1",
     test: Sequence[str] = ("measurements_2", "measurements_3"),
     stride: int = 1,
     search_cost: Spec = "f1",
     plot_window: Sequence[float] = (10.0, 25.0),
+    preprocess: Any = None,
     seed: int = 0,
     device: str = "cpu",
     dtype: str = "float64",
@@ -226,13 +252,16 @@ def run(
     Args:
         data_dir: folder with ``measurements_*.npz`` and ``kuka_lwr4.urdf``.
         estimators: estimator specs (``"ls"``, ``{"_name_": "pso", "runs": 4}``, ...).
-        models: ``(friction, offset)`` variants of ``URDFRobot``.
+        models: ``(friction, offset)`` or ``(friction, offset, stribeck_velocity)`` of ``URDFRobot``.
         train, test: recording names (without ``.npz``).
         stride: keep every ``stride``-th sample of every recording, for identification and scores
             (1 = all 5,027; the data check always reads every sample).
         search_cost: the cost PSO and Adam minimise (the linear family minimises its own criterion
             and reports this cost at its estimate).
         plot_window: seconds of the first test recording kept for the plot.
+        preprocess: the ``preprocess`` options (:mod:`idkit.studies.recordings`); the default
+            (``auto``) keeps the files' own velocities and accelerations, ``apply: on`` recomputes
+            them from the positions with idkit's filter.
         seed, device, dtype: of the identification ``Problem``.
 
     Raises:
@@ -245,38 +274,45 @@ def run(
             f"KUKA URDF not found: {urdf.resolve()}; set kuka.data_dir=... or IDKIT_KUKA_DIR to the folder "
             "with the FloBaRoID recordings"
         )
-    files = {name: data_dir / f"{name}.npz" for name in (train, *test)}
-    recordings = {name: load_recording(path, stride) for name, path in files.items()}
+    variants = [_model(spec) for spec in models]
+    names = (train, *test)
+    rigid = URDFRobot(str(urdf))
+    loaded = load_files(rigid, [data_dir / f"{name}.npz" for name in names], preprocess, stride=stride)
+    recordings = dict(zip(names, loaded, strict=True))
+    as_recorded = load_files(rigid, [data_dir / f"{name}.npz" for name in names], {"apply": "off"})
+    checks = {name: data_check(f.samples, f.times) for name, f in zip(names, as_recorded, strict=True)}
     est_objs = [build("estimator", spec) for spec in estimators]
     labels = unique_labels(
         [(spec, search_cost, searches_cost(obj)) for spec, obj in zip(estimators, est_objs, strict=True)],
         where="kuka",
     )
     cost = build("cost", search_cost)
+    data = {"dir": str(data_dir), "train": train, "test": list(test), "stride": stride}
+    if any(f.preprocessed for f in loaded):
+        data["preprocess"] = vars(preprocess_options(preprocess)[0])
     provenance = Provenance(
         task="kuka",
         label="kuka held-out torques",
         seed=seed,
-        data={"dir": str(data_dir), "train": train, "test": list(test), "stride": stride},
+        data=data,
         plugins={
             "robot": describe("robot", {"_name_": "urdf", "urdf": str(urdf)}),
             "cost": describe("cost", search_cost),
         },
-        requested=len(models),
+        requested=len(variants),
         done=0,
         unit="model variant",
     )
     rows: list[dict[str, Any]] = []
     estimates: list[dict[str, Any]] = []
     shown = recordings[test[0]] if test else None
-    keep = None if shown is None else (shown[1] >= plot_window[0]) & (shown[1] <= plot_window[1])
-    traces = None if shown is None else Traces(test[0], shown[1][keep], shown[0].tau[keep].numpy(), {})
-    joint_data: dict[str, np.ndarray] = {}
-    checks = {name: data_check(*load_recording(path)) for name, path in files.items()}
+    traces, keep = None, None
+    if shown is not None and shown.times is not None:
+        keep = (shown.times >= plot_window[0]) & (shown.times <= plot_window[1])
+        traces = Traces(test[0], shown.times[keep], shown.samples.tau[keep].numpy(), {})
 
     def result() -> KukaStudy:
-        effort = joint_data.get("effort")
-        repeats = [] if effort is None else _repeat_rows(recordings, train, test, effort)
+        repeats = _repeat_rows(recordings, train, test, rigid) if rows else []
         return KukaStudy(
             provenance,
             train,
@@ -290,39 +326,37 @@ def run(
         )
 
     try:
-        for friction, offset in models:
-            robot = URDFRobot(str(urdf), friction=bool(friction), offset=bool(offset))
-            joint_data = urdf_joint_data(urdf, robot.joint_names)
+        for friction, offset, stribeck in variants:
+            robot = URDFRobot(str(urdf), friction=friction, offset=offset, stribeck_velocity=stribeck)
+            model = {"friction": friction, "offset": offset, "stribeck": stribeck}
             fits: list[tuple[str, Tensor, float]] = []
-            if not offset:  # the CAD model has no offset; its friction is the URDF's
-                fits.append((CAD, cad_params(robot, joint_data), 0.0))
-            problem = Problem(robot, recordings[train][0], cost, seed=seed, device=device, dtype=dtype)
+            if not offset and stribeck is None:  # the CAD model has no offset; its friction is the URDF's
+                fits.append((CAD, cad_params(robot, urdf_joint_data(urdf, robot.joint_names)), 0.0))
+            problem = Problem(robot, recordings[train].samples, cost, seed=seed, device=device, dtype=dtype)
             for label, estimator in zip(labels, est_objs, strict=True):
                 started = time.perf_counter()
                 estimate = replace(estimator.fit(problem), estimator=label)
                 elapsed = time.perf_counter() - started
                 params = torch.tensor([estimate.params[p] for p in robot.param_names], dtype=torch.float64)
                 fits.append((label, params, elapsed))
-                estimates.append(
-                    {"model": label, "friction": friction, "offset": offset, "estimate": estimate.to_dict()}
-                )
+                estimates.append({"model": label, **model, "estimate": estimate.to_dict()})
             for label, params, elapsed in fits:
-                for name, (samples, _) in recordings.items():
-                    with torch.no_grad():
-                        predicted = robot.inverse_dynamics(params, samples.q, samples.qd, samples.qdd)
+                physical = consistency(robot, params)
+                for name, recording in recordings.items():
+                    scored = validate(robot, recording.samples, params)
                     rows.append(
                         {
                             "model": label,
-                            "friction": friction,
-                            "offset": offset,
+                            **model,
                             "recording": name,
                             "split": "train" if name == train else "test",
                             "fit_time_s": elapsed,
-                            **torque_metrics(samples.tau, predicted, joint_data["effort"]),
+                            **scores(scored),
+                            **physical,
                         }
                     )
                     if traces is not None and name == traces.recording:
-                        traces.predicted[variant(label, friction, offset)] = predicted[keep].numpy()
+                        traces.predicted[variant(label, friction, offset, stribeck)] = scored.predicted[keep]
             provenance.done += 1
     except KeyboardInterrupt:
         raise StudyInterrupted(result()) from None

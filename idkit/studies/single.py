@@ -8,21 +8,39 @@ n_samples=40, ...)``. From Python, ``idkit.run(...)`` calls it and writes the re
     result = idkit.run(estimator="pso", cost="f13", scenario="outliers", seed=0)
     print(result.table())
     result.estimate.params            # {"m2": ..., "m3": ..., "s3z": ..., "I": ...}
+
+Measured data: ``data=`` is one file or a list (stacked for training), ``validate=`` lists held-out
+files the identified model is scored on (:mod:`idkit.studies.validation`), ``preprocess`` says how raw
+recordings become samples (:mod:`idkit.studies.recordings`). A fit of a ``urdf`` robot also carries
+its ``identified.urdf`` text (``identified_urdf=False`` to skip), which the report writes.
 """
 
 from __future__ import annotations
 
-import os
+import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from idkit.estimate import Estimate
 from idkit.studies.build import Spec, build, describe, plain
 from idkit.studies.labels import cost_label, estimator_label, searches_cost
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
+from idkit.studies.recordings import DataFile, as_paths, load_files, preprocess_options
 from idkit.studies.result import Provenance
+from idkit.studies.validation import Validation, validate_files
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """The identified model's scores on one ``validate=`` file, with its ``times[N]`` for the plot."""
+
+    file: str
+    scores: Validation
+    times: np.ndarray | None
 
 
 @dataclass
@@ -35,12 +53,17 @@ class RunResult:
         cost_name: which cost ``estimate.cost`` is: the problem's cost (``f13``) or, without one,
             the estimator's own criterion (``LS criterion``).
         provenance: the envelope (task, seed, data, plugins, config, run id).
+        validation: scores on the ``validate=`` files, in their order.
+        urdf: the ``identified.urdf`` text of a ``urdf`` robot's fit (``None``: other robots, turned
+            off, or not writable, e.g. a link mass <= 0).
     """
 
     estimate: Estimate
     truth: dict[str, float] | None
     cost_name: str
     provenance: Provenance
+    validation: list[HeldOut] = field(default_factory=list)
+    urdf: str | None = None
 
     @property
     def seed(self) -> int:
@@ -73,6 +96,7 @@ class RunResult:
             "relative_error": self.relative_error,
             "parameter_error": self.parameter_error,
             "cost": {"name": self.cost_name, "value": self.estimate.cost},
+            "validation": {held.file: held.scores.to_dict() for held in self.validation},
         }
 
     # Conveniences for Python users; the formatting lives in idkit.reports.single.
@@ -97,6 +121,24 @@ def _scenario_spec(scenario: Any) -> Any:
     return scenario
 
 
+def _describe_files(
+    files: list[DataFile], preprocess: Any, source: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """``result.json``'s ``data``: ``{"file": path}`` or ``{"files": [...]}`` for training files (no
+    ``source``), or ``source`` plus ``validate`` files; and the preprocessing options with the files
+    they were applied to."""
+    paths = [f.path for f in files]
+    if source is None:
+        out: dict[str, Any] = {"file": paths[0]} if len(paths) == 1 else {"files": paths}
+    else:
+        out = {**source, "validate": paths}
+    processed = [*(out.get("preprocess") or {}).get("files", []), *(f.path for f in files if f.preprocessed)]
+    if processed:
+        options, _ = preprocess_options(preprocess)
+        out["preprocess"] = {"files": processed, **vars(options)}
+    return out
+
+
 def load_data(
     robot: Any,
     scenario: Any = None,
@@ -105,29 +147,28 @@ def load_data(
     data: Any = None,
     n_samples: int | None = None,
     params: Any = None,
+    preprocess: Any = None,
 ) -> tuple[Any, dict[str, float] | None, dict[str, Any]]:
-    """``(samples, truth, description)``: measured ``data`` (a path or ``Samples``) or a simulation.
+    """``(samples, truth, description)``: measured ``data`` (path(s) or ``Samples``) or a simulation.
 
     Raises:
-        ValueError: both ``scenario`` and ``data`` given (which one was meant?), or ``n_samples``
-            with ``data`` (a file has the samples it has).
+        ValueError: both ``scenario`` and ``data`` given (which one was meant?), ``n_samples``
+            with ``data`` (a file has the samples it has), or a file the robot cannot use.
     """
-    from idkit.problem import Samples
-
     if data is not None:
         if scenario is not None:
+            shown = [p if isinstance(p, (str, Path)) else type(p).__name__ for p in as_paths(data)]
             raise ValueError(
                 f"give either data= (measured samples) or scenario= (a simulation), not both: "
-                f"data={os.fspath(data) if not isinstance(data, Samples) else 'Samples'}, "
-                f"scenario={_scenario_spec(scenario)}"
+                f"data={shown[0] if len(shown) == 1 else shown}, scenario={_scenario_spec(scenario)}"
             )
         if n_samples is not None:
             raise ValueError(f"n_samples={n_samples} applies to a simulated scenario, not to data=")
-        if isinstance(data, Samples):
-            return data, None, {"file": None}
-        from idkit.data.io import load_samples
+        from idkit.data.recording import stack_samples
 
-        return load_samples(os.fspath(data)), None, {"file": os.fspath(data)}
+        files = load_files(robot, data, preprocess, role="data")
+        samples = stack_samples([f.samples for f in files], [f.path for f in files])
+        return samples, None, _describe_files(files, preprocess)
     import torch
 
     from idkit.data.scenarios import get_scenario, simulate
@@ -137,6 +178,20 @@ def load_data(
     true = torch.as_tensor(params, dtype=torch.float64) if params is not None else robot.nominal_params()
     truth = dict(zip(robot.param_names, true.tolist(), strict=True))
     return samples, truth, {"scenario": sc.as_dict()}
+
+
+def _identified_urdf(robot: Any, params: dict[str, float]) -> str | None:
+    """The ``identified.urdf`` text of a ``urdf`` robot's fit; ``None`` (with a warning) if unwritable."""
+    from idkit.robots.urdf import URDFRobot
+    from idkit.robots.urdf_export import identified_urdf
+
+    if not isinstance(robot, URDFRobot):
+        return None
+    try:
+        return identified_urdf(robot, params)
+    except ValueError as exc:
+        warnings.warn(f"identified.urdf not written: {exc}", stacklevel=3)
+        return None
 
 
 def run(
@@ -149,6 +204,9 @@ def run(
     data: Any = None,
     n_samples: int | None = None,
     params: Any = None,
+    validate: Any = None,
+    preprocess: Any = None,
+    identified_urdf: bool = True,
     device: str = "cpu",
     dtype: str = "float64",
 ) -> RunResult:
@@ -161,17 +219,25 @@ def run(
         scenario: noise scenario name, ``Scenario`` or mapping (``idkit.data.scenarios``);
             ``None`` means ``"clean"`` unless ``data`` is given. Not together with ``data``.
         seed: seeds the noise draw and the estimator.
-        data: measured samples instead of a simulation: a ``.npz``/``.csv`` path or ``Samples``.
+        data: measured samples instead of a simulation: a ``.npz``/``.csv`` path, ``Samples``, or a
+            list of them (stacked for training; each must have the robot's joints).
         n_samples: the scenario's number of samples (``None``: the scenario's own).
         params: true parameters ``[P]`` to simulate with (default ``robot.nominal_params()``).
+        validate: held-out files (or ``Samples``) the identified model is scored on.
+        preprocess: how raw recordings become samples: ``PreprocessOptions`` fields plus ``apply``
+            (``auto``: raw recordings only; ``on``; ``off``), applied to every data and validate file.
+        identified_urdf: for a ``urdf`` robot, also produce ``identified.urdf`` (the report writes it).
         device, dtype: where and in which precision the estimator computes.
     """
     from idkit.problem import Problem
 
     robot_obj = build("robot", robot)
     samples, truth, source = load_data(
-        robot_obj, scenario, seed=seed, data=data, n_samples=n_samples, params=params
+        robot_obj, scenario, seed=seed, data=data, n_samples=n_samples, params=params, preprocess=preprocess
     )
+    held_out = [] if validate is None else load_files(robot_obj, validate, preprocess, role="validate")
+    if held_out:
+        source = _describe_files(held_out, preprocess, source)
     cost_obj = build("cost", cost)
     estimator_obj = build("estimator", estimator)
     problem = Problem(robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype)
@@ -189,4 +255,12 @@ def run(
             for kind, spec in (("robot", robot), ("estimator", estimator), ("cost", cost))
         },
     )
-    return RunResult(replace(fitted, estimator=label), truth, cost_name, provenance)
+    scores = validate_files(robot_obj, fitted.params, [f.samples for f in held_out])
+    return RunResult(
+        replace(fitted, estimator=label),
+        truth,
+        cost_name,
+        provenance,
+        [HeldOut(f.path, s, f.times) for f, s in zip(held_out, scores, strict=True)],
+        _identified_urdf(robot_obj, fitted.params) if identified_urdf else None,
+    )

@@ -14,7 +14,9 @@ Pure computation: no files, no text.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -43,6 +45,16 @@ class Validation:
     relative: np.ndarray
     rel_all: float
     nrms_limit: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scores for ``result.json`` (per-joint lists in robot order; no torque traces)."""
+        return {
+            "samples": int(self.measured.shape[0]),
+            "rms": self.rms.tolist(),
+            "relative": self.relative.tolist(),
+            "rel_all": self.rel_all,
+            "nrms_limit": self.nrms_limit,
+        }
 
 
 def effort_limits(robot: Robot) -> np.ndarray | None:
@@ -91,14 +103,22 @@ def validate(
         effort: effort limits ``[n]`` for ``nrms_limit``; ``None`` = the robot's, if it declares them.
     """
     predicted = predict(robot, samples, params, base_params).detach().cpu().double().numpy()
-    measured = samples.tau.detach().cpu().double().numpy()
+    effort = effort_limits(robot) if effort is None else effort
+    return score(samples.tau.detach().cpu().double().numpy(), predicted, effort)
+
+
+def score(measured: np.ndarray, predicted: np.ndarray, effort: np.ndarray | None = None) -> Validation:
+    """The metrics of the module doc for measured and predicted torques ``[N, n]`` (any source of the
+    prediction, e.g. another recording's torques replayed); ``effort[n]`` for ``nrms_limit``."""
+    measured, predicted = np.asarray(measured, dtype=np.float64), np.asarray(predicted, dtype=np.float64)
     error = measured - predicted
     rms = np.sqrt((error**2).mean(0))
     scale = np.sqrt((measured**2).mean(0))
-    effort = effort_limits(robot) if effort is None else np.asarray(effort, dtype=np.float64)
     nrms = None
-    if effort is not None and np.isfinite(effort).all() and (effort > 0).all():
-        nrms = float(np.sqrt(((error / effort) ** 2).mean()))
+    if effort is not None:
+        effort = np.asarray(effort, dtype=np.float64)
+        if np.isfinite(effort).all() and (effort > 0).all():
+            nrms = float(np.sqrt(((error / effort) ** 2).mean()))
     return Validation(
         predicted=predicted,
         measured=measured,
@@ -107,3 +127,11 @@ def validate(
         rel_all=float(np.linalg.norm(error) / np.linalg.norm(measured)),
         nrms_limit=nrms,
     )
+
+
+def validate_files(
+    robot: Robot, params: Mapping[str, float], held_out: Sequence[Samples]
+) -> list[Validation]:
+    """:func:`validate` of an estimate's parameter map (``Estimate.params``) on each held-out recording."""
+    vector = torch.tensor([float(params[name]) for name in robot.param_names], dtype=torch.float64)
+    return [validate(robot, samples, vector) for samples in held_out]

@@ -174,6 +174,26 @@ def test_solver_failure_is_one_line(monkeypatch):
         nearest_consistent(robot, true_params(robot))
 
 
+def test_an_inaccurate_solution_outside_the_cone_is_refused(monkeypatch):
+    """A solver that stops 'optimal_inaccurate' with a negative pseudo-inertia eigenvalue (SCS did so
+    on the cylindrical URDF's near-singular CAD inertias with a prior) is an error, not a result."""
+    import cvxpy as cp
+
+    def inaccurate(self, *args, **kwargs):
+        variable = self.variables()[0]
+        variable.value = -np.ones(variable.shape)  # negative masses: every link outside the cone
+        self._status = cp.OPTIMAL_INACCURATE
+
+    monkeypatch.setattr(cp.Problem, "solve", inaccurate)
+    robot = tree_robot()
+    with pytest.raises(
+        IdentificationError,
+        match=r"^nearest_consistent: CLARABEL ended with status 'optimal_inaccurate' outside the "
+        r"constraints: pseudo-inertia not positive semidefinite for a \(.*; try the other solver",
+    ):
+        nearest_consistent(robot, true_params(robot))
+
+
 def test_scs_agrees_with_clarabel():
     robot = tree_robot()
     problem = Problem(robot, simulated(robot, true_params(robot), noise=1e-2, seed=3))

@@ -10,25 +10,14 @@ import numpy as np
 import pytest
 import torch
 
+from idkit.data.load import load_data_file
 from idkit.reports import kuka as report
-from idkit.studies.kuka import load_recording, run, torque_metrics, urdf_joint_data
-
-
-def test_torque_metrics_by_hand():
-    measured = torch.tensor([[1.0, -2.0], [3.0, 2.0]], dtype=torch.float64)
-    predicted = torch.tensor([[0.0, -2.0], [3.0, 0.0]], dtype=torch.float64)
-    m = torque_metrics(measured, predicted, np.array([10.0, 4.0]))
-    assert m["rms_j1"] == pytest.approx(np.sqrt(0.5))
-    assert m["rms_j2"] == pytest.approx(np.sqrt(2.0))
-    assert m["rel_j1"] == pytest.approx(np.sqrt(0.5) / np.sqrt(5.0))
-    assert m["rel_j2"] == pytest.approx(np.sqrt(2.0) / np.sqrt(4.0))
-    assert m["rel_all"] == pytest.approx(np.sqrt(5.0) / np.sqrt(18.0))
-    assert m["nrms_limit"] == pytest.approx(np.sqrt((0.1**2 + 0.5**2) / 4))
+from idkit.studies.kuka import run, urdf_joint_data
 
 
 def test_missing_recording_is_explained(tmp_path):
     with pytest.raises(FileNotFoundError, match="measurements_9"):
-        load_recording(tmp_path / "measurements_9.npz")
+        load_data_file(tmp_path / "measurements_9.npz")
     with pytest.raises(FileNotFoundError, match="kuka_lwr4.urdf.*kuka.data_dir"):
         run(tmp_path)
 
@@ -36,14 +25,14 @@ def test_missing_recording_is_explained(tmp_path):
 @pytest.mark.kuka
 def test_cad_friction_read_from_urdf(kuka_dir):
     data = urdf_joint_data(kuka_dir / "kuka_lwr4.urdf", ["lwr_0_joint", "lwr_6_joint"])
-    np.testing.assert_array_equal(data["effort"], [176.0, 38.0])
     np.testing.assert_array_equal(data["coulomb"], [0.5, 0.05])
     np.testing.assert_array_equal(data["viscous"], [1.0, 0.2])
 
 
+@pytest.mark.kuka
 def test_stride_thins_samples_and_times(kuka_dir):
-    full, times = load_recording(kuka_dir / "measurements_1.npz")
-    thin, thin_times = load_recording(kuka_dir / "measurements_1.npz", stride=5)
+    full, times, _ = load_data_file(kuka_dir / "measurements_1.npz")
+    thin, thin_times, _ = load_data_file(kuka_dir / "measurements_1.npz", stride=5)
     torch.testing.assert_close(thin.q, full.q[::5], rtol=0, atol=0)
     np.testing.assert_array_equal(thin_times, times[::5])
 
@@ -81,3 +70,37 @@ def test_full_run_writes_table_and_plot(kuka_dir, tmp_path):
     cad = next(r for r in on_2 if r["model"] == "CAD" and r["friction"])
     assert best["rel_all"] < 0.5 * cad["rel_all"]
     assert (tmp_path / "kuka_heldout_torques.png").stat().st_size > 10_000
+
+
+@pytest.mark.kuka
+def test_pcls_rows_are_consistent_and_generalise_better_than_ls(kuka_dir, tmp_path):
+    """Every 5th sample: LS leaves the physical set (links < 0) and predicts the faster
+    measurements_3 worse than pcls with the CAD prior, whose links are all PSD."""
+    study = run(
+        kuka_dir,
+        estimators=("ls", {"_name_": "pcls", "prior_weight": 300.0}),
+        models=((True, True), (True, True, 0.05)),
+        test=("measurements_3",),
+        stride=5,
+    )
+    on_3 = {(r["model"], r["stribeck"]): r for r in study.rows if r["recording"] == "measurements_3"}
+    ls, pcls = on_3[("LS", None)], on_3[("PCLS", None)]
+    assert ls["links_negative"] > 0 and pcls["links_negative"] == 0 and pcls["min_eig"] > 0
+    assert pcls["rel_all"] < 0.6 * ls["rel_all"]
+    assert on_3[("PCLS", 0.05)]["links_negative"] == 0
+    assert "min eig" in report.text(study) and "low-speed (0.05 rad/s)" in report.text(study)
+
+
+@pytest.mark.kuka
+def test_idkit_filter_replaces_the_files_derivatives_on_request(kuka_dir):
+    study = run(
+        kuka_dir,
+        estimators=("ls",),
+        models=((True, True),),
+        test=("measurements_2",),
+        stride=5,
+        preprocess={"apply": "on", "cutoff": 5.0},
+    )
+    assert study.provenance.data["preprocess"]["cutoff"] == 5.0
+    on_2 = next(r for r in study.rows if r["recording"] == "measurements_2" and r["model"] == "LS")
+    assert on_2["rel_all"] < 0.05  # the identified model still predicts the repeated trajectory

@@ -1,0 +1,61 @@
+"""One data file → samples: samples files as they are, raw recordings preprocessed, the apply modes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from idkit.data.load import file_kind, load_data_file
+from idkit.data.preprocess import PreprocessOptions
+
+
+def sines(n: int = 400, rate: float = 100.0):
+    t = np.arange(n) / rate
+    w = 2 * np.pi * np.array([0.5, 0.8])
+    q = np.sin(np.outer(t, w))
+    return t, q, np.cos(np.outer(t, w)) * w, -np.sin(np.outer(t, w)) * w**2
+
+
+def test_kinds_of_files(tmp_path):
+    t, q, qd, qdd = sines()
+    np.savez(tmp_path / "s.npz", q=q, qd=qd, qdd=qdd, tau=q)
+    np.savez(tmp_path / "r.npz", t=t, q=q, tau=q)
+    np.savez(tmp_path / "f.npz", times=t, positions=q, velocities=qd, accelerations=qdd, torques=q)
+    (tmp_path / "r.csv").write_text("t,q1,tau1\n0,1,2\n1,2,3\n")
+    kind = file_kind(tmp_path / "s.npz")
+    assert (kind.samples, kind.timestamps, kind.flobaroid) == (True, False, False)
+    kind = file_kind(tmp_path / "r.npz")
+    assert (kind.samples, kind.timestamps, kind.flobaroid) == (False, True, False)
+    kind = file_kind(tmp_path / "f.npz")
+    assert (kind.samples, kind.timestamps, kind.flobaroid) == (True, True, True)
+    kind = file_kind(tmp_path / "r.csv")
+    assert (kind.samples, kind.timestamps) == (False, True)
+    with pytest.raises(ValueError, match=r"unsupported file type '\.txt'"):
+        (tmp_path / "x.txt").write_text("")
+        file_kind(tmp_path / "x.txt")
+
+
+def test_apply_modes(tmp_path):
+    t, q, qd, qdd = sines()
+    np.savez(tmp_path / "f.npz", times=t + 50.0, positions=q, velocities=qd, accelerations=qdd, torques=q)
+    np.savez(tmp_path / "s.npz", q=q, qd=qd, qdd=qdd, tau=q)
+    np.savez(tmp_path / "r.npz", t=t, q=q, tau=q)
+    samples, times, done = load_data_file(tmp_path / "f.npz")  # auto: the file's own derivatives
+    assert not done and np.array_equal(samples.qdd.numpy(), qdd) and times[0] == 0.0
+    options = PreprocessOptions(cutoff=5.0)
+    samples, times, done = load_data_file(tmp_path / "f.npz", options, "on")
+    trim = int(np.ceil(3.0 / 5.0 * 100.0))
+    assert done and samples.n_samples == 400 - 2 * trim and times[0] == pytest.approx(trim / 100.0)
+    # idkit's filter recomputes the (exact, slow) accelerations to within the stated (ωh)²/12 order
+    middle = slice(20, -20)
+    np.testing.assert_allclose(
+        samples.qdd.numpy()[middle], qdd[trim:-trim][middle], atol=2e-2 * np.abs(qdd).max()
+    )
+    with pytest.raises(ValueError, match=r"s\.npz: preprocessing needs timestamps"):
+        load_data_file(tmp_path / "s.npz", options, "on")
+    with pytest.raises(ValueError, match=r"r\.npz: a raw recording \(no accelerations qdd\)"):
+        load_data_file(tmp_path / "r.npz", options, "off")
+    with pytest.raises(ValueError, match=r"preprocess\.apply must be one of auto, on, off, got 'yes'"):
+        load_data_file(tmp_path / "r.npz", options, "yes")
+    with pytest.raises(FileNotFoundError, match="data file not found"):
+        load_data_file(tmp_path / "none.npz")
