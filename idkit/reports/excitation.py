@@ -22,7 +22,7 @@ BETTER = {"cond": "smaller is better", "logdet": "larger is better"}
 
 
 def _excursions(study: ExcitationStudy, which: str) -> str:
-    """``"none"`` or the worst excursion of each offending joint and variable, e.g. ``d2 position by 0.0893``."""
+    """``"none"``, or each offending joint's worst excursion, e.g. ``d2 position by 0.0893``."""
     payload = study.payload()[f"excess_{which}"]
     found = [
         f"{joint} {variable} by {value:.3g}"

@@ -75,8 +75,14 @@ def motion_limits(robot: Any, acceleration_limit: float | Sequence[float] | None
     limits = robot.motion_limits()
     names = limits.joint_names
     if acceleration_limit is not None:
-        values = [acceleration_limit] if isinstance(acceleration_limit, (int, float)) else list(acceleration_limit)
-        bad = [v for v in values if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf]
+        values = (
+            [acceleration_limit] if isinstance(acceleration_limit, (int, float)) else list(acceleration_limit)
+        )
+        bad = [
+            v
+            for v in values
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf
+        ]
         if bad or len(values) not in (1, len(names)):
             raise ValueError(
                 f"excitation.acceleration_limit must be one positive number or one per joint "
@@ -84,7 +90,11 @@ def motion_limits(robot: Any, acceleration_limit: float | Sequence[float] | None
             )
         bound = values * len(names) if len(values) == 1 else values
         limits = limits.replace("acceleration", [-v for v in bound], bound)
-    unbounded = [names[j] for j in range(len(names)) if math.isinf(limits.lower[2, j]) or math.isinf(limits.upper[2, j])]
+    unbounded = [
+        names[j]
+        for j in range(len(names))
+        if math.isinf(limits.lower[2, j]) or math.isinf(limits.upper[2, j])
+    ]
     if unbounded:
         raise ValueError(
             f"robot {type(robot).__name__} has no acceleration limit for joint(s) {', '.join(unbounded)} "
@@ -136,7 +146,9 @@ def run(
     from idkit.excitation.spec import family_name
 
     if dtype != "float64":
-        raise ValueError(f"the excitation task computes in float64 (limits, written coefficients), got dtype={dtype}")
+        raise ValueError(
+            f"the excitation task computes in float64 (limits, written coefficients), got dtype={dtype}"
+        )
     robot_obj = build("robot", robot)
     limits = motion_limits(robot_obj, acceleration_limit)
     n = Scenario().n_samples if n_samples is None else n_samples
