@@ -43,6 +43,7 @@ TASKS: dict[str, Task] = {
     "paper": Task("idkit.studies.paper:run", "idkit.reports.paper", "paper"),
     "robustness": Task("idkit.studies.robustness:run", "idkit.reports.robustness", "robustness"),
     "kuka": Task("idkit.studies.kuka:run", "idkit.reports.kuka", "kuka"),
+    "excitation": Task("idkit.studies.excitation:run", "idkit.reports.excitation", "excitation"),
 }
 
 #: Top-level keys read by the command line itself, not by a study.

@@ -34,6 +34,9 @@ class Scenario:
         outlier_noise: level of the error on those components.
         t_end: length of the excitation window in seconds.
         description: one line for tables and logs.
+        excitation: the motion to sample instead of the robot's default one: a family name
+            (``fourier``, ``paper``) or an excitation file (``excitation.yaml`` of
+            ``idkit +experiment=excitation``); ``None``: the robot's default.
     """
 
     name: str = "custom"
@@ -44,9 +47,15 @@ class Scenario:
     outlier_noise: float = 0.0
     t_end: float = 10.0
     description: str = ""
+    excitation: str | None = None
 
     def __post_init__(self) -> None:
         where = f"scenario {self.name!r}"
+        if self.excitation is not None and (not isinstance(self.excitation, str) or not self.excitation):
+            raise ValueError(
+                f"{where}: excitation must be a family name or the path of an excitation file, "
+                f"got {self.excitation!r}"
+            )
         for key, least in (("n_samples", 1), ("n_outliers", 0)):
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int) or value < least:

@@ -1,7 +1,8 @@
 """Simulated measurement scenarios reproducing the paper's Tables II–V.
 
 A scenario samples ``robot.excitation`` (eq. (39) for the cylindrical robot), or any other
-``Excitation`` given as ``excitation=`` (e.g. an optimised one, ``idkit.excitation``), at
+``Excitation`` given as ``excitation=`` or named by the scenario's ``excitation`` field (a family
+name or an excitation file, e.g. an optimised one from ``idkit +experiment=excitation``), at
 ``sample_times(n_samples, t_end)``, computes the true torques from the *clean* states with
 ``robot.inverse_dynamics(params or robot.nominal_params(), ...)`` — so state noise never leaks
 into the torques — and then corrupts the four arrays.
@@ -31,6 +32,7 @@ depend on the noise levels, so scenarios with the same ``N`` and seed share thei
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -40,6 +42,7 @@ from torch import Tensor
 
 from idkit.data.presets import SCENARIOS, Scenario, UnknownScenarioError
 from idkit.data.trajectory import sample_times
+from idkit.excitation.spec import excitation_of
 from idkit.interfaces import Excitation, Robot
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
@@ -64,6 +67,23 @@ def get_scenario(scenario: str | Scenario | Mapping[str, Any], **overrides: Any)
     else:
         raise TypeError(f"scenario must be a name, a Scenario or a mapping, got {type(scenario).__name__}")
     return base.replace(**{k: v for k, v in overrides.items() if v is not None})
+
+
+def shared_fields(scenario: Mapping[str, Any] | None, where: str) -> dict[str, Any]:
+    """Scenario fields a study sets on every one of its named scenarios (``None`` values dropped).
+
+    ``idkit +experiment=robustness scenario.excitation=out/excitation.yaml`` runs every scenario of
+    the study on that motion. ``name`` is refused (the study's own list names the scenarios), as
+    is any key that is not a ``Scenario`` field.
+    """
+    fields = {k: v for k, v in dict(scenario or {}).items() if v is not None}
+    if "name" in fields:
+        raise ValueError(
+            f"{where}: scenario.name={fields['name']!r} is not for this study: it runs its own list of "
+            "scenarios; scenario.<field>=... sets a field of every one of them"
+        )
+    Scenario().replace(**fields)  # unknown fields or bad values: an error naming them
+    return fields
 
 
 @dataclass(frozen=True)
@@ -144,7 +164,7 @@ def simulate_batch(
     seed: int = 0,
     n_samples: int | None = None,
     params: Tensor | None = None,
-    excitation: Excitation | None = None,
+    excitation: Excitation | str | os.PathLike[str] | None = None,
     **overrides: Any,
 ) -> SampleBatch:
     """``trials`` independent noisy copies of one scenario, drawn in one vectorised call.
@@ -156,15 +176,21 @@ def simulate_batch(
         seed: seeds the ``torch.Generator`` that draws every random number.
         n_samples: overrides ``scenario.n_samples``.
         params: true physical parameters ``[P]`` (default ``robot.nominal_params()``).
-        excitation: the motion to sample instead of the robot's default one.
+        excitation: the motion to sample instead of the robot's default one: an ``Excitation``,
+            or a family name or excitation file (then it is the scenario's ``excitation`` field,
+            resolved by ``idkit.excitation.spec.excitation_of``).
         **overrides: any other ``Scenario`` field, e.g. ``torque_noise=0.1``.
 
     Returns:
         A ``SampleBatch`` with noisy arrays ``[T, N, n]`` (CPU, float64).
     """
+    if isinstance(excitation, (str, os.PathLike)):  # a name or file: the scenario's field
+        overrides["excitation"], excitation = os.fspath(excitation), None
     sc = get_scenario(scenario, n_samples=n_samples, **overrides)
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
         raise ValueError(f"simulate_batch: trials must be an integer >= 1, got {trials!r}")
+    if excitation is None and sc.excitation is not None:
+        excitation = excitation_of(sc.excitation, robot)
     t, clean = clean_samples(robot, sc.n_samples, params, sc.t_end, excitation)
     n = clean.n_joints
     shape = (trials, len(SAMPLE_ARRAYS), sc.n_samples, n)
@@ -197,7 +223,7 @@ def simulate(
     seed: int = 0,
     n_samples: int | None = None,
     params: Tensor | None = None,
-    excitation: Excitation | None = None,
+    excitation: Excitation | str | os.PathLike[str] | None = None,
     **overrides: Any,
 ) -> Samples:
     """One noisy sample set of a scenario: trial 0 of ``simulate_batch`` with the same arguments.

@@ -8,4 +8,5 @@ Modules (imported on demand, so loading a family imports neither the optimiser n
 * ``feasible``: scaling any candidate motion into the robot's motion limits.
 * ``optimize``: ``optimize_excitation``, the batched search (particle swarm, then Adam).
 * ``files``: an excitation as a YAML document (registry name + constructor options).
+* ``spec``: an excitation from a family name, a file or an object (``scenario.excitation=``).
 """

@@ -20,7 +20,6 @@ alone. Both work in the unit cube of the family's ``coefficient_box``.
 
 from __future__ import annotations
 
-import inspect
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -34,9 +33,9 @@ from idkit.data.trajectory import sample_times
 from idkit.estimators import swarm
 from idkit.excitation.criterion import check_criterion, criterion_value, loss, observation_matrix
 from idkit.excitation.feasible import fit_into_limits
+from idkit.excitation.spec import build_excitation
 from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
-from idkit.registry import create, load
 from idkit.runtime import resolve_threads, torch_threads
 
 METHODS = ("pso", "adam", "pso+adam")
@@ -79,16 +78,6 @@ class ExcitationResult:
     def samples(self) -> tuple[Tensor, Tensor, Tensor, Tensor]:
         """``(t[N], q, qd, qdd)`` of the optimised motion at the sample times, each ``[N, n]``."""
         return (self.t, *self.excitation(self.t))
-
-
-def build_excitation(name: str, robot: Robot, options: Mapping[str, Any] | None = None) -> Excitation:
-    """The registered family ``name`` with ``options``; ``n_joints`` is the robot's unless given."""
-    options = dict(options or {})
-    if "n_joints" in inspect.signature(load("excitation", name)).parameters:
-        options.setdefault("n_joints", robot.n_joints)
-    excitation = create("excitation", name, **options)
-    excitation.check_joints(robot.joint_names, f"robot {type(robot).__name__}")
-    return excitation
 
 
 def _check_budget(**values: int) -> None:

@@ -109,3 +109,43 @@ def traces(
     fig.suptitle(title)
     fig.tight_layout()
     return save_figure(fig, path)
+
+
+def motion_against_limits(
+    grid: np.ndarray,
+    motion: Sequence[np.ndarray],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    samples: tuple[np.ndarray, Sequence[np.ndarray]],
+    joint_names: Sequence[str],
+    title: str,
+    path: Path,
+) -> Path:
+    """A motion against its box: rows ``q``, ``q̇``, ``q̈``, one column per joint.
+
+    Args:
+        grid: dense times ``[G]``; ``motion``: ``(q, qd, qdd)``, each ``[G, n]``.
+        lower, upper: the limits ``[3, n]`` (``±inf`` lines are not drawn).
+        samples: ``(t[N], (q, qd, qdd))`` at the sample times, drawn as dots.
+    """
+    import numpy as np
+
+    plt = _pyplot()
+    n = len(joint_names)
+    fig, axes = plt.subplots(3, n, figsize=(3.2 * n, 6.5), sharex=True, squeeze=False)
+    t_samples, at_samples = samples
+    for v, label in enumerate(("q", "q̇", "q̈")):
+        for j, ax in enumerate(axes[v]):
+            ax.plot(grid, motion[v][:, j], lw=1.0)
+            ax.plot(t_samples, at_samples[v][:, j], "o", ms=3, color="C1")
+            for bound in (lower[v, j], upper[v, j]):
+                if np.isfinite(bound):
+                    ax.axhline(bound, color="r", lw=0.8, ls="--")
+            ax.set_ylabel(f"{label} {joint_names[j]}" if j == 0 or n > 1 else label, fontsize="small")
+            if v == 0:
+                ax.set_title(joint_names[j], fontsize="small")
+    for ax in axes[-1]:
+        ax.set_xlabel("time (s)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, path)

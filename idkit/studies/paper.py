@@ -17,7 +17,7 @@ from __future__ import annotations
 import csv
 import re
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -150,6 +150,7 @@ def run(
     linear: Sequence[Spec] = ("ls", "tls", "rls"),
     costs: Sequence[Spec] = COSTS,
     average_of: Sequence[str] = ("f13", "f14"),
+    scenario: Mapping[str, Any] | None = None,
     seed: int = 0,
     columns: Sequence[str] = COLUMNS,
     reference: str | Path | None = None,
@@ -167,6 +168,8 @@ def run(
         linear: estimators fitted twice, plain and with ``relative=True`` ("-rel").
         costs: the search's costs (names or specs).
         average_of: cost names whose estimates are averaged into the final estimate.
+        scenario: fields set on every scenario, e.g. ``{"excitation": "excitation.yaml"}`` (the
+            motion, ``idkit.data.scenarios.shared_fields``).
         reference: CSV of the published tables (``None``: the shipped copy; ``""``: none).
 
     Raises:
@@ -174,9 +177,10 @@ def run(
     """
     from tqdm import tqdm
 
-    from idkit.data.scenarios import simulate
+    from idkit.data.scenarios import shared_fields, simulate
     from idkit.problem import Problem
 
+    common = shared_fields(scenario, "paper")
     started = time.perf_counter()
     robot_obj = build("robot", robot)
     published = load_reference(reference, columns) if reference != "" else {}
@@ -202,7 +206,7 @@ def run(
         task="paper",
         label="paper tables",
         seed=seed,
-        data={"scenarios": list(scenarios)},
+        data={"scenarios": list(scenarios), **({"scenario": common} if common else {})},
         plugins={"robot": describe("robot", robot), "estimator": describe("estimator", estimator)},
         requested=len(scenarios),
         done=0,
@@ -210,8 +214,8 @@ def run(
     )
     result = PaperTables([], provenance, columns, compare=(final, "RLS-rel"))
     try:
-        for scenario in tqdm(scenarios, desc="paper tables", unit="table", disable=not progress):
-            samples = simulate(robot_obj, scenario, seed=seed)
+        for name in tqdm(scenarios, desc="paper tables", unit="table", disable=not progress):
+            samples = simulate(robot_obj, name, seed=seed, **common)
             problem = Problem(robot_obj, samples, None, seed=seed, device=device, dtype=dtype)
             fitted = [e.fit(problem) for e in linear_objs] + search.fit_costs(problem, cost_objs)
             estimates = [replace(e, estimator=label) for e, label in zip(fitted, labels, strict=True)]
@@ -219,7 +223,7 @@ def run(
             chosen = [searched[cost_names.index(c)] for c in average_of]
             if chosen:
                 estimates.append(average(chosen, final))
-            result.tables.append(ScenarioTable(scenario, truth, estimates, published.get(scenario, {})))
+            result.tables.append(ScenarioTable(name, truth, estimates, published.get(name, {})))
             provenance.done += 1
     except KeyboardInterrupt:
         result.wall_time_s = time.perf_counter() - started

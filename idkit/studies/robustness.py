@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -233,13 +233,15 @@ def merge(studies: Sequence[RobustnessStudy]) -> RobustnessStudy:
             raise ValueError("robustness.merge: the studies differ in trials, seed or baseline")
         if set(other.params) & set(first.params):
             raise ValueError("robustness.merge: the studies share a scenario")
+        if (other.provenance.data or {}).get("scenario") != (first.provenance.data or {}).get("scenario"):
+            raise ValueError("robustness.merge: the studies set different scenario fields (e.g. excitation)")
     params = {s: by for study in studies for s, by in study.params.items()}
     scenarios = [s for study in studies for s in (study.provenance.data or {}).get("scenarios", [])]
     return replace(
         first,
         provenance=replace(
             first.provenance,
-            data={"scenarios": scenarios},
+            data={**(first.provenance.data or {}), "scenarios": scenarios},
             requested=min(s.provenance.requested for s in studies),
             run_id=new_run_id(),
         ),
@@ -272,6 +274,7 @@ def run(
     average_of: Sequence[str] = ("f13", "f14"),
     baseline: str = "RLS-rel",
     optional: Sequence[str] = ("irls", "huber", "trimmed"),
+    scenario: Mapping[str, Any] | None = None,
     seed: int = 0,
     device: str = "cpu",
     dtype: str = "float64",
@@ -291,6 +294,8 @@ def run(
         average_of: costs whose estimates are averaged (the paper's final estimate).
         baseline: label the others are compared with.
         optional: plugin names skipped (and reported) when not installed, e.g. third-party IRLS.
+        scenario: fields set on every scenario, e.g. ``{"excitation": "excitation.yaml"}`` (the
+            motion, ``idkit.data.scenarios.shared_fields``).
         seed: seed of the noise draws; trial ``i``'s estimators use ``seed + i``.
         checkpoint: called with the study so far every ``checkpoint_every_s`` seconds (the command
             line writes the partial report, so a long study that dies still reports).
@@ -300,9 +305,10 @@ def run(
     """
     from tqdm import tqdm
 
-    from idkit.data.scenarios import simulate_batch
+    from idkit.data.scenarios import shared_fields, simulate_batch
     from idkit.problem import Problem
 
+    common = shared_fields(scenario, "robustness")
     started = time.perf_counter()
     skipped: list[str] = []
     robot_obj = build("robot", robot)
@@ -319,12 +325,12 @@ def run(
     truth = robot_obj.nominal_params().numpy()
     found: dict[str, dict[str, list]] = {scenario: {} for scenario in scenarios}
     fit_time: dict[str, float] = {}
-    batches = {s: simulate_batch(robot_obj, s, trials=trials, seed=seed) for s in scenarios}
+    batches = {s: simulate_batch(robot_obj, s, trials=trials, seed=seed, **common) for s in scenarios}
     provenance = Provenance(
         task="robustness",
         label=f"robustness vs {baseline}",
         seed=seed,
-        data={"scenarios": list(scenarios)},
+        data={"scenarios": list(scenarios), **({"scenario": common} if common else {})},
         plugins={
             "robot": describe("robot", robot),
             "estimator": describe("estimator", estimator) if search is not None else None,

@@ -28,7 +28,8 @@ def test_unknown_names_list_the_closest_first(hydra_compose):
         "unknown robot 'cylindricl'; available robots (closest first): cylindrical, "
     )
     assert refusal(hydra_compose, "+experiment=kukaa") == (
-        "unknown experiment 'kukaa'; available experiments (closest first): kuka, paper, robustness"
+        "unknown experiment 'kukaa'; available experiments (closest first): "
+        "kuka, paper, robustness, excitation"
     )
 
 

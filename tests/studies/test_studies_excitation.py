@@ -1,0 +1,253 @@
+"""The ``excitation`` task: the study, its report's files, and the files loaded back into scenarios.
+
+One small optimisation (module fixture) serves the in-process tests; the command line runs as a
+subprocess in the ``integration`` tests.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from hydra import compose, initialize_config_module
+from hydra.core.global_hydra import GlobalHydra
+from omegaconf import OmegaConf
+
+from idkit.cli.app import setup
+from idkit.cli.tasks import TASKS, arguments
+from idkit.data.scenarios import simulate, simulate_batch
+from idkit.data.trajectory import sample_times
+from idkit.excitation.files import load_excitation
+from idkit.problem import Problem
+from idkit.registry import create
+from idkit.reports import excitation as report
+from idkit.robots.cylindrical import CylindricalRobot
+from idkit.robots.urdf import URDFRobot
+from idkit.studies import excitation as study
+from idkit.studies import paper, robustness
+
+SMALL = {"swarms": 2, "particles": 16, "iterations": 15, "adam_steps": 10}
+
+#: Eq. (38) typed from the paper, rows q, qd, qdd; columns theta1, d2, d3 as (lower, upper).
+EQ38 = np.array(
+    [
+        [(-np.pi, np.pi), (0, 1), (0, 1)],
+        [(-4, 4), (-2, 2), (-1.5, 1.5)],
+        [(-3, 3), (-2, 2), (-1, 1)],
+    ]
+)
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory) -> tuple[study.ExcitationStudy, dict[str, str]]:
+    result = study.run("cylindrical", seed=2, **SMALL)
+    return result, report.write(result, tmp_path_factory.mktemp("excitation"))
+
+
+def test_report_writes_the_documented_files(written):
+    result, files = written
+    assert set(files) == {"excitation", "samples", "plot", "result"}
+    data = json.loads(Path(files["result"]).read_text())
+    assert data["task"] == "excitation" and data["status"] == "complete" and data["seed"] == 2
+    assert (
+        data["plugins"]["excitation"]["name"] == "fourier"
+        and data["plugins"]["robot"]["name"] == "cylindrical"
+    )
+    payload = data["payload"]
+    assert payload["before"] == pytest.approx(result.result.before) and payload["after"] < payload["before"]
+    assert payload["baseline"] == "paper" and payload["n_samples"] == 10 and payload["t_end"] == 10.0
+    assert payload["excess_before"]["d2"]["position"] > 0.08  # eq. (39) leaves eq. (38)
+    assert all(v == 0 for joint in payload["excess_after"].values() for v in joint.values())
+    assert Path(files["plot"]).stat().st_size > 0
+    text = report.text(result)
+    assert f"cond = {result.result.before:.6g}" in text and f"cond = {result.result.after:.6g}" in text
+
+
+def test_yaml_loads_back_as_the_same_motion(written):
+    result, files = written
+    loaded = load_excitation(files["excitation"])
+    assert torch.equal(loaded.to_vector(), result.result.excitation.to_vector())
+
+
+def test_npz_holds_the_motion_at_the_scenario_sample_times_within_eq38(written):
+    result, files = written
+    arrays = np.load(files["samples"])
+    assert set(arrays.files) == {"t", "q", "qd", "qdd"}
+    t = sample_times(10, 10.0)
+    np.testing.assert_array_equal(arrays["t"], t.numpy())
+    q, qd, qdd = result.result.excitation(t)
+    for name, value in zip(("q", "qd", "qdd"), (q, qd, qdd), strict=True):
+        np.testing.assert_array_equal(arrays[name], value.numpy())
+    for row, name in enumerate(("q", "qd", "qdd")):
+        assert (arrays[name] >= EQ38[row, :, 0]).all() and (arrays[name] <= EQ38[row, :, 1]).all()
+
+
+@pytest.mark.parametrize("name", ["outliers", "all_noise"])
+def test_a_scenario_on_the_file_equals_the_scenario_on_the_object(written, name):
+    result, files = written
+    robot = CylindricalRobot()
+    from_file = simulate(robot, {"name": name, "excitation": files["excitation"]}, seed=4)
+    from_object = simulate(robot, name, seed=4, excitation=result.result.excitation)
+    for key in ("q", "qd", "qdd", "tau"):
+        assert torch.equal(getattr(from_file, key), getattr(from_object, key))
+    batch = simulate_batch(robot, name, trials=2, seed=4, excitation=files["excitation"])
+    assert batch.scenario.excitation == files["excitation"] and torch.equal(batch[0].tau, from_file.tau)
+
+
+def test_robustness_and_paper_run_every_scenario_on_the_file(written):
+    result, files = written
+    robot = CylindricalRobot()
+    common = {"excitation": files["excitation"]}
+    found = robustness.run(
+        "cylindrical",
+        None,
+        trials=2,
+        scenarios=["torque_noise"],
+        estimators=["ls"],
+        pso_costs=[],
+        average_of=[],
+        baseline="LS",
+        optional=[],
+        scenario=common,
+        progress=False,
+    )
+    assert found.provenance.data == {"scenarios": ["torque_noise"], "scenario": common}
+    batch = simulate_batch(robot, "torque_noise", trials=2, excitation=result.result.excitation)
+    for trial in range(2):
+        expected = create("estimator", "ls").fit(Problem(robot, batch[trial], None, seed=trial)).params
+        np.testing.assert_allclose(
+            found.params["torque_noise"]["LS"][trial], list(expected.values()), rtol=1e-12
+        )
+    tables = paper.run(
+        "cylindrical",
+        {"_name_": "pso", "particles": 8, "iterations": 5},
+        scenarios=["clean"],
+        linear=["ls"],
+        costs=["f1"],
+        average_of=[],
+        scenario=common,
+        reference="",
+        progress=False,
+    )
+    ls = next(e for e in tables.tables[0].estimates if e.estimator == "LS")
+    np.testing.assert_allclose(list(ls.params.values()), robot.nominal_params().numpy(), rtol=1e-9)
+    assert tables.provenance.data["scenario"] == common
+
+
+def test_a_urdf_needs_acceleration_limits(tmp_path):
+    with pytest.raises(
+        ValueError, match=r"has no acceleration limit for joint\(s\) .*excitation.acceleration_limit="
+    ):
+        study.run({"_name_": "urdf", "urdf": "cylindrical"}, **SMALL)
+    with pytest.raises(ValueError, match="one positive number or one per joint \\(3: "):
+        study.run({"_name_": "urdf", "urdf": "cylindrical"}, acceleration_limit=[1.0, 2.0], **SMALL)
+    limits = study.motion_limits(URDFRobot("cylindrical"), [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(limits.upper[2].numpy(), [1.0, 2.0, 3.0])
+    found = study.run({"_name_": "urdf", "urdf": "cylindrical"}, acceleration_limit=2.0, seed=1, **SMALL)
+    assert torch.count_nonzero(found.result.excess_after) == 0
+    assert (found.result.excitation(found.result.grid)[2].abs() <= 2.0).all()
+
+
+def test_other_dtypes_are_refused():
+    with pytest.raises(ValueError, match="float64"):
+        study.run("cylindrical", dtype="float32", **SMALL)
+
+
+@pytest.fixture
+def hydra_compose():
+    setup()
+    GlobalHydra.instance().clear()
+    with initialize_config_module(config_module="idkit.conf", version_base="1.3"):
+        yield lambda *overrides: compose("config", overrides=list(overrides))
+    GlobalHydra.instance().clear()
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ("+experiment=excitation", "robot=cylindrical", "excitation.criterion=logdet"),
+        (
+            "+experiment=excitation",
+            "robot=urdf",
+            "robot.urdf=cylindrical",
+            "excitation.acceleration_limit=[1,2,3]",
+        ),
+        ("+experiment=robustness", "scenario.excitation=excitation.yaml"),
+        ("+experiment=paper", "scenario.excitation=fourier"),
+        ("+scenario=outliers", "scenario.excitation=fourier", "estimator=ls"),
+    ],
+)
+def test_the_config_is_the_study_signature(hydra_compose, overrides):
+    cfg = OmegaConf.to_container(hydra_compose(*overrides), resolve=True)
+    function = TASKS[cfg["task"]].study_function()
+    kwargs = arguments(cfg["task"], cfg, function)
+    inspect.signature(function).bind(**kwargs)
+    excitation = overrides[-1].partition("=")[2] if "scenario.excitation" in overrides[-1] else None
+    if "scenario" in kwargs and excitation:
+        assert kwargs["scenario"]["excitation"] == excitation
+
+
+IDKIT = [sys.executable, "-c", "from idkit.cli import main; main()"]
+TINY = ["excitation.swarms=1", "excitation.particles=8", "excitation.iterations=5", "excitation.adam_steps=3"]
+
+
+def _idkit(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([*IDKIT, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.integration
+def test_the_command_writes_a_file_a_scenario_loads(tmp_path):
+    out = _idkit("+experiment=excitation", "robot=cylindrical", *TINY, "hydra.run.dir=opt", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert (
+        "before (paper): cond = 36.1141" in out.stdout
+        and "after  (fourier, optimised): cond = " in out.stdout
+    )
+    run = tmp_path / "opt"
+    assert {p.name for p in run.iterdir()} >= {
+        "excitation.yaml",
+        "excitation.npz",
+        "excitation.png",
+        "result.json",
+    }
+    out = _idkit(
+        "+scenario=outliers",
+        "scenario.excitation=opt/excitation.yaml",
+        "estimator=ls",
+        "hydra.run.dir=fit",
+        cwd=tmp_path,
+    )
+    assert out.returncode == 0, out.stderr
+    data = json.loads((tmp_path / "fit" / "result.json").read_text())
+    assert data["data"]["scenario"]["excitation"] == "opt/excitation.yaml"
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (
+            ("+scenario=clean", "scenario.excitation=missing.yaml"),
+            "excitation 'missing.yaml': no such file, and not an excitation family (fourier, paper)",
+        ),
+        (("+scenario=clean", "scenario.excitation=fourrier"), "excitation 'fourrier': no such file"),
+        (
+            ("+experiment=excitation", "robot=urdf", "robot.urdf=cylindrical", *TINY),
+            "excitation.acceleration_limit=",
+        ),
+        (("+experiment=excitation", "excitation.family=fourrier", *TINY), "unknown excitation 'fourrier'"),
+    ],
+)
+def test_bad_inputs_give_one_line(tmp_path, args, message):
+    out = (
+        _idkit(*args, "estimator=ls", cwd=tmp_path)
+        if args[0].startswith("+scenario")
+        else _idkit(*args, cwd=tmp_path)
+    )
+    assert out.returncode == 1 and message in out.stderr and "Traceback" not in out.stderr, out.stderr
