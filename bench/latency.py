@@ -23,11 +23,24 @@ import time
 from pathlib import Path
 
 COMMAND = ["+scenario=outliers", "estimator=pso", "cost=f13"]
-#: Top-level packages whose cumulative import time is reported (the rest is summed as "other").
-PACKAGES = ("torch", "hydra", "omegaconf", "matplotlib", "numpy", "scipy", "cvxpy", "pytorch_kinematics", "idkit")
+#: Top-level packages whose cumulative import time is reported .
+PACKAGES = (
+    "torch",
+    "hydra",
+    "omegaconf",
+    "matplotlib",
+    "numpy",
+    "scipy",
+    "cvxpy",
+    "pytorch_kinematics",
+    "idkit",
+)
 #: Timed phases: label -> (module, attribute path) of the function whose CPU time is the phase.
 PHASES = {
-    "Hydra: compose the config": ("hydra._internal.config_loader_impl", "ConfigLoaderImpl.load_configuration"),
+    "Hydra: compose the config": (
+        "hydra._internal.config_loader_impl",
+        "ConfigLoaderImpl.load_configuration",
+    ),
     "study (simulate, fit, metrics)": ("idkit.studies.single", "run"),
     "  of which the PSO fit": ("idkit.estimators.pso", "ParticleSwarm.fit"),
     "  of which the native engine load": ("idkit.estimators.native", "kernel"),
@@ -110,12 +123,22 @@ def main() -> None:
         whole = [child_cpu(args[:-1] + [f"hydra.run.dir={work}/run{i}"], env) for i in range(options.repeat)]
         wall = (time.perf_counter() - started) / options.repeat
         bare = [child_cpu([sys.executable, "-c", "import torch"], env) for _ in range(options.repeat)]
-        imports = [import_times(args[:-1] + [f"hydra.run.dir={work}/imp{i}"], env) for i in range(options.repeat)]
-        timed = [phases(args[:-1] + [f"hydra.run.dir={work}/prof{i}"], env, work) for i in range(options.repeat)]
+        imports = [
+            import_times(args[:-1] + [f"hydra.run.dir={work}/imp{i}"], env) for i in range(options.repeat)
+        ]
+        timed = [
+            phases(args[:-1] + [f"hydra.run.dir={work}/prof{i}"], env, work) for i in range(options.repeat)
+        ]
         print(f"load average after: {os.getloadavg()[0]:.1f}")
-    rows = [("whole command (process CPU)", statistics.median(whole)), ("  wall (mean, machine shared)", wall),
-            ("python -c 'import torch' alone (process CPU)", statistics.median(bare))]  # fmt: skip
-    rows += [(f"import {p} (cumulative, wall)", statistics.median(i.get(p, 0.0) for i in imports)) for p in PACKAGES]
+    rows = [
+        ("whole command (process CPU)", statistics.median(whole)),
+        ("  wall (mean, machine shared)", wall),
+        ("python -c 'import torch' alone (process CPU)", statistics.median(bare)),
+    ]
+    rows += [
+        (f"import {p} (cumulative, wall)", statistics.median(i.get(p, 0.0) for i in imports))
+        for p in PACKAGES
+    ]
     rows += [(label, statistics.median(p[label] for p in timed)) for label in PHASES]
     print(f"\n`idkit {' '.join(COMMAND + options.overrides)}`, median of {options.repeat} fresh processes\n")
     print("| phase | seconds |\n| --- | ---: |")

@@ -173,7 +173,9 @@ def _shard_groups(sweep_dir: Path) -> list[list[tuple[Path, dict[str, Any]]]]:
             continue
         config = dict(document.get("config") or {})
         config["robustness"] = {k: v for k, v in (config.get("robustness") or {}).items() if k != "shard"}
-        groups.setdefault(json.dumps(config, sort_keys=True, default=str), []).append((result.parent, document))
+        groups.setdefault(json.dumps(config, sort_keys=True, default=str), []).append(
+            (result.parent, document)
+        )
     return list(groups.values())
 
 

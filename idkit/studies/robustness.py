@@ -294,7 +294,13 @@ def _merge_shards(shards: Sequence[RobustnessStudy]) -> RobustnessStudy:
         params=params,
         wall_time_s=max(s.wall_time_s for s in shards),
         fit_time_s=fit_time,
-        sharding={"shard": 0, "shards": 1, "first_trial": 0, "total_trials": requested, "merged": len(shards)},
+        sharding={
+            "shard": 0,
+            "shards": 1,
+            "first_trial": 0,
+            "total_trials": requested,
+            "merged": len(shards),
+        },
     )
 
 
@@ -463,7 +469,11 @@ def run(
                 fit_chunk(scenario, chosen)
             done += len(chosen)
             bar.update(len(chosen))
-            if checkpoint is not None and time.perf_counter() - saved > checkpoint_every_s and done < len(mine):
+            if (
+                checkpoint is not None
+                and time.perf_counter() - saved > checkpoint_every_s
+                and done < len(mine)
+            ):
                 checkpoint(snapshot(done))
                 saved = time.perf_counter()
     except KeyboardInterrupt:

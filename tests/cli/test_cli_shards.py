@@ -16,6 +16,10 @@ SMALL_STUDY = [
 ]  # fmt: skip
 
 
+def _without_times(row: dict) -> dict:
+    return {k: v for k, v in row.items() if k != "mean_fit_time_s"}
+
+
 @pytest.mark.integration
 @pytest.mark.filterwarnings("ignore")
 def test_two_shards_through_joblib_merge_into_the_one_process_study(tmp_path):
@@ -32,7 +36,8 @@ def test_two_shards_through_joblib_merge_into_the_one_process_study(tmp_path):
     assert (merged / "robustness_trials.csv").read_text() == (single / "robustness_trials.csv").read_text()
     document = json.loads((merged / "result.json").read_text())
     assert document["status"] == "complete" and document["progress"]["done"] == 5
-    rows = json.loads((single / "result.json").read_text())["payload"]["summary"]
-    strip = [{k: v for k, v in r.items() if k != "mean_fit_time_s"} for r in rows]
-    assert [{k: v for k, v in r.items() if k != "mean_fit_time_s"} for r in document["payload"]["summary"]] == strip
+    expected = json.loads((single / "result.json").read_text())["payload"]["summary"]
+    assert [_without_times(r) for r in document["payload"]["summary"]] == [
+        _without_times(r) for r in expected
+    ]
     assert only(list((tmp_path / "sweep").glob("merged*"))) == merged

@@ -159,7 +159,8 @@ def test_batched_trials_equal_fitting_each_trial_alone():
             problem = Problem(robot, draws[t], None, seed=3 + t)
             for label, est in zip(["LS-rel", "RLS-rel", "IRLS"], singles, strict=True):
                 np.testing.assert_allclose(by[label][t], list(est.fit(problem).params.values()), rtol=1e-12)
-            for label, e in zip(["PSO-f13", "PSO-f14", "PSO-huber"], search.fit_costs(problem, costs), strict=True):
+            searched = search.fit_costs(problem, costs)
+            for label, e in zip(["PSO-f13", "PSO-f14", "PSO-huber"], searched, strict=True):
                 np.testing.assert_array_equal(by[label][t], list(e.params.values()))
 
 

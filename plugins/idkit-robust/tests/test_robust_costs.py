@@ -89,7 +89,9 @@ def test_shape_mismatch_is_an_error(cost):
 
 
 @pytest.mark.parametrize("relative", [False, True])
-@pytest.mark.parametrize("make", [lambda r: HuberCost(delta=0.3, relative=r), lambda r: TrimmedCost(relative=r)])
+@pytest.mark.parametrize(
+    "make", [lambda r: HuberCost(delta=0.3, relative=r), lambda r: TrimmedCost(relative=r)]
+)
 def test_stacked_measured_equals_one_call_per_trial(make, relative):
     """``Cost.stacked_measured``: trials' torques [T, 1, n, N] in one call = one call per trial."""
     gen = torch.Generator().manual_seed(5)
