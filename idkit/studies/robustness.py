@@ -17,8 +17,10 @@ whole interval lies above 1/2, ``worse`` likewise below, ``undecided`` otherwise
 straddles 1/2 never counts as a loss. The conclusion (:meth:`RobustnessStudy.conclusion`) "holds"
 when every scenario is ``better``, "does not hold" when one is ``worse``, else "undecided".
 
-The search estimator's ``fit_costs`` batches all its costs of one trial into one computation; trials
-are separate calls (the estimator API takes one sample set per problem).
+Trials are fitted in chunks through ``idkit.estimators.trials.fit_trials``: the search estimator
+stacks trials × costs × runs into one batched swarm, the others batch as far as they know how (the
+LS family and third-party estimators trial by trial). ``shard``/``shards`` split the trials into
+contiguous slices for parallel jobs, which :func:`merge` joins (the multirun callback does it).
 """
 
 from __future__ import annotations
