@@ -18,7 +18,6 @@ import time
 from pathlib import Path
 
 import torch
-from idkit.experiments.kuka import load_recording
 
 from idkit import registry
 from idkit.data.load import load_data_file

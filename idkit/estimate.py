@@ -16,6 +16,8 @@ def jsonable(value: Any) -> Any:
     Non-finite floats become ``None`` so that the output is strict JSON (no ``NaN`` tokens).
     """
     if hasattr(value, "tolist"):  # torch.Tensor, numpy arrays and numpy scalars
+        if _all_finite(value):  # nested lists of finite floats are JSON already: no walk
+            return value.tolist()
         value = value.tolist()
     if isinstance(value, dict):
         return {str(k): jsonable(v) for k, v in value.items()}
@@ -24,6 +26,19 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
+
+
+def _all_finite(array: Any) -> bool:
+    """Whether a float tensor or array holds only finite numbers (``False`` for other kinds)."""
+    import numpy as np
+
+    if isinstance(array, np.ndarray) and array.dtype.kind == "f":
+        return bool(np.isfinite(array).all())
+    if type(array).__module__.startswith("torch") and getattr(array, "is_floating_point", lambda: False)():
+        import torch
+
+        return bool(torch.isfinite(array).all())
+    return False
 
 
 @dataclass

@@ -145,6 +145,11 @@ class Cost(ABC):
 
     #: Whether the cost divides by the measured torques (eq. 27); a class constant or an option.
     relative: bool = False
+    #: Whether ``__call__`` also takes many trials' torques at once: ``measured[T, 1, ..., n, N]``
+    #: broadcasting against ``error[T, ..., n, N]``. Estimators then evaluate a batch of trials
+    #: in one call instead of one call per trial (a cost without a ``structure()`` is otherwise
+    #: called once per trial and move).
+    stacked_measured: ClassVar[bool] = False
 
     @abstractmethod
     def __call__(self, error: Tensor, measured: Tensor) -> Tensor:

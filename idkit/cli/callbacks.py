@@ -6,6 +6,10 @@ disk is what lets a failing job leave the others intact: Hydra stops calling bac
 failed, but by then the summary already lists every job that finished, and the failed one has an
 ``error.json`` in its folder. Import-light (no torch): Hydra instantiates it in the launching
 process.
+
+At the end of the sweep, the jobs of a sharded robustness study (``robustness.shard=0,1
+robustness.shards=2``) are merged into one report in ``<sweep>/merged`` (``merged_<k>`` when the
+sweep holds several sharded studies), so no manual merge call is needed.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ log = logging.getLogger(__name__)
 
 SUMMARY_CSV = "summary.csv"
 SUMMARY_MD = "summary.md"
+MERGED_DIR = "merged"
 ERROR_FILE = "error.json"
 
 
@@ -144,8 +149,11 @@ class MultirunSummary(Callback):
             self._summarise(Path(hydra_cfg.sweep.dir))
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        self._summarise(Path(config.hydra.sweep.dir))
-        log.info("sweep summary: %s", Path(config.hydra.sweep.dir) / SUMMARY_MD)
+        sweep_dir = Path(config.hydra.sweep.dir)
+        self._summarise(sweep_dir)
+        log.info("sweep summary: %s", sweep_dir / SUMMARY_MD)
+        for merged in merge_shards(sweep_dir):
+            log.info("merged robustness shards: %s", merged)
 
     @staticmethod
     def _summarise(sweep_dir: Path) -> None:
@@ -153,3 +161,45 @@ class MultirunSummary(Callback):
             return
         with _locked(sweep_dir / ".summary.lock"):
             write_summary(sweep_dir)
+
+
+def _shard_groups(sweep_dir: Path) -> list[list[tuple[Path, dict[str, Any]]]]:
+    """Complete robustness result folders of a sweep, grouped by study (config without the shard)."""
+    groups: dict[str, list[tuple[Path, dict[str, Any]]]] = {}
+    for result in sorted(sweep_dir.glob("*/result.json")):
+        document = json.loads(result.read_text())
+        sharding = (document.get("payload") or {}).get("sharding") or {}
+        if document.get("task") != "robustness" or sharding.get("shards", 1) < 2:
+            continue
+        config = dict(document.get("config") or {})
+        config["robustness"] = {k: v for k, v in (config.get("robustness") or {}).items() if k != "shard"}
+        groups.setdefault(json.dumps(config, sort_keys=True, default=str), []).append(
+            (result.parent, document)
+        )
+    return list(groups.values())
+
+
+def merge_shards(sweep_dir: Path) -> list[Path]:
+    """Merge each sharded robustness study of a sweep into one report; returns the folders written.
+
+    A study whose shards are not all there (a job failed or was killed) is left unmerged, with a
+    warning naming the missing shards.
+    """
+    from idkit.reports import robustness as report
+    from idkit.studies import robustness
+
+    groups, written = _shard_groups(sweep_dir), []
+    for index, group in enumerate(groups):
+        shards = group[0][1]["payload"]["sharding"]["shards"]
+        present = {document["payload"]["sharding"]["shard"] for _, document in group}
+        missing = sorted(set(range(shards)) - present)
+        if missing:
+            log.warning("robustness shards %s missing in %s: not merged", missing, sweep_dir)
+            continue
+        merged = robustness.merge([robustness.load(job_dir) for job_dir, _ in group])
+        merged.provenance.config = group[0][1].get("config")
+        plots = bool((merged.provenance.config or {}).get("plots", True))
+        out = sweep_dir / (MERGED_DIR if len(groups) == 1 else f"{MERGED_DIR}_{index}")
+        report.write(merged, out, plots=plots)
+        written.append(out)
+    return written

@@ -224,6 +224,10 @@ class Objective:
         count = len(self.costs)
         self.fast = [t * count + c for t in range(len(self.trials)) for c in self.fast_costs]
         self.others = [s for s in range(self.slots) if s not in set(self.fast)]
+        self.others_by_cost = {
+            c: torch.tensor([s for s in self.others if s % count == c], device=device)
+            for c in {s % count for s in self.others}
+        }  # the slots of each cost without a structure (its trials), for one call per cost
         self.products = NormProducts(
             [self.structures[s % count].norms for s in self.fast], *self.shape, self.measured
         )
@@ -305,8 +309,14 @@ class Objective:
         if self.fast:
             index = torch.tensor(self.fast, device=error.device)
             out[index] = self.products(error[index])
-        for s in self.others:
-            out[s] = self.costs[s % count](error[s], self.measured[s // count])
+        for c in sorted({s % count for s in self.others}):
+            cost, slots = self.costs[c], self.others_by_cost[c]
+            if cost.stacked_measured:  # every trial in one call
+                measured = self.measured.view(len(self.trials), *([1] * len(batch)), *self.shape)
+                out[slots] = cost(error[slots], measured)
+            else:
+                for s in slots.tolist():
+                    out[s] = cost(error[s], self.measured[s // count])
         return out
 
 

@@ -81,10 +81,7 @@ def _write_bytes(path: str | Path, data: bytes) -> Path:
 
 
 def save_figure(fig: Any, path: str | Path) -> Path:
-    """Save a matplotlib figure as PNG atomically and close it."""
-    import matplotlib.pyplot as plt
-
+    """Save a matplotlib figure as PNG atomically (a bare ``Figure``: nothing to close)."""
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=120, bbox_inches="tight")
-    plt.close(fig)
     return _write_bytes(path, buffer.getvalue())

@@ -16,19 +16,21 @@ if TYPE_CHECKING:
     import numpy as np
 
 
-def _pyplot() -> Any:
-    import matplotlib
+def _subplots(*args: Any, figsize: tuple[float, float], **kwargs: Any) -> tuple[Any, Any]:
+    """``pyplot.subplots`` without pyplot: a bare ``Figure``, rendered by Agg when saved.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Importing pyplot (backend selection, its state machine) took about a third of matplotlib's
+    import time on the single-fit command (``bench/latency.py``); a figure needs none of it.
+    """
+    from matplotlib.figure import Figure
 
-    return plt
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(*args, **kwargs)
 
 
 def convergence(header: Sequence[str], rows: Sequence[Sequence[float]], title: str, path: Path) -> Path:
     """Best cost vs iteration, one line per history column, log scale when all values are > 0."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    fig, ax = _subplots(figsize=(6, 3.5))
     iterations = [row[0] for row in rows]
     positive = True
     for j, name in enumerate(header[1:], start=1):
@@ -47,9 +49,8 @@ def estimates_vs_truth(
     estimates: Mapping[str, Mapping[str, float]], truth: Mapping[str, float], title: str, path: Path
 ) -> Path:
     """Per parameter, each method's estimate divided by the truth (1 = exact)."""
-    plt = _pyplot()
     names = [n for n in truth if truth[n] != 0]
-    fig, ax = plt.subplots(figsize=(max(5, 0.35 * len(estimates) + 3), 3.8))
+    fig, ax = _subplots(figsize=(max(5, 0.35 * len(estimates) + 3), 3.8))
     markers = "os^Dv<>pP*"
     for j, name in enumerate(names):
         xs, ys = [], []
@@ -66,12 +67,11 @@ def estimates_vs_truth(
 
 def boxplots(errors: Mapping[str, Mapping[str, Sequence[float]]], path: Path, title: str) -> Path:
     """One panel per scenario: the distribution of each estimator's parameter error (log scale)."""
-    plt = _pyplot()
     import numpy as np
 
     scenarios = list(errors)
     n_methods = max(len(v) for v in errors.values())
-    fig, axes = plt.subplots(
+    fig, axes = _subplots(
         1, len(scenarios), figsize=(max(4, 0.45 * n_methods + 1.5) * len(scenarios), 4), squeeze=False
     )
     for ax, scenario in zip(axes[0], scenarios, strict=True):
@@ -96,9 +96,8 @@ def traces(
     ylabel: str = "joint {j} (N·m)",
 ) -> Path:
     """One panel per joint: a measured signal ``[N, n]`` against predictions ``[N, n]`` over ``times[N]``."""
-    plt = _pyplot()
     n = measured.shape[1]
-    fig, axes = plt.subplots(n, 1, figsize=(10, 2.0 * n), sharex=True, squeeze=False)
+    fig, axes = _subplots(n, 1, figsize=(10, 2.0 * n), sharex=True, squeeze=False)
     for j, ax in enumerate(axes[:, 0]):
         ax.plot(times, measured[:, j], "k", lw=2.0, label="measured")
         for label, values in predicted.items():
@@ -130,9 +129,8 @@ def motion_against_limits(
     """
     import numpy as np
 
-    plt = _pyplot()
     n = len(joint_names)
-    fig, axes = plt.subplots(3, n, figsize=(3.2 * n, 6.5), sharex=True, squeeze=False)
+    fig, axes = _subplots(3, n, figsize=(3.2 * n, 6.5), sharex=True, squeeze=False)
     t_samples, at_samples = samples
     for v, label in enumerate(("q", "q̇", "q̈")):
         for j, ax in enumerate(axes[v]):

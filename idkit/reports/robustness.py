@@ -106,7 +106,10 @@ def write(study: RobustnessStudy, out_dir: str | Path, plots: bool = True) -> di
     for scenario, by_label in study.params.items():
         for label, values in by_label.items():
             err = study.errors(scenario, label)
-            trial_rows += [[scenario, t, label, *values[t].tolist(), err[t]] for t in range(len(values))]
+            trial_rows += [
+                [scenario, study.first_trial + t, label, *values[t].tolist(), err[t]]
+                for t in range(len(values))
+            ]
     written["trials_csv"] = str(
         files.write_csv(
             out / TRIALS_FILE, ["scenario", "trial", "estimator", *study.param_names, "error"], trial_rows

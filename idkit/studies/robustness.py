@@ -17,8 +17,10 @@ whole interval lies above 1/2, ``worse`` likewise below, ``undecided`` otherwise
 straddles 1/2 never counts as a loss. The conclusion (:meth:`RobustnessStudy.conclusion`) "holds"
 when every scenario is ``better``, "does not hold" when one is ``worse``, else "undecided".
 
-The search estimator's ``fit_costs`` batches all its costs of one trial into one computation; trials
-are separate calls (the estimator API takes one sample set per problem).
+Trials are fitted in chunks through ``idkit.estimators.trials.fit_trials``: the search estimator
+stacks trials × costs × runs into one batched swarm, the others batch as far as they know how (the
+LS family and third-party estimators trial by trial). ``shard``/``shards`` split the trials into
+contiguous slices for parallel jobs, which :func:`merge` joins (the multirun callback does it).
 """
 
 from __future__ import annotations
@@ -42,6 +44,8 @@ from idkit.studies.result import Provenance, StudyInterrupted, new_run_id
 
 #: Per-trial parameters and errors, written by ``idkit.reports.robustness`` and read by :func:`load`.
 TRIALS_FILE = "robustness_trials.csv"
+#: Trials per step of the study (``run(chunk=...)``).
+DEFAULT_CHUNK = 50
 CONFIDENCE = 0.95
 ALPHA = 1 - CONFIDENCE
 
@@ -110,6 +114,12 @@ class RobustnessStudy:
     skipped: list[str] = field(default_factory=list)
     wall_time_s: float = 0.0
     fit_time_s: dict[str, float] = field(default_factory=dict)
+    sharding: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def first_trial(self) -> int:
+        """Index of this study's first trial (non-zero for a shard)."""
+        return self.sharding.get("first_trial", 0)
 
     @property
     def trials(self) -> int:
@@ -171,6 +181,7 @@ class RobustnessStudy:
             "summary": self.rows(),
             "skipped": self.skipped,
             "wall_time_s": self.wall_time_s,
+            "sharding": self.sharding,
         }
 
 
@@ -217,24 +228,32 @@ def load(run_dir: str | Path) -> RobustnessStudy:
         skipped=meta.get("skipped", []),
         wall_time_s=meta["wall_time_s"],
         fit_time_s=fit_time,
+        sharding=meta.get("sharding") or {},
     )
 
 
 def merge(studies: Sequence[RobustnessStudy]) -> RobustnessStudy:
-    """One study from several that ran disjoint scenarios (e.g. in parallel processes).
+    """One study from several that ran in parallel: disjoint scenarios, or shards of the trials.
 
-    Each scenario's draws depend only on the seed and the trial index, so the merge equals one
-    run over all scenarios when the seeds and trial counts agree (checked). ``wall_time_s`` is the
-    longest of the parts (they ran side by side).
+    Each draw depends only on the seed and the trial index, so the merge equals one run over
+    everything when the seeds agree (checked). Shards (``run(shard=k, shards=K)``) must cover the
+    same scenarios with contiguous trials; their trials are concatenated in order (an interrupted
+    shard is kept only as the last). Studies over disjoint scenarios must have equal trial counts.
+    ``wall_time_s`` is the longest of the parts (they ran side by side).
     """
+    if not studies:
+        raise ValueError("robustness.merge: nothing to merge")
     first = studies[0]
     for other in studies[1:]:
-        if (other.trials, other.seed, other.baseline) != (first.trials, first.seed, first.baseline):
-            raise ValueError("robustness.merge: the studies differ in trials, seed or baseline")
-        if set(other.params) & set(first.params):
-            raise ValueError("robustness.merge: the studies share a scenario")
+        if (other.seed, other.baseline) != (first.seed, first.baseline):
+            raise ValueError("robustness.merge: the studies differ in seed or baseline")
         if (other.provenance.data or {}).get("scenario") != (first.provenance.data or {}).get("scenario"):
             raise ValueError("robustness.merge: the studies set different scenario fields (e.g. excitation)")
+    if all(set(s.params) == set(first.params) for s in studies) and len(studies) > 1:
+        return _merge_shards(sorted(studies, key=lambda s: s.first_trial))
+    for other in studies[1:]:
+        if other.trials != first.trials or set(other.params) & set(first.params):
+            raise ValueError("robustness.merge: the studies differ in trials or share a scenario")
     params = {s: by for study in studies for s, by in study.params.items()}
     scenarios = [s for study in studies for s in (study.provenance.data or {}).get("scenarios", [])]
     return replace(
@@ -251,12 +270,66 @@ def merge(studies: Sequence[RobustnessStudy]) -> RobustnessStudy:
     )
 
 
+def _merge_shards(shards: Sequence[RobustnessStudy]) -> RobustnessStudy:
+    """Shards sorted by their first trial, concatenated into one study from trial 0."""
+    expected = 0
+    for index, shard in enumerate(shards):
+        if shard.first_trial != expected:
+            raise ValueError(
+                f"robustness.merge: shards must cover contiguous trials; trial {expected} is missing "
+                f"(a shard starts at {shard.first_trial})"
+            )
+        if shard.trials < shard.provenance.requested and index < len(shards) - 1:
+            raise ValueError(f"robustness.merge: the shard starting at trial {shard.first_trial} is partial")
+        expected += shard.trials
+    first, total = shards[0], sum(s.trials for s in shards)
+    requested = max(s.sharding.get("total_trials", s.first_trial + s.provenance.requested) for s in shards)
+    params = {
+        scenario: {label: np.concatenate([s.params[scenario][label] for s in shards]) for label in by}
+        for scenario, by in first.params.items()
+    }
+    fit_time = {
+        label: sum(s.fit_time_s.get(label, 0.0) * s.trials for s in shards) / max(total, 1)
+        for label in first.fit_time_s
+    }
+    return replace(
+        first,
+        provenance=replace(first.provenance, requested=requested, done=total, run_id=new_run_id()),
+        params=params,
+        wall_time_s=max(s.wall_time_s for s in shards),
+        fit_time_s=fit_time,
+        sharding={
+            "shard": 0,
+            "shards": 1,
+            "first_trial": 0,
+            "total_trials": requested,
+            "merged": len(shards),
+        },
+    )
+
+
 def _installed(kind: registry.Kind, spec: Any, optional: Sequence[str], skipped: list[str]) -> bool:
     name = name_and_options(kind, spec)[0]
     if name in optional and name not in registry.available(kind):
         skipped.append(f"{kind} {name}")
         return False
     return True
+
+
+def shard_trials(trials: int, shard: int, shards: int) -> range:
+    """The trials shard ``shard`` of ``shards`` fits: a contiguous slice of ``range(trials)``.
+
+    Contiguous slices in shard order concatenate to ``range(trials)``, so :func:`merge` of the
+    shards is the one-process study.
+    """
+    for name, value, low in (("shards", shards, 1), ("shard", shard, 0)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ValueError(f"robustness.{name} must be an integer >= {low}, got {value!r}")
+    if shard >= shards:
+        raise ValueError(f"robustness.shard must be below robustness.shards={shards}, got {shard}")
+    if shards > trials:
+        raise ValueError(f"robustness.shards={shards} exceeds trials={trials}: a shard would be empty")
+    return range(trials * shard // shards, trials * (shard + 1) // shards)
 
 
 def run(
@@ -275,6 +348,9 @@ def run(
     baseline: str = "RLS-rel",
     optional: Sequence[str] = ("irls", "huber", "trimmed"),
     scenario: Mapping[str, Any] | None = None,
+    chunk: int = DEFAULT_CHUNK,
+    shard: int = 0,
+    shards: int = 1,
     seed: int = 0,
     device: str = "cpu",
     dtype: str = "float64",
@@ -284,32 +360,44 @@ def run(
 ) -> RobustnessStudy:
     """Run the Monte-Carlo study.
 
+    Trials are fitted ``chunk`` at a time: per scenario, every estimator gets the chunk's trials
+    in one ``fit_trials`` call (``idkit.estimators.trials``), so the search estimator stacks
+    trials × costs × runs into one batched swarm and the others batch as far as they know how.
+    Each trial's numbers depend only on ``(seed, trial)`` and the configuration — not on ``chunk``
+    nor on the sharding (tested).
+
     Args:
         robot: robot spec; its ``nominal_params`` are the truth.
-        estimator: spec of the search estimator whose ``fit_costs`` runs ``pso_costs`` (``None``:
-            none).
+        estimator: spec of the search estimator that runs ``pso_costs`` (``None``: none).
         trials: noise draws per scenario.
-        estimators: other estimators (specs), fitted to each trial one by one.
-        pso_costs: costs of the search estimator, all in one batched call per trial.
+        estimators: other estimators (specs), fitted to every trial.
+        pso_costs: costs of the search estimator, all batched together.
         average_of: costs whose estimates are averaged (the paper's final estimate).
         baseline: label the others are compared with.
         optional: plugin names skipped (and reported) when not installed, e.g. third-party IRLS.
         scenario: fields set on every scenario, e.g. ``{"excitation": "excitation.yaml"}`` (the
             motion, ``idkit.data.scenarios.shared_fields``).
+        chunk: trials per step: bounds memory, and sets how often the progress bar moves and a
+            checkpoint or Ctrl-C can take the finished trials.
+        shard, shards: fit only shard ``shard`` of ``shards`` contiguous slices of the trials
+            (Hydra multirun jobs; the sweep's callback merges them into one report).
         seed: seed of the noise draws; trial ``i``'s estimators use ``seed + i``.
         checkpoint: called with the study so far every ``checkpoint_every_s`` seconds (the command
             line writes the partial report, so a long study that dies still reports).
 
     Raises:
-        StudyInterrupted: on Ctrl-C, carrying the trials finished so far in every scenario.
+        StudyInterrupted: on Ctrl-C, carrying the chunks finished so far in every scenario.
     """
     from tqdm import tqdm
 
     from idkit.data.scenarios import shared_fields, simulate_batch
+    from idkit.estimators.trials import fit_trials, trial_chunk
     from idkit.problem import Problem
 
     common = shared_fields(scenario, "robustness")
     started = time.perf_counter()
+    trial_chunk(chunk, 1)  # check it
+    mine = shard_trials(trials, shard, shards)
     skipped: list[str] = []
     robot_obj = build("robot", robot)
     est_specs = [s for s in estimators if _installed("estimator", s, optional, skipped)]
@@ -325,7 +413,8 @@ def run(
     truth = robot_obj.nominal_params().numpy()
     found: dict[str, dict[str, list]] = {scenario: {} for scenario in scenarios}
     fit_time: dict[str, float] = {}
-    batches = {s: simulate_batch(robot_obj, s, trials=trials, seed=seed, **common) for s in scenarios}
+    # Trial i's draws depend only on (seed, i): draw up to the shard's end, keep its slice.
+    batches = {s: simulate_batch(robot_obj, s, trials=mine.stop, seed=seed, **common) for s in scenarios}
     provenance = Provenance(
         task="robustness",
         label=f"robustness vs {baseline}",
@@ -335,10 +424,11 @@ def run(
             "robot": describe("robot", robot),
             "estimator": describe("estimator", estimator) if search is not None else None,
         },
-        requested=trials,
+        requested=len(mine),
         done=0,
         unit="trial",
     )
+    sharding = {"shard": shard, "shards": shards, "first_trial": mine.start, "total_trials": trials}
 
     def snapshot(done: int) -> RobustnessStudy:
         return RobustnessStudy(
@@ -353,35 +443,49 @@ def run(
             skipped=skipped,
             wall_time_s=time.perf_counter() - started,
             fit_time_s={k: v / max(done * len(scenarios), 1) for k, v in fit_time.items()},
+            sharding=sharding,
         )
 
+    def fit_chunk(scenario: str, chosen: range) -> None:
+        """Every estimator on trials ``chosen`` of ``scenario``, appended to ``found``."""
+        problems = [
+            Problem(robot_obj, batches[scenario][t], None, seed=seed + t, device=device, dtype=dtype)
+            for t in chosen
+        ]
+        columns = [[e for (e,) in fit_trials(est, problems)] for est in est_objs]
+        if search is not None:
+            columns += [list(c) for c in zip(*fit_trials(search, problems, cost_objs), strict=True)]
+        for label, column in zip(labels, columns, strict=True):
+            found[scenario].setdefault(label, []).extend(list(e.params.values()) for e in column)
+            fit_time[label] = fit_time.get(label, 0.0) + sum(e.wall_time_s for e in column)
+        if focus is not None:
+            searched = columns[len(est_objs) :]
+            chosen_costs = [searched[cost_names.index(c)] for c in average_of]
+            found[scenario].setdefault(focus, []).extend(
+                list(mean_params([e.params for e in parts]).values())
+                for parts in zip(*chosen_costs, strict=True)
+            )
+
     saved = time.perf_counter()
-    bar = tqdm(total=trials * len(scenarios), desc="robustness", unit="trial", disable=not progress)
+    bar = tqdm(total=len(mine), desc="robustness", unit="trial", disable=not progress)
     done = 0
     try:
-        # Trial-major order: an interrupted study has the same number of trials in every scenario.
-        for t in range(trials):
+        # Chunk-major order: an interrupted study has the same trials in every scenario.
+        for start in range(mine.start, mine.stop, chunk):
+            chosen = range(start, min(start + chunk, mine.stop))
             for scenario in scenarios:
-                problem = Problem(
-                    robot_obj, batches[scenario][t], None, seed=seed + t, device=device, dtype=dtype
-                )
-                fitted = [est.fit(problem) for est in est_objs]
-                if search is not None:
-                    fitted += search.fit_costs(problem, cost_objs)
-                for label, e in zip(labels, fitted, strict=True):
-                    found[scenario].setdefault(label, []).append(list(e.params.values()))
-                    fit_time[label] = fit_time.get(label, 0.0) + e.wall_time_s
-                if focus is not None:
-                    searched = fitted[len(est_objs) :]
-                    chosen = [searched[cost_names.index(c)].params for c in average_of]
-                    found[scenario].setdefault(focus, []).append(list(mean_params(chosen).values()))
-                bar.update()
-            done = t + 1
-            if checkpoint is not None and time.perf_counter() - saved > checkpoint_every_s and done < trials:
+                fit_chunk(scenario, chosen)
+            done += len(chosen)
+            bar.update(len(chosen))
+            if (
+                checkpoint is not None
+                and time.perf_counter() - saved > checkpoint_every_s
+                and done < len(mine)
+            ):
                 checkpoint(snapshot(done))
                 saved = time.perf_counter()
     except KeyboardInterrupt:
         raise StudyInterrupted(snapshot(done)) from None
     finally:
         bar.close()
-    return snapshot(trials)
+    return snapshot(len(mine))

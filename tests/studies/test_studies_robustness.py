@@ -100,7 +100,9 @@ def test_interrupted_study_keeps_whole_trials_and_says_partial(tmp_path, monkeyp
 
     monkeypatch.setattr(LeastSquares, "fit", interrupting_fit)
     with pytest.raises(StudyInterrupted) as stop:
-        robustness.run(trials=5, **{**SMALL, "estimators": [{"_name_": "ls", "relative": True}, "ls"]})
+        robustness.run(
+            trials=5, chunk=1, **{**SMALL, "estimators": [{"_name_": "ls", "relative": True}, "ls"]}
+        )
     partial = stop.value.partial
     assert (partial.provenance.done, partial.provenance.requested) == (2, 5)
     assert {len(v) for v in partial.params["torque_noise"].values()} == {2}
@@ -112,3 +114,82 @@ def test_interrupted_study_keeps_whole_trials_and_says_partial(tmp_path, monkeyp
         "unit": "trial",
     }
     assert "PARTIAL: 2 of 5 trials" in (tmp_path / "robustness.md").read_text()
+
+
+#: Every path of the study: the LS family, a third-party estimator (IRLS), native and eager costs.
+MIXED = {
+    **SMALL,
+    "scenarios": ["torque_noise", "outliers"],
+    "estimators": [{"_name_": "ls", "relative": True}, {"_name_": "rls", "relative": True}, "irls"],
+    "pso_costs": ["f13", "f14", "huber"],
+    "optional": [],
+}
+
+
+def _same_numbers(a: robustness.RobustnessStudy, b: robustness.RobustnessStudy) -> None:
+    assert list(a.params) == list(b.params)
+    for scenario, by in a.params.items():
+        assert list(by) == list(b.params[scenario])
+        for label, values in by.items():
+            np.testing.assert_array_equal(values, b.params[scenario][label], err_msg=f"{scenario} {label}")
+
+
+def test_study_numbers_do_not_depend_on_the_chunk_size():
+    """Chunks of 1, 7 and all trials: bit-identical parameters for every estimator and scenario."""
+    studies = [robustness.run(trials=9, chunk=chunk, **MIXED) for chunk in (1, 7, 9)]
+    for other in studies[1:]:
+        _same_numbers(studies[0], other)
+
+
+def test_batched_trials_equal_fitting_each_trial_alone():
+    """Trial t of the batched study is what the estimators give on (seed + t) fitted one by one."""
+    from idkit.data.scenarios import simulate_batch
+    from idkit.problem import Problem
+    from idkit.studies.build import build
+
+    study = robustness.run(trials=4, seed=3, **MIXED)
+    robot = build("robot", "cylindrical")
+    search = build("estimator", TINY_PSO)
+    costs = [build("cost", c) for c in MIXED["pso_costs"]]
+    singles = [build("estimator", s) for s in MIXED["estimators"]]
+    for scenario in MIXED["scenarios"]:
+        draws = simulate_batch(robot, scenario, trials=4, seed=3)
+        by = study.params[scenario]
+        for t in range(4):
+            problem = Problem(robot, draws[t], None, seed=3 + t)
+            for label, est in zip(["LS-rel", "RLS-rel", "IRLS"], singles, strict=True):
+                np.testing.assert_allclose(by[label][t], list(est.fit(problem).params.values()), rtol=1e-12)
+            searched = search.fit_costs(problem, costs)
+            for label, e in zip(["PSO-f13", "PSO-f14", "PSO-huber"], searched, strict=True):
+                np.testing.assert_array_equal(by[label][t], list(e.params.values()))
+
+
+def test_shards_merge_into_the_one_process_study(tmp_path):
+    """Two shards written and read back, merged: the same numbers as one process over all trials."""
+    whole = robustness.run(trials=5, **MIXED)
+    parts = []
+    for shard in (1, 0):
+        study = robustness.run(trials=5, shard=shard, shards=2, **MIXED)
+        assert study.trials == len(robustness.shard_trials(5, shard, 2))
+        report.write(study, tmp_path / str(shard), plots=False)
+        parts.append(robustness.load(tmp_path / str(shard)))
+    merged = robustness.merge(parts)
+    _same_numbers(whole, merged)
+    assert (merged.trials, merged.provenance.status) == (5, "complete")
+    assert [r["win_rate"] for r in merged.rows()] == [r["win_rate"] for r in whole.rows()]
+
+
+def test_shard_options_are_checked():
+    assert list(robustness.shard_trials(10, 2, 3)) == list(range(6, 10))
+    with pytest.raises(ValueError, match="robustness.shard must be below"):
+        robustness.shard_trials(10, 3, 3)
+    with pytest.raises(ValueError, match="exceeds trials"):
+        robustness.shard_trials(2, 0, 3)
+    with pytest.raises(ValueError, match="chunk"):
+        robustness.run(trials=2, chunk=0, **SMALL)
+
+
+@pytest.mark.skipif(not __import__("torch").cuda.is_available(), reason="no CUDA device")
+def test_study_runs_on_cuda():
+    study = robustness.run(trials=3, device="cuda", **MIXED)
+    assert {len(v) for by in study.params.values() for v in by.values()} == {3}

@@ -12,18 +12,23 @@ import math
 
 import torch
 from idkit.interfaces import Cost
-from idkit.relative import DEFAULT_FLOOR, relative_error
+from idkit.relative import DEFAULT_FLOOR, relative_denominator, relative_error
 from torch import Tensor
 
 
 def _errors(name: str, error: Tensor, measured: Tensor, relative: bool, floor: float) -> Tensor:
-    """The (relative) error matrix ``[..., n, N]``, after checking ``measured`` is ``[n, N]``."""
-    if error.ndim < 2 or measured.shape != error.shape[-2:]:
+    """The (relative) error matrix ``[..., n, N]``, after checking ``measured`` is ``[n, N]`` (or
+    several trials' ``[T, 1, ..., n, N]`` broadcasting against ``error``: ``Cost.stacked_measured``)."""
+    if error.ndim < 2 or measured.shape[-2:] != error.shape[-2:] or measured.ndim > error.ndim:
         raise ValueError(
             f"{name}: error must be [..., n, N] and measured [n, N] with the same n, N; got error "
             f"{tuple(error.shape)} and measured {tuple(measured.shape)}"
         )
-    return relative_error(error, measured, floor) if relative else error
+    if not relative:
+        return error
+    if measured.ndim == 2:
+        return relative_error(error, measured, floor)
+    return error / relative_denominator(measured, floor)
 
 
 class HuberCost(Cost):
@@ -38,6 +43,8 @@ class HuberCost(Cost):
         relative: use the relative error ``E / T`` (eq. 27) instead of ``E``.
         floor: near-zero policy of the relative error (``idkit.relative``).
     """
+
+    stacked_measured = True
 
     def __init__(self, delta: float = 1.0, relative: bool = False, floor: float = DEFAULT_FLOOR) -> None:
         if not delta > 0:
@@ -69,6 +76,8 @@ class TrimmedCost(Cost):
         relative: use the relative error ``E / T`` (eq. 27) instead of ``E``.
         floor: near-zero policy of the relative error (``idkit.relative``).
     """
+
+    stacked_measured = True
 
     def __init__(self, trim: float = 0.1, relative: bool = False, floor: float = DEFAULT_FLOOR) -> None:
         if not 0 <= trim < 1:

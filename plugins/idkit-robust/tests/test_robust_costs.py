@@ -86,3 +86,19 @@ def test_bad_options(make, message):
 def test_shape_mismatch_is_an_error(cost):
     with pytest.raises(ValueError, match=r"measured \[n, N\]"):
         cost(torch.zeros(2, 3, 12, dtype=torch.float64), torch.ones(3, 11, dtype=torch.float64))
+
+
+@pytest.mark.parametrize("relative", [False, True])
+@pytest.mark.parametrize(
+    "make", [lambda r: HuberCost(delta=0.3, relative=r), lambda r: TrimmedCost(relative=r)]
+)
+def test_stacked_measured_equals_one_call_per_trial(make, relative):
+    """``Cost.stacked_measured``: trials' torques [T, 1, n, N] in one call = one call per trial."""
+    gen = torch.Generator().manual_seed(5)
+    measured = torch.rand(4, 2, 7, generator=gen, dtype=torch.float64) + 0.5
+    error = torch.randn(4, 6, 2, 7, generator=gen, dtype=torch.float64)
+    cost = make(relative)
+    assert cost.stacked_measured
+    stacked = cost(error, measured.view(4, 1, 2, 7))
+    one_by_one = torch.stack([cost(error[t], measured[t]) for t in range(4)])
+    torch.testing.assert_close(stacked, one_by_one, rtol=1e-15, atol=0)
