@@ -87,19 +87,8 @@ def load_samples(path: str | Path, keys: Mapping[str, str] | None = None, stride
     names = _resolve_keys(keys)
     if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
         raise ValueError(f"load_samples: stride must be an integer >= 1, got {stride!r}")
-    if path.is_dir():
-        found = sorted(p.name for p in path.iterdir() if p.suffix.lower() in (".npz", ".csv"))
-        inside = f"; data files in it: {', '.join(found[:5])}{' …' * (len(found) > 5)}" if found else ""
-        raise ValueError(f"{path} is a directory, not a samples file (.npz or .csv){inside}")
-    if not path.is_file():
-        raise FileNotFoundError(f"samples file not found: {path}")
-    suffix = path.suffix.lower()
-    if suffix == ".npz":
-        arrays = _read_npz(path, names)
-    elif suffix == ".csv":
-        arrays = _read_csv(path, names)
-    else:
-        raise ValueError(f"{path}: unsupported file type {path.suffix!r}; use .npz or .csv")
+    path = check_data_path(path)
+    arrays = _read_npz(path, names) if path.suffix.lower() == ".npz" else _read_csv(path, names)
     try:
         return Samples(*(torch.as_tensor(arrays[k][::stride], dtype=torch.float64) for k in SAMPLE_ARRAYS))
     except ValueError as exc:
@@ -108,7 +97,35 @@ def load_samples(path: str | Path, keys: Mapping[str, str] | None = None, stride
         raise ValueError(f"{path}: {exc}{note}") from None
 
 
-def _read_npz(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:
+def check_data_path(path: str | Path) -> Path:
+    """``path`` as a ``Path`` if it is an existing ``.npz`` or ``.csv`` file.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: a directory (listing the data files in it) or another suffix.
+    """
+    path = Path(path)
+    if path.is_dir():
+        found = sorted(p.name for p in path.iterdir() if p.suffix.lower() in (".npz", ".csv"))
+        inside = f"; data files in it: {', '.join(found[:5])}{' …' * (len(found) > 5)}" if found else ""
+        raise ValueError(f"{path} is a directory, not a samples file (.npz or .csv){inside}")
+    if not path.is_file():
+        raise FileNotFoundError(f"data file not found: {path}")
+    if path.suffix.lower() not in (".npz", ".csv"):
+        raise ValueError(f"{path}: unsupported file type {path.suffix!r}; use .npz or .csv")
+    return path
+
+
+def open_npz(path: Path, expected: str) -> np.lib.npyio.NpzFile:
+    """Open an ``.npz`` archive of arrays without pickles (close it, e.g. ``with open_npz(...)``).
+
+    Args:
+        path: the file.
+        expected: the arrays it should hold, for the message when it holds none.
+
+    Raises:
+        ValueError: not a zip (an empty or text file), a damaged archive, or no arrays in it.
+    """
     with path.open("rb") as handle:
         head = handle.read(4)
     if head not in ZIP_MAGIC:
@@ -121,11 +138,14 @@ def _read_npz(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:
         archive = np.load(path, allow_pickle=False)
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
         raise ValueError(f"{path}: a damaged .npz archive ({type(exc).__name__}: {exc})") from None
-    with archive as data:
-        if not data.files:
-            raise ValueError(
-                f"{path}: the .npz archive contains no arrays; expected {', '.join(names.values())}"
-            )
+    if not archive.files:
+        archive.close()
+        raise ValueError(f"{path}: the .npz archive contains no arrays; expected {expected}")
+    return archive
+
+
+def _read_npz(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:
+    with open_npz(path, ", ".join(names.values())) as data:
         missing = [v for v in names.values() if v not in data.files]
         if missing:
             raise ValueError(

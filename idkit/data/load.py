@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from idkit.data.io import FLOBAROID_KEYS, load_samples
+from idkit.data.io import FLOBAROID_KEYS, check_data_path, load_samples, open_npz
 from idkit.data.preprocess import PreprocessOptions, preprocess_with_times
 from idkit.data.recording import FLOBAROID_RECORDING_KEYS, load_recording
 from idkit.problem import SAMPLE_ARRAYS, Samples
@@ -43,24 +43,16 @@ def file_kind(path: str | Path) -> FileKind:
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: neither ``.npz`` nor ``.csv``.
+        ValueError: a directory, neither ``.npz`` nor ``.csv``, or not a readable archive of arrays.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"data file not found: {path}")
-    suffix = path.suffix.lower()
-    if suffix == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                names = set(data.files)
-        except (OSError, ValueError) as exc:
-            raise ValueError(f"{path}: not a NumPy .npz archive ({exc})") from None
-    elif suffix == ".csv":
+    path = check_data_path(path)
+    if path.suffix.lower() == ".npz":
+        with open_npz(path, "samples (q, qd, qdd, tau) or a recording (t, q, tau)") as data:
+            names = set(data.files)
+    else:
         with path.open(newline="", encoding="utf-8-sig") as handle:
             header = next(csv.reader(handle), [])
         names = {cell.strip().rstrip("0123456789") for cell in header}
-    else:
-        raise ValueError(f"{path}: unsupported file type {path.suffix!r}; use .npz or .csv")
     flobaroid = FLOBAROID_KEYS["q"] in names
     keys = FLOBAROID_RECORDING_KEYS if flobaroid else {"t": "t"}
     accelerations = (FLOBAROID_KEYS if flobaroid else {"qdd": "qdd"})["qdd"]
