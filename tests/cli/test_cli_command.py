@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -256,10 +257,16 @@ def test_ctrl_c_leaves_a_partial_study_and_one_line(tmp_path):
     reader = threading.Thread(target=lambda: stderr.extend(iter(lambda: process.stderr.read(64), "")))
     reader.start()
     deadline = time.monotonic() + 240
-    while "trial/s" not in "".join(stderr) and time.monotonic() < deadline:  # tqdm: trials are running
+    measured_rate = re.compile(r"\d trial/s|\dtrial/s")  # tqdm's rate once a chunk of trials is done
+    while not measured_rate.search("".join(stderr)) and time.monotonic() < deadline:
         time.sleep(0.2)
     process.send_signal(signal.SIGINT)
-    process.wait(timeout=120)
+    try:
+        process.wait(timeout=300)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        reader.join(timeout=10)
+        pytest.fail("no exit 300 s after SIGINT; stderr ends with: " + "".join(stderr)[-2000:])
     reader.join(timeout=10)
     text = "".join(stderr)
     assert process.returncode == 130, text[-2000:]
