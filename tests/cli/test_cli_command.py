@@ -252,6 +252,9 @@ def test_ctrl_c_leaves_a_partial_study_and_one_line(tmp_path):
         [*IDKIT, "+experiment=robustness", "trials=100000", "robustness.scenarios=[outliers]",
          "estimator.runs=2", "estimator.iterations=10", "plots=false"],
         cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        # A runner started in the background of a non-interactive shell ignores SIGINT, and Python
+        # keeps an inherited SIG_IGN: give the child the default disposition, as a terminal would.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
     stderr: list[str] = []
     reader = threading.Thread(target=lambda: stderr.extend(iter(lambda: process.stderr.read(64), "")))
