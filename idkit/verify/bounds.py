@@ -9,7 +9,6 @@ eq. (39) does leave eq. (38) — ``d2`` starts at −0.014 m, for example. Comma
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -17,21 +16,17 @@ import torch
 from torch import Tensor
 
 from idkit.excitation.paper import PaperExcitation
+from idkit.robots.cylindrical import PAPER_LIMITS, CylindricalRobot
 
-#: Eq. (38): the physical box the planned trajectory should observe, ``name -> (lower, upper)``.
+PAPER_JOINTS = CylindricalRobot.joint_names
+
+#: Eq. (38) as ``name -> (lower, upper)`` (``theta1``, ``theta1_d``, ``theta1_dd``, ...), from the
+#: robot's own table so the two never disagree.
 PAPER_BOUNDS: dict[str, tuple[float, float]] = {
-    "theta1": (-math.pi, math.pi),
-    "theta1_d": (-4.0, 4.0),
-    "theta1_dd": (-3.0, 3.0),
-    "d2": (0.0, 1.0),
-    "d2_d": (-2.0, 2.0),
-    "d2_dd": (-2.0, 2.0),
-    "d3": (0.0, 1.0),
-    "d3_d": (-1.5, 1.5),
-    "d3_dd": (-1.0, 1.0),
+    f"{joint}{suffix}": box
+    for joint, boxes in zip(PAPER_JOINTS, PAPER_LIMITS, strict=True)
+    for suffix, box in zip(("", "_d", "_dd"), boxes, strict=True)
 }
-
-PAPER_JOINTS = ("theta1", "d2", "d3")
 
 
 @dataclass(frozen=True)
