@@ -3,11 +3,10 @@
 Run: ``python bench/excitation.py cylindrical`` (eq. 39 vs an optimised Fourier series within eq. 38,
 N = 10 samples at t = 1, ..., 10 s) or ``python bench/excitation.py kuka`` (the ``measurements_1``
 recording vs a Fourier series optimised within the URDF's position and velocity limits, the
-recording's peak accelerations, and within the recording's own envelope), or ``python
-bench/excitation.py identify`` (a first look for phase 2: LS, TLS, LS-rel errors on the noise
-scenarios with eq. 39 vs the optimised motion, same noise draws). Prints Markdown tables.
+recording's peak accelerations, and within the recording's own envelope). Prints Markdown tables.
+How much the optimised motion helps identification is the study ``idkit +experiment=excitation``.
 Options: ``--criterion cond|logdet``, ``--seed``, budget (``--swarms --particles --iterations
---adam-steps``). Phase 2 replaces this script with ``idkit +experiment=excitation``.
+--adam-steps``).
 """
 
 from __future__ import annotations
@@ -15,18 +14,14 @@ from __future__ import annotations
 import argparse
 import os
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from idkit.data.scenarios import simulate_batch
-from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares
 from idkit.excitation.criterion import excitation_criterion
 from idkit.excitation.optimize import optimize_excitation
 from idkit.limits import MOTION_VARIABLES, MotionLimits
-from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 from idkit.robots.urdf import URDFRobot
 
@@ -113,34 +108,9 @@ def kuka(args: argparse.Namespace) -> None:
         )
 
 
-def identify(args: argparse.Namespace) -> None:
-    """A first look for phase 2: LS-family errors on eq. (39) vs the optimised motion, same noise draws."""
-    robot = CylindricalRobot()
-    optimised = optimize_excitation(robot, **budget(args)).excitation
-    true = robot.nominal_params()
-    estimators = {"LS": LeastSquares(), "TLS": TotalLeastSquares(), "LS-rel": LeastSquares(relative=True)}
-    print(f"median over {args.trials} trials of the mean relative parameter error |p - p_true| / |p_true|")
-    print(f"| scenario | motion | {' | '.join(estimators)} |")
-    print("|---|---|" + "---:|" * len(estimators))
-    for scenario in ("state_noise", "torque_noise", "all_noise", "outliers"):
-        for label, excitation in (("eq. (39)", None), ("optimised", optimised)):
-            batch = simulate_batch(robot, scenario, trials=args.trials, seed=args.seed, excitation=excitation)
-            medians = []
-            for estimator in estimators.values():
-                errors = []
-                for samples in batch:
-                    with warnings.catch_warnings():
-                        warnings.simplefilter("ignore")
-                        params = estimator.fit(Problem(robot, samples)).params
-                    estimate = torch.tensor(list(params.values()), dtype=torch.float64)
-                    errors.append(float(((estimate - true).abs() / true.abs()).mean()))
-                medians.append(f"{np.median(errors):.3f}")
-            print(f"| {scenario} | {label} | {' | '.join(medians)} |")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("robot", choices=("cylindrical", "kuka", "identify"))
+    parser.add_argument("robot", choices=("cylindrical", "kuka"))
     parser.add_argument("--criterion", default="cond", choices=("cond", "logdet"))
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--swarms", type=int, default=4)
@@ -148,12 +118,11 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=200)
     parser.add_argument("--adam-steps", type=int, default=200)
     parser.add_argument("--samples", type=int, default=100, help="KUKA: samples of the criterion")
-    parser.add_argument("--trials", type=int, default=200, help="identify: noise draws per scenario")
     parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-    {"cylindrical": cylindrical, "kuka": kuka, "identify": identify}[args.robot](args)
+    {"cylindrical": cylindrical, "kuka": kuka}[args.robot](args)
 
 
 if __name__ == "__main__":
