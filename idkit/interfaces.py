@@ -11,6 +11,7 @@ config section maps one-to-one onto a constructor call.
 from __future__ import annotations
 
 import math
+import numbers
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -149,24 +150,22 @@ class NormStructure:
 
     def __post_init__(self) -> None:
         norms, parameters = tuple(self.norms), tuple(self.parameters)
+        if isinstance(self.norms, str):
+            raise ValueError(
+                f"NormStructure: norms must be a tuple of names, e.g. ({self.norms!r},), not a string"
+            )
         if parameters and len(parameters) != len(norms):
             raise ValueError(
                 f"NormStructure: parameters {parameters} must give one value per factor of norms "
                 f"{norms} (or none, when every factor is parameter-free)"
             )
-        numbers = []
         for name, value in zip(norms, parameters, strict=False):
-            try:
-                number = float(value)
-            except (TypeError, ValueError):
-                number = math.nan
-            if not math.isfinite(number):
+            if not (isinstance(value, numbers.Real) and math.isfinite(value)):
                 raise ValueError(
                     f"NormStructure: the parameter of factor {name!r} must be a finite number, got {value!r}"
                 )
-            numbers.append(number)
         object.__setattr__(self, "norms", norms)  # a list would make the structure unhashable
-        object.__setattr__(self, "parameters", tuple(numbers))
+        object.__setattr__(self, "parameters", tuple(float(value) for value in parameters))
 
 
 class Cost(ABC):

@@ -14,6 +14,7 @@ norms of ``idkit.costs.norms`` (``parameters`` gives the value), and estimators 
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -61,13 +62,9 @@ class Reduction:
 
     def check(self, name: str, value: float) -> float:
         """``value`` as a float, or ``ValueError`` naming the reduction, the parameter and its domain."""
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            number = math.nan
-        if not (math.isfinite(number) and self.valid(number)):
+        if not (isinstance(value, numbers.Real) and math.isfinite(value) and self.valid(value)):
             raise ValueError(f"{name}: {self.parameter} must be {self.domain}, got {value!r}")
-        return number
+        return float(value)
 
 
 #: Reduction name -> reduction; these names may stand beside ``NORMS``' in ``NormStructure.norms``.

@@ -33,8 +33,9 @@ for costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 
 with a regressor, on the CPU in float64; its compile step (well under a second with gcc) happens
 once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"`` wherever it
 applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"`` elsewhere
-(in a call with several costs, per cost: third-party costs without a structure run eager beside
-the others);
+(in a call with several costs, per cost: costs without a structure run eager beside the others,
+called as they are, and so do costs declaring a factor the kernel has no code for, evaluated
+fused);
 ``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record the choice. Both
 engines use the same random numbers; their trajectories agree to rounding.
 """

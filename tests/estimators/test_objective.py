@@ -73,6 +73,8 @@ def test_structure_parameters_are_aligned_finite_numbers():
     assert structure.norms == ("fro", "huber") and structure.parameters == (0.0, 2.0)
     assert hash(structure) == hash(NormStructure(("fro", "huber"), parameters=(0.0, 2.0)))
     assert NormStructure(("1", "inf")).parameters == ()
+    with pytest.raises(ValueError, match=r"norms must be a tuple of names, e.g. \('fro',\), not a string"):
+        NormStructure("fro")
     with pytest.raises(ValueError, match=r"parameters \(1.0,\) must give one value per factor of norms"):
         NormStructure(("fro", "huber"), parameters=(1.0,))
     for bad in (math.nan, math.inf, "wide", None):
