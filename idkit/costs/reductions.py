@@ -30,7 +30,7 @@ def huber_mean(e: Tensor, delta: float) -> Tensor:
 
     ``min(|e|, delta) · (|e| − min(|e|, delta)/2)`` is ``e²/2`` within ``±delta`` and
     ``delta (|e| − delta/2)`` beyond, without a branch: halving is exact, so it rounds as the
-    two-branch formula does.
+    two-branch formula does (short of subnormal results).
     """
     a = e.abs()
     inner = a.clamp(max=delta)
