@@ -173,7 +173,7 @@ class NormProducts:
             groups.setdefault(key, []).append(c)
         self.count = len(structures)
         self.groups = [
-            (torch.tensor(members, device=like.device), norm_product(names, n, samples, like, parameters))
+            (_selector(members, like.device), norm_product(names, n, samples, like, parameters))
             for (names, parameters), members in groups.items()
         ]
 
@@ -182,8 +182,17 @@ class NormProducts:
             return self.groups[0][1](e)
         out = e.new_empty(e.shape[:-2])
         for members, value in self.groups:
-            out.index_copy_(0, members, value(e.index_select(0, members)))
+            out[members] = value(e[members])
         return out
+
+
+def _selector(members: list[int], device: torch.device) -> slice | Tensor:
+    """``members`` as a slice where they are evenly spaced (slots are trial-major, so a cost's
+    slots are every ``C``-th: a view, no copy of the error), else as an index tensor."""
+    step = members[1] - members[0] if len(members) > 1 else 1
+    if members == list(range(members[0], members[-1] + 1, step)):
+        return slice(members[0], members[-1] + 1, step)
+    return torch.tensor(members, device=device)
 
 
 def fast_structure(cost: Cost) -> NormStructure | None:
@@ -364,7 +373,7 @@ class Objective:
             return self.products(error)
         out = error.new_empty((self.slots, *batch))
         if self.fast:
-            index = torch.tensor(self.fast, device=error.device)
+            index = _selector(self.fast, error.device)
             out[index] = self.products(error[index])
         for c in sorted({s % count for s in self.others}):
             cost, slots = self.costs[c], self.others_by_cost[c]

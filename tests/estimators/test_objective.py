@@ -156,6 +156,8 @@ def test_groups_follow_factors_and_parameters(rng):
         NormStructure(("huber",), True, 1e-3, (0.3,)),  # same factors as the first: one group
         NormStructure(("fro", "huber"), parameters=(0.0, 0.3)),  # a norm times a reduction
         NormStructure(("1", "inf")),
+        NormStructure(("1", "inf")),  # members 5, 6: evenly spaced, a view
+        NormStructure(("huber",), parameters=(0.3,)),  # members 0, 3, 7: not evenly spaced, an index
     ]
     e = 2 * torch.randn(len(structures), 5, 3, 8, generator=rng, dtype=torch.float64)
     products = NormProducts(structures, 3, 8, e)
@@ -168,6 +170,8 @@ def test_groups_follow_factors_and_parameters(rng):
             huber_mean(e[3], 0.3),
             NORMS["fro"](e[4]) * huber_mean(e[4], 0.3),
             NORMS["1"](e[5]) * NORMS["inf"](e[5]),
+            NORMS["1"](e[6]) * NORMS["inf"](e[6]),
+            huber_mean(e[7], 0.3),
         ]
     )
     torch.testing.assert_close(products(e), expected, rtol=1e-12, atol=0)
