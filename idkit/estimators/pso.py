@@ -350,12 +350,11 @@ class ParticleSwarm(Estimator):
         refusals = {c: _kernel_refusal(objective, c) for c in everything}
         fast = [c for c in everything if refusals[c] is None] if self.engine == "auto" else everything
         part = subset(fast) if fast else None
-        refused = sorted({refusals[c] for c in fast if refusals[c] is not None})
         if part is None:
-            known = "; ".join(sorted(set(refusals.values())))
-            reason = f"no cost declares a structure the native kernel knows ({known})"
-        else:
-            reason = "; ".join(refused) if refused else native.supports(part)
+            why = "; ".join(sorted(set(refusals.values())))
+            reason = f"no cost declares a structure the native kernel knows ({why})"
+        else:  # with engine="native", a cost the kernel refuses is the reason
+            reason = "; ".join(sorted({refusals[c] for c in fast} - {None})) or native.supports(part)
         if reason is not None:
             if self.engine == "native":
                 raise ValueError(

@@ -16,6 +16,7 @@ from idkit.costs import paper
 from idkit.costs.norms import NORMS
 from idkit.costs.reductions import huber_mean, trimmed_mean_square
 from idkit.data.scenarios import simulate
+from idkit.estimators import native
 from idkit.estimators.objective import NormProducts, Objective, factor_parameters, fast_structure
 from idkit.estimators.pso import ParticleSwarm
 from idkit.interfaces import Cost, NormStructure
@@ -201,9 +202,11 @@ def test_objective_fuses_reductions_with_the_paper_costs(problem, use_regressor)
 # --- the engine ---------------------------------------------------------------------------------
 
 
-def test_pso_evaluates_declared_reductions_fused_not_by_calling_them(problem, monkeypatch):
-    """Until the native kernel knows the reductions, ``auto`` runs them eager and fused: the cost
-    itself is called only to report the final value, once per trial and cost."""
+def test_pso_runs_reductions_the_kernel_lacks_fused_not_by_calling_them(problem, monkeypatch):
+    """Where the native kernel has no code for a declared factor, ``auto`` runs the cost on the
+    eager engine, fused: the cost itself is called only to report the final value, once per trial
+    and cost. ``engine="native"`` then refuses it and names the factor."""
+    monkeypatch.setattr(native, "NORM_CODES", {k: v for k, v in native.NORM_CODES.items() if k != "huber"})
     calls = []
     original = Huber.__call__
 
@@ -214,15 +217,13 @@ def test_pso_evaluates_declared_reductions_fused_not_by_calling_them(problem, mo
     monkeypatch.setattr(Huber, "__call__", counted)
     options = {"runs": 2, "particles": 5, "iterations": 6}
     huber, f1 = ParticleSwarm(**options).fit_costs(problem, [Huber(0.5), paper.f1()])
-    assert huber.details["engine"] == "eager" and "fused" in huber.details["engine_build"]
+    assert huber.details["engine"] == "eager" and "no code for huber" in huber.details["engine_build"]
     assert f1.details["engine"] in ("native", "eager")  # native where a C compiler exists
     assert calls == [(3, 10)]  # the final report only; the search never called it
-    assert huber.cost == pytest.approx(
-        float(
-            Huber(0.5)(
-                problem.error(torch.tensor(list(huber.params.values()), dtype=torch.float64)),
-                problem.samples.measured_matrix(),
-            )
-        ),
-        rel=1e-12,
-    )
+    params = torch.tensor(list(huber.params.values()), dtype=torch.float64)
+    reported = original(Huber(0.5), problem.error(params), problem.samples.measured_matrix())
+    assert huber.cost == pytest.approx(float(reported), rel=1e-12)
+    with pytest.raises(
+        ValueError, match="engine='native' is impossible here: Huber: the native kernel has no code for huber"
+    ):
+        ParticleSwarm(engine="native", **options).fit_costs(problem, [Huber(0.5)])
