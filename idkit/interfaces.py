@@ -10,6 +10,8 @@ config section maps one-to-one onto a constructor call.
 
 from __future__ import annotations
 
+import math
+import numbers
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -123,17 +125,47 @@ class Robot(ABC):
 class NormStructure:
     """What a cost computes, declared so that estimators can take a fused fast path.
 
-    A cost whose value is the product of matrix norms (names of ``idkit.costs.norms.NORMS``) of the
-    torque error ``E[..., n, N]`` — or, with ``relative``, of ``E`` divided by the denominator of
+    A cost whose value is a product of factors of the torque error ``E[..., n, N]`` — or, with
+    ``relative``, of ``E`` divided by the denominator of
     ``idkit.relative.relative_denominator(measured, floor)`` — declares it through
-    ``Cost.structure()``. Estimators then evaluate many such costs with few tensor ops (or a
-    compiled kernel) and never look at the cost's class; a cost without a structure is called as
-    it is.
+    ``Cost.structure()``. A factor is a matrix norm (a name of ``idkit.costs.norms.NORMS``) or an
+    entrywise reduction with a parameter (a name of ``idkit.costs.reductions.PARAMETRIC``:
+    ``"huber"`` with its ``delta``, ``"trimmed"`` with its ``trim``). Estimators then evaluate many
+    such costs with few tensor ops (or a compiled kernel) and never look at the cost's class; a
+    cost without a structure, or naming a factor idkit does not know, is called as it is.
+
+    Attributes:
+        norms: the factors' names, one per factor (each a norm or an entrywise reduction; the
+            field keeps its historical name).
+        relative: whether the factors see ``E`` divided by the relative denominator (eq. 27).
+        floor: the near-zero policy of that denominator (``idkit.relative``).
+        parameters: one finite number per factor, aligned with ``norms`` (``0.0`` for a
+            parameter-free norm), or empty when every factor is parameter-free.
     """
 
     norms: tuple[str, ...]
     relative: bool = False
     floor: float = 0.0
+    parameters: tuple[float, ...] = ()
+
+    def __post_init__(self) -> None:
+        norms, parameters = tuple(self.norms), tuple(self.parameters)
+        if isinstance(self.norms, str):
+            raise ValueError(
+                f"NormStructure: norms must be a tuple of names, e.g. ({self.norms!r},), not a string"
+            )
+        if parameters and len(parameters) != len(norms):
+            raise ValueError(
+                f"NormStructure: parameters {parameters} must give one value per factor of norms "
+                f"{norms} (or none, when every factor is parameter-free)"
+            )
+        for name, value in zip(norms, parameters, strict=False):
+            if not (isinstance(value, numbers.Real) and math.isfinite(value)):
+                raise ValueError(
+                    f"NormStructure: the parameter of factor {name!r} must be a finite number, got {value!r}"
+                )
+        object.__setattr__(self, "norms", norms)  # a list would make the structure unhashable
+        object.__setattr__(self, "parameters", tuple(float(value) for value in parameters))
 
 
 class Cost(ABC):
@@ -156,7 +188,12 @@ class Cost(ABC):
         """Cost ``value[...]`` of ``error[..., n, N]`` given ``measured[n, N]``."""
 
     def structure(self) -> NormStructure | None:
-        """The norm-product structure ``__call__`` computes, or ``None`` (the general path)."""
+        """The product of norms or entrywise reductions ``__call__`` computes, or ``None``.
+
+        ``None`` (the default) sends the cost down the general path: it is called as it is. A
+        cost that declares a structure must compute exactly it (``idkit.testing`` checks the two
+        agree), and a subclass that changes ``__call__`` must stop declaring it.
+        """
         return None
 
 

@@ -11,11 +11,12 @@ samples, once:
   because ``tau = Y(q, qd, qdd) · alpha`` defines the regressor (tests check both paths agree);
   for relative costs ``T`` and ``Y`` are divided by the denominator of eq. (27) once, so the
   product gives ``E_rel`` directly;
-- costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 16), all at once
-  through ``NormProducts``: the
-  same norms with fewer tensor ops (one ``|E|``, row and column sums from one matmul, the
-  spectral norm in closed form). Values agree with the cost's own ``__call__`` to 1e-12 relative
-  (tested), except the closed-form spectral norm where the two largest singular values
+- costs that declare a structure (``Cost.structure()``: a product of matrix norms or entrywise
+  reductions, e.g. the paper's 16 and the robust ``huber``/``trimmed``), all at once through
+  ``NormProducts``: the same factors with fewer tensor ops (one ``|E|``, row and column sums
+  from one matmul, the spectral norm in closed form, each reduction once per group of costs with
+  the same factors and parameters). Values agree with the cost's own ``__call__`` to 1e-12
+  relative (tested), except the closed-form spectral norm where the two largest singular values
   coincide (~1e-8, see ``spectral_norm_3``); other costs are called as they are.
 
 Per-op overhead (microseconds per tensor op) dominates a paper-sized swarm, so op count is what
@@ -30,11 +31,15 @@ import torch
 from torch import Tensor
 
 from idkit.costs.norms import NORMS
+from idkit.costs.reductions import PARAMETRIC
 from idkit.interfaces import Cost, NormStructure, Robot
 from idkit.problem import Problem, Samples
 from idkit.relative import relative_denominator
 
 SPACES = ("physical", "base")
+
+#: The factor names a structure may use: matrix norms, then parametric entrywise reductions.
+FACTORS = frozenset(NORMS) | frozenset(PARAMETRIC)
 
 
 def spectral_norm_3(e: Tensor) -> Tensor:
@@ -65,16 +70,49 @@ def spectral_norm_3(e: Tensor) -> Tensor:
     return top.clamp_min(0).sqrt()
 
 
-def norm_product(names: Sequence[str], n: int, samples: int, like: Tensor) -> Callable[[Tensor], Tensor]:
-    """``e[..., n, N] → Π NORMS[name](e)`` with few ops; equal to the plain product up to rounding.
+def factor_parameters(names: Sequence[str], parameters: Sequence[float] = ()) -> tuple[float, ...]:
+    """One checked parameter per factor of ``names`` (``NormStructure.norms``/``parameters``).
 
+    A reduction's parameter must lie in its domain (``Reduction.check``); a matrix norm takes none
+    (``0.0`` in its place). Raises ``ValueError`` naming the factor and what is wrong.
+    """
+    unknown = [name for name in names if name not in FACTORS]
+    if unknown:
+        raise ValueError(
+            f"unknown factor(s) {unknown}; known norms: {', '.join(NORMS)}; "
+            f"entrywise reductions: {', '.join(PARAMETRIC)}"
+        )
+    if parameters and len(parameters) != len(names):
+        raise ValueError(f"parameters {tuple(parameters)} do not align with the factors {tuple(names)}")
+    checked = []
+    for i, name in enumerate(names):
+        if name in PARAMETRIC:
+            reduction = PARAMETRIC[name]
+            if not parameters:
+                raise ValueError(
+                    f"factor {name!r} needs its {reduction.parameter} ({reduction.domain}) in the "
+                    "structure's parameters; none given"
+                )
+            checked.append(reduction.check(name, parameters[i]))
+        elif parameters and parameters[i] != 0:
+            raise ValueError(f"norm {name!r} takes no parameter (0.0 in its place), got {parameters[i]!r}")
+        else:
+            checked.append(0.0)
+    return tuple(checked)
+
+
+def norm_product(
+    names: Sequence[str], n: int, samples: int, like: Tensor, parameters: Sequence[float] = ()
+) -> Callable[[Tensor], Tensor]:
+    """``e[..., n, N] → Π factor(e)`` with few ops; equal to the plain product up to rounding.
+
+    Factors are ``NORMS`` and ``PARAMETRIC`` names with ``parameters`` as in ``NormStructure``.
     ``"1"`` and ``"inf"`` (largest column / row absolute sum) come from one matmul of ``|e|`` with
     a 0/1 matrix that sums each column and each row; ``"2"`` uses ``spectral_norm_3`` when
-    ``n == 3``; ``|e|`` and ``e²`` are computed once for all the norms that need them.
+    ``n == 3``; ``|e|`` and ``e²`` are computed once for all the norms that need them; an
+    entrywise reduction is its own function (``idkit.costs.reductions``), the one its cost calls.
     """
-    unknown = set(names) - set(NORMS)
-    if unknown:
-        raise ValueError(f"unknown norm(s) {sorted(unknown)}; known: {', '.join(NORMS)}")
+    values = factor_parameters(names, parameters)
     sums = None
     if "1" in names or "inf" in names:
         # [n·N, N + n]: column j < N sums sample j over the joints, column N + i sums joint i
@@ -90,8 +128,10 @@ def norm_product(names: Sequence[str], n: int, samples: int, like: Tensor) -> Ca
         s = a.reshape(*a.shape[:-2], n * samples) @ sums if sums is not None else None
         square = e.square() if uses_square else None
         out = None
-        for name in names:
-            if name == "1":
+        for name, parameter in zip(names, values, strict=True):
+            if name in PARAMETRIC:
+                v = PARAMETRIC[name].function(e, parameter)
+            elif name == "1":
                 v = s[..., :samples].amax(-1)
             elif name == "inf":
                 v = s[..., samples:].amax(-1)
@@ -112,22 +152,29 @@ def norm_product(names: Sequence[str], n: int, samples: int, like: Tensor) -> Ca
 
 
 class NormProducts:
-    """Several norm-product costs of one stacked error: ``e[C, ..., n, N] → value[C, ...]``.
+    """Several structured costs of one stacked error: ``e[C, ..., n, N] → value[C, ...]``.
 
-    Costs with the same norms (the paper's f_k and f_{k+8} differ only in the error matrix, which
-    the caller has already divided) form one group, evaluated by one ``norm_product`` on its
-    slices: a few tensor ops per group instead of per cost (per-op overhead dominates), and each
-    norm computed only for the costs that use it.
+    Costs with the same factors and parameters (the paper's f_k and f_{k+8} differ only in the
+    error matrix, which the caller has already divided by each structure's relative denominator)
+    form one group, evaluated by one ``norm_product`` on its slices: a few tensor ops per group
+    instead of per cost (per-op overhead dominates), and each factor computed only for the costs
+    that use it.
+
+    Args:
+        structures: ``C`` structures, one per slice of ``e`` (their ``relative``/``floor`` are
+            the caller's business).
+        n, samples: the error matrix's ``n × N``; ``like``: a tensor of its dtype and device.
     """
 
-    def __init__(self, norms: Sequence[Sequence[str]], n: int, samples: int, like: Tensor) -> None:
-        groups: dict[tuple[str, ...], list[int]] = {}
-        for c, names in enumerate(norms):
-            groups.setdefault(tuple(names), []).append(c)
-        self.count = len(norms)
+    def __init__(self, structures: Sequence[NormStructure], n: int, samples: int, like: Tensor) -> None:
+        groups: dict[tuple[tuple[str, ...], tuple[float, ...]], list[int]] = {}
+        for c, structure in enumerate(structures):
+            key = (structure.norms, factor_parameters(structure.norms, structure.parameters))
+            groups.setdefault(key, []).append(c)
+        self.count = len(structures)
         self.groups = [
-            (torch.tensor(members, device=like.device), norm_product(names, n, samples, like))
-            for names, members in groups.items()
+            (_selector(members, like.device), norm_product(names, n, samples, like, parameters))
+            for (names, parameters), members in groups.items()
         ]
 
     def __call__(self, e: Tensor) -> Tensor:
@@ -135,15 +182,34 @@ class NormProducts:
             return self.groups[0][1](e)
         out = e.new_empty(e.shape[:-2])
         for members, value in self.groups:
-            out.index_copy_(0, members, value(e.index_select(0, members)))
+            out[members] = value(e[members])
         return out
 
 
+def _selector(members: list[int], device: torch.device) -> slice | Tensor:
+    """``members`` as a slice where they are evenly spaced (slots are trial-major, so a cost's
+    slots are every ``C``-th: a view, no copy of the error), else as an index tensor."""
+    step = members[1] - members[0] if len(members) > 1 else 1
+    if members == list(range(members[0], members[-1] + 1, step)):
+        return slice(members[0], members[-1] + 1, step)
+    return torch.tensor(members, device=device)
+
+
 def fast_structure(cost: Cost) -> NormStructure | None:
-    """``cost.structure()`` when the fast path can evaluate it (known norms), else ``None``."""
+    """``cost.structure()`` when the fast path can evaluate it (known factors), else ``None``.
+
+    A structure naming only known factors but with invalid parameters is the cost's mistake: a
+    ``ValueError`` names the cost and what is wrong (rather than a silently slower path).
+    """
     structure = cost.structure()
-    if structure is None or not structure.norms or not set(structure.norms) <= set(NORMS):
+    if structure is None or not structure.norms or not set(structure.norms) <= FACTORS:
         return None
+    try:
+        factor_parameters(structure.norms, structure.parameters)
+    except ValueError as error:
+        raise ValueError(
+            f"cost {type(cost).__name__} declares an invalid structure {structure}: {error}"
+        ) from None
     return structure
 
 
@@ -208,7 +274,7 @@ class Objective:
         self.measured = torch.stack([s.measured_matrix() for s in self.trials])  # [T, n, N]
         self.shape = tuple(self.measured.shape[1:])
         # Per slot, the divisor of the error: the relative denominator (eq. 27) for costs that
-        # declare a relative norm structure, 1 otherwise (other costs get the absolute error, as
+        # declare a relative structure, 1 otherwise (other costs get the absolute error, as
         # their contract says).
         self.structures = [fast_structure(cost) for cost in self.costs]
         ones = torch.ones_like(self.measured[0])
@@ -229,7 +295,7 @@ class Objective:
             for c in {s % count for s in self.others}
         }  # the slots of each cost without a structure (its trials), for one call per cost
         self.products = NormProducts(
-            [self.structures[s % count].norms for s in self.fast], *self.shape, self.measured
+            [self.structures[s % count] for s in self.fast], *self.shape, self.measured
         )
         if self.use_regressor:
             # -Yᵀ per trial as [T, B, n·N]: alpha[..., B] @ it is minus the prediction in the
@@ -245,7 +311,7 @@ class Objective:
 
     @property
     def fast_costs(self) -> list[int]:
-        """Indices of the costs evaluated through their declared norm structure."""
+        """Indices of the costs evaluated through their declared structure (``NormProducts``)."""
         return [c for c, structure in enumerate(self.structures) if structure is not None]
 
     @property
@@ -307,7 +373,7 @@ class Objective:
             return self.products(error)
         out = error.new_empty((self.slots, *batch))
         if self.fast:
-            index = torch.tensor(self.fast, device=error.device)
+            index = _selector(self.fast, error.device)
             out[index] = self.products(error[index])
         for c in sorted({s % count for s in self.others}):
             cost, slots = self.costs[c], self.others_by_cost[c]

@@ -33,8 +33,9 @@ for costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 
 with a regressor, on the CPU in float64; its compile step (well under a second with gcc) happens
 once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"`` wherever it
 applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"`` elsewhere
-(in a call with several costs, per cost: third-party costs without a structure run eager beside
-the others);
+(in a call with several costs, per cost: costs without a structure run eager beside the others,
+called as they are, and so do costs declaring a factor the kernel has no code for, evaluated
+fused);
 ``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record the choice. Both
 engines use the same random numbers; their trajectories agree to rounding.
 """
@@ -323,9 +324,10 @@ class ParticleSwarm(Estimator):
     def _engines(self, problems: list[Problem], costs: list[Cost], objective: Objective) -> list[EngineGroup]:
         """Which costs run on which engine, and what ``details`` records about it (module docstring).
 
-        With ``"auto"``, costs that declare a norm structure run on the native kernel and the
-        others (third-party costs) on the eager engine, one after the other on the same random
-        streams; with ``"native"`` every cost must suit the kernel.
+        With ``"auto"``, costs whose declared structure the native kernel knows run on it and the
+        others on the eager engine (fused where they declare a structure, ``NormProducts``), one
+        after the other on the same random streams; with ``"native"`` every cost must suit the
+        kernel.
         """
 
         def subset(members: list[int]) -> Objective:
@@ -345,9 +347,14 @@ class ParticleSwarm(Estimator):
         everything = list(range(len(costs)))
         if self.engine == "eager":
             return [eager(everything, "engine='eager' was asked for")]
-        fast = objective.fast_costs if self.engine == "auto" else everything
+        refusals = {c: _kernel_refusal(objective, c) for c in everything}
+        fast = [c for c in everything if refusals[c] is None] if self.engine == "auto" else everything
         part = subset(fast) if fast else None
-        reason = "no cost declares a norm structure" if part is None else native.supports(part)
+        if part is None:
+            why = "; ".join(sorted(set(refusals.values())))
+            reason = f"no cost declares a structure the native kernel knows ({why})"
+        else:  # with engine="native", a cost the kernel refuses is the reason
+            reason = "; ".join(sorted({refusals[c] for c in fast} - {None})) or native.supports(part)
         if reason is not None:
             if self.engine == "native":
                 raise ValueError(
@@ -363,8 +370,23 @@ class ParticleSwarm(Estimator):
         ]
         rest = [c for c in everything if c not in fast]
         if rest:
-            groups.append(eager(rest, "the cost declares no norm structure (Cost.structure)"))
+            groups.append(eager(rest, "; ".join(sorted({refusals[c] for c in rest}))))
         return groups
+
+
+def _kernel_refusal(objective: Objective, c: int) -> str | None:
+    """Why the native kernel cannot run cost ``c`` whatever the problem, or ``None``.
+
+    A cost without a structure runs eager, calling the cost; one whose factors the kernel has no
+    code for (``native.NORM_CODES``) runs eager fused (``Objective``'s ``NormProducts``).
+    """
+    structure, name = objective.structures[c], type(objective.costs[c]).__name__
+    if structure is None:
+        return f"{name}: the cost declares no norm structure (Cost.structure)"
+    unknown = sorted(set(structure.norms) - set(native.NORM_CODES))
+    if unknown:
+        return f"{name}: the native kernel has no code for {', '.join(unknown)} (eager engine, fused)"
+    return None
 
 
 def _run_eager(

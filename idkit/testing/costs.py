@@ -1,7 +1,8 @@
 """Conformance checks for ``Cost`` plugins.
 
 Shape (``idkit.interfaces``): ``cost(error[..., n, N], measured[n, N]) -> value[...]``, where
-``error = measured - predicted`` in the paper's joints x samples layout.
+``error = measured - predicted`` in the paper's joints x samples layout. A cost that declares what
+it computes (``Cost.structure()``) is held to it: estimators evaluate the declaration, not the cost.
 """
 
 from __future__ import annotations
@@ -11,7 +12,9 @@ from collections.abc import Callable
 import torch
 from torch import Tensor
 
+from idkit.estimators.objective import FACTORS, NormProducts, fast_structure
 from idkit.interfaces import Cost
+from idkit.relative import relative_denominator
 from idkit.testing._common import (
     BATCH_SHAPES,
     DTYPES,
@@ -146,6 +149,45 @@ def check_cost_differentiable(cost: Cost) -> None:
     expect_tensor(grad, "d cost / d error", tuple(error.shape), error.dtype)
 
 
+#: Scales of the error matrices ``check_cost_structure_matches_call`` uses, so entries fall on both
+#: sides of a reduction's threshold (Huber's ``delta``, a trimmed mean's cut).
+STRUCTURE_SCALES = (0.01, 0.3, 3.0, 30.0)
+
+
+@conformance_check
+def check_cost_structure_matches_call(cost: Cost) -> None:
+    """A declared structure (``Cost.structure()``) computes what ``__call__`` does, to 1e-12 relative.
+
+    Search estimators evaluate the declaration (fused with other costs, or in a compiled kernel)
+    instead of calling the cost, so a declaration that differs from ``__call__`` would silently
+    optimise another criterion. Checked: every factor is one idkit knows, parameters are valid,
+    ``relative`` matches the cost's, and the fused value (``NormProducts`` on the error divided by
+    ``relative_denominator(measured, floor)`` when relative) equals ``cost(error, measured)`` over
+    error matrices of several scales. A cost without a structure passes.
+    """
+    structure = call("cost.structure()", cost.structure)
+    if structure is None:
+        return
+    unknown = sorted(set(structure.norms) - FACTORS)
+    if unknown or not structure.norms:
+        fail(
+            f"structure() declares {structure}: factor(s) {unknown} unknown to idkit (known: "
+            f"{', '.join(sorted(FACTORS))}); declare only known factors, or return None"
+        )
+    try:
+        fast_structure(cost)
+    except ValueError as err:
+        fail(str(err))
+    if structure.relative != cost.relative:
+        fail(f"structure().relative is {structure.relative} but the cost's relative is {cost.relative}")
+    measured = measured_torques()
+    error = torch.cat([scale * errors((4,)) for scale in STRUCTURE_SCALES])
+    value = _cost_call(cost, error, measured)
+    e = error / relative_denominator(measured, structure.floor) if structure.relative else error
+    fused = NormProducts([structure], N_JOINTS, N_SAMPLES, e)(e[None])[0]
+    expect_close(fused, value, f"declared {structure} vs cost(error[{len(error)}, n, N], measured)", 1e-12)
+
+
 COST_CHECKS: tuple[Callable[[Cost], None], ...] = (
     check_hyperparameters,
     check_cost_relative_flag,
@@ -155,4 +197,5 @@ COST_CHECKS: tuple[Callable[[Cost], None], ...] = (
     check_cost_relative_scale_invariance,
     check_cost_rejects_bad_shapes,
     check_cost_differentiable,
+    check_cost_structure_matches_call,
 )

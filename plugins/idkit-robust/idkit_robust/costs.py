@@ -4,14 +4,16 @@ Both act on the absolute error ``E = measured - predicted`` or, with ``relative=
 relative error ``E / T`` of eq. (27), using idkit's near-zero policy for the measured torques
 ``T`` (``idkit.relative``: entries below ``floor`` x their joint's RMS are floored, with a
 warning). Both average over the ``n x N`` entries, so their scale does not grow with ``N``.
+
+Both are idkit's entrywise reductions (``idkit.costs.reductions``): each cost calls the one
+function and declares it (``structure()``), so idkit's estimators evaluate it fused with other
+costs, on the same tensors, instead of calling the cost once per cost and trial.
 """
 
 from __future__ import annotations
 
-import math
-
-import torch
-from idkit.interfaces import Cost
+from idkit.costs.reductions import PARAMETRIC, huber_mean, trimmed_mean_square
+from idkit.interfaces import Cost, NormStructure
 from idkit.relative import DEFAULT_FLOOR, relative_denominator, relative_error
 from torch import Tensor
 
@@ -47,18 +49,20 @@ class HuberCost(Cost):
     stacked_measured = True
 
     def __init__(self, delta: float = 1.0, relative: bool = False, floor: float = DEFAULT_FLOOR) -> None:
-        if not delta > 0:
-            raise ValueError(f"huber: delta must be > 0, got {delta}")
+        PARAMETRIC["huber"].check("huber", delta)
         self.delta = delta
         self.relative = relative  # type: ignore[misc]  # an option here: shadows Cost's class default
         self.floor = floor
 
     def __call__(self, error: Tensor, measured: Tensor) -> Tensor:
         """``value[...]`` for ``error[..., n, N]`` and ``measured[n, N]``."""
-        e = _errors("huber", error, measured, self.relative, self.floor).abs()
-        d = self.delta
-        rho = torch.where(e <= d, 0.5 * e.square(), d * (e - 0.5 * d))
-        return rho.mean(dim=(-2, -1))
+        return huber_mean(_errors("huber", error, measured, self.relative, self.floor), self.delta)
+
+    def structure(self) -> NormStructure | None:
+        """The mean Huber loss of the (relative) error; ``None`` for a subclass with its own ``__call__``."""
+        if type(self).__call__ is not HuberCost.__call__:
+            return None
+        return NormStructure(("huber",), bool(self.relative), float(self.floor), (float(self.delta),))
 
     def __repr__(self) -> str:
         return f"HuberCost(delta={self.delta}, relative={self.relative}, floor={self.floor})"
@@ -80,17 +84,21 @@ class TrimmedCost(Cost):
     stacked_measured = True
 
     def __init__(self, trim: float = 0.1, relative: bool = False, floor: float = DEFAULT_FLOOR) -> None:
-        if not 0 <= trim < 1:
-            raise ValueError(f"trimmed: trim must be in [0, 1), got {trim}")
+        PARAMETRIC["trimmed"].check("trimmed", trim)
         self.trim = trim
         self.relative = relative  # type: ignore[misc]  # an option here: shadows Cost's class default
         self.floor = floor
 
     def __call__(self, error: Tensor, measured: Tensor) -> Tensor:
         """``value[...]`` for ``error[..., n, N]`` and ``measured[n, N]``."""
-        e2 = _errors("trimmed", error, measured, self.relative, self.floor).square().flatten(-2)
-        keep = e2.shape[-1] - math.floor(self.trim * e2.shape[-1] + 1e-9)  # 0.29 * 100 -> 29, not 28
-        return torch.topk(e2, keep, dim=-1, largest=False, sorted=False).values.mean(dim=-1)
+        return trimmed_mean_square(_errors("trimmed", error, measured, self.relative, self.floor), self.trim)
+
+    def structure(self) -> NormStructure | None:
+        """The trimmed mean of squares of the (relative) error; ``None`` for a subclass with its own
+        ``__call__``."""
+        if type(self).__call__ is not TrimmedCost.__call__:
+            return None
+        return NormStructure(("trimmed",), bool(self.relative), float(self.floor), (float(self.trim),))
 
     def __repr__(self) -> str:
         return f"TrimmedCost(trim={self.trim}, relative={self.relative}, floor={self.floor})"

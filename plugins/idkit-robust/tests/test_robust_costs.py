@@ -1,4 +1,5 @@
-"""huber and trimmed against plain numpy formulations, and the robustness they are for."""
+"""huber and trimmed against plain numpy formulations, the robustness they are for, and the
+structure they declare to idkit's estimators."""
 
 from __future__ import annotations
 
@@ -6,6 +7,13 @@ import numpy as np
 import pytest
 import torch
 from idkit import registry
+from idkit.data.scenarios import simulate_batch
+from idkit.estimators.objective import fast_structure
+from idkit.estimators.pso import ParticleSwarm
+from idkit.interfaces import NormStructure
+from idkit.problem import Problem
+from idkit.relative import DEFAULT_FLOOR
+from idkit.robots.cylindrical import CylindricalRobot
 
 from idkit_robust.costs import HuberCost, TrimmedCost
 
@@ -102,3 +110,62 @@ def test_stacked_measured_equals_one_call_per_trial(make, relative):
     stacked = cost(error, measured.view(4, 1, 2, 7))
     one_by_one = torch.stack([cost(error[t], measured[t]) for t in range(4)])
     torch.testing.assert_close(stacked, one_by_one, rtol=1e-15, atol=0)
+
+
+# --- the declared structure: idkit's estimators evaluate it instead of calling the cost ----------
+
+
+@pytest.mark.parametrize(
+    ("cost", "declared"),
+    [
+        (HuberCost(delta=0.3), NormStructure(("huber",), False, DEFAULT_FLOOR, (0.3,))),
+        (HuberCost(delta=0.1, relative=True, floor=1e-2), NormStructure(("huber",), True, 1e-2, (0.1,))),
+        (TrimmedCost(trim=0.25), NormStructure(("trimmed",), False, DEFAULT_FLOOR, (0.25,))),
+        (TrimmedCost(trim=0.0, relative=True), NormStructure(("trimmed",), True, DEFAULT_FLOOR, (0.0,))),
+    ],
+    ids=repr,
+)
+def test_costs_declare_their_reduction(cost, declared):
+    assert cost.structure() == declared
+
+
+def test_a_subclass_with_its_own_call_loses_the_structure():
+    class Scaled(HuberCost):
+        def __call__(self, error, measured):
+            return 3 * super().__call__(error, measured)
+
+    class Kept(TrimmedCost):  # changes nothing that is computed: keeps the structure
+        pass
+
+    assert Scaled().structure() is None and Kept().structure() is not None
+
+
+class _Undeclared(HuberCost):
+    """The same loss, called as it is (the general path of costs without a structure)."""
+
+    def __call__(self, error, measured):
+        return super().__call__(error, measured)
+
+
+class _UndeclaredTrimmed(TrimmedCost):
+    def __call__(self, error, measured):
+        return super().__call__(error, measured)
+
+
+@pytest.mark.parametrize("relative", [False, True])
+def test_pso_runs_them_fused_and_finds_what_calling_them_finds(relative):
+    """On the eager engine, the fused path (declared structure) and the per-cost path (the same loss
+    undeclared) give the same estimates: the same error matrices up to rounding, the same
+    reductions."""
+    assert fast_structure(HuberCost()) is not None and fast_structure(_Undeclared()) is None
+    robot = CylindricalRobot()
+    batch = simulate_batch(robot, "outliers", trials=3, seed=2)
+    problems = [Problem(robot, batch[t], None, seed=10 + t) for t in range(3)]
+    pso = ParticleSwarm(runs=3, particles=8, iterations=30, engine="eager")
+    options = {"relative": relative}
+    declared = pso.fit_trials(problems, [HuberCost(delta=0.2, **options), TrimmedCost(**options)])
+    called = pso.fit_trials(problems, [_Undeclared(delta=0.2, **options), _UndeclaredTrimmed(**options)])
+    for fused, plain in zip(declared, called, strict=True):
+        for a, b in zip(fused, plain, strict=True):
+            np.testing.assert_allclose(a.vector(), b.vector(), rtol=1e-9)
+            assert a.cost == pytest.approx(b.cost, rel=1e-9)
