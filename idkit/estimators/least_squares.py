@@ -137,7 +137,7 @@ class LinearEstimator(Estimator):
         threads = resolve_threads(self.threads, work)
         log = TrialWarnings(trials)
         try:
-            with torch_threads(threads):
+            with torch_threads(threads), torch.no_grad():
                 system = stacked_system(problems, self.relative, self.floor, log)
                 conditioning = check_conditioning(system, self.max_cond, log)
                 solution = self.solve(system, conditioning, log)

@@ -15,6 +15,16 @@ equations ``sum psi(r_i / s) W_i = 0``. The default tuning constants (Huber 1.34
 give 95 % efficiency under Gaussian noise. Tukey's weights redescend to zero, so its iteration
 has several fixed points; it starts from the converged Huber fit, as is customary.
 
+Convergence: with one MAD for all joints, the quiet joints set the scale. On the cylindrical robot
+every joint-2 residual can then lie far out (9 to 160 scales in one outliers draw), all clipped,
+so joint 2's parameter is fitted by a weighted L1 criterion that is nearly flat, and IRLS creeps
+along it (monotonically: no oscillation). Measured on the robustness study's 4 x 1,000 draws:
+155 trials (3.9 %) reach ``max_iter=200`` and warn; run on, they converge after a median of
+380-520 iterations (up to 8,672; one not within 20,000), their ``m2`` moving by up to 0.5 kg, but
+the study's median and 90th percentile of the parameter error move by at most 1 % and the win
+rates against RLS-rel by at most 0.005. So ``max_iter`` stays a safety net whose warning marks
+those trials.
+
 ``fit_trials`` runs the iterations of many trials (a study's noise draws) as batched tensor ops:
 a trial leaves the batch at the iteration where its own ``fit`` stops (same test, same numbers),
 so the others never change its result; ``fit`` is a batch of one.
@@ -52,6 +62,24 @@ def tukey_weights(u: Tensor, c: float) -> Tensor:
 
 
 WEIGHTS: dict[str, Callable[[Tensor, float], Tensor]] = {"huber": huber_weights, "tukey": tukey_weights}
+#: Weights that reach 0 and so can leave fewer weighted equations than parameters (Huber's never do).
+REDESCENDING = frozenset({"tukey"})
+
+
+def _check_enough_weights(weights: Tensor, parameters: int, name: str, c: float, trials: Tensor) -> None:
+    """Raise (marked with the trial, from ``trials[A]``) if a row of ``weights[A, M]`` keeps fewer
+    non-zero weights than there are parameters: its weighted system would be singular."""
+    nonzero = (weights > 0).sum(dim=-1)
+    short = nonzero < parameters
+    if bool(short.any()):
+        first = int(short.nonzero()[0])
+        raise in_trial(
+            ValueError(
+                f"irls: only {int(nonzero[first])} residuals keep a non-zero {name} weight, "
+                f"fewer than the {parameters} base parameters; increase tuning (now {c})"
+            ),
+            int(trials[first]),
+        )
 
 
 def mad_scale(r: Tensor) -> Tensor:
@@ -134,7 +162,7 @@ class IRLS(Estimator):
         weights_of = WEIGHTS[name]
         eps = torch.finfo(t.dtype).eps
         limit, tol = 64 * eps * t.abs().amax(dim=-1), max(self.tol, 100 * eps)
-        alpha = alpha.clone()
+        alpha = alpha.clone()  # the result; the loop below never writes into ``aa``
         records: list[dict] = [{} for _ in range(t.shape[0])]
 
         def stop(trials: Tensor, iterations: int, converged: bool, exact_fit: bool) -> None:
@@ -148,9 +176,9 @@ class IRLS(Estimator):
 
         # The trials still iterating: their indices, systems, exact-fit limits and current alpha,
         # compacted when one stops.
-        active, wa, ta, exact, aa = torch.arange(t.shape[0], device=t.device), w, t, limit, alpha.clone()
+        active, wa, ta, exact, aa = torch.arange(t.shape[0], device=t.device), w, t, limit, alpha
         for iteration in range(1, self.max_iter + 1):
-            r = ta - (wa @ aa[..., None])[..., 0]
+            r = torch.baddbmm(ta[..., None], wa, aa[..., None], alpha=-1)[..., 0]  # t - W alpha
             scale = mad_scale(r)
             fitted = scale <= exact  # (nearly) exact fit: nothing to reweight
             if bool(fitted.any()):
@@ -162,16 +190,8 @@ class IRLS(Estimator):
                 if not len(active):
                     break
             weights = weights_of(r / scale[:, None], c)
-            nonzero = (weights > 0).sum(dim=-1)
-            if bool((nonzero < w.shape[-1]).any()):
-                few = int((nonzero < w.shape[-1]).nonzero()[0])
-                raise in_trial(
-                    ValueError(
-                        f"irls: only {int(nonzero[few])} residuals keep a non-zero {name} weight, "
-                        f"fewer than the {w.shape[-1]} base parameters; increase tuning (now {c})"
-                    ),
-                    int(active[few]),
-                )
+            if name in REDESCENDING:
+                _check_enough_weights(weights, w.shape[-1], name, c, active)
             root = weights.sqrt()
             new = _solve(wa * root[..., None], ta * root)
             done = torch.linalg.vector_norm(new - aa, dim=-1) <= tol * torch.linalg.vector_norm(new, dim=-1)
@@ -224,9 +244,9 @@ class IRLS(Estimator):
         return fit_in_batches(problems, trials_per_batch, self._fit_batch)
 
     def _fit_batch(self, problems: list[Problem]) -> list[list[Estimate]]:
-        if self.threads is None:
-            return self._fit(problems)
-        with torch_threads(resolve_threads(self.threads, 0)):
+        """``_fit`` with the chosen threads and without autograd's bookkeeping (a part of every small op)."""
+        threads = torch.get_num_threads() if self.threads is None else resolve_threads(self.threads, 0)
+        with torch_threads(threads), torch.no_grad():
             return self._fit(problems)
 
     def _fit(self, problems: list[Problem]) -> list[list[Estimate]]:
