@@ -35,7 +35,7 @@ from idkit.estimators.observation import (
     default_max_cond,
     stacked_system,
 )
-from idkit.estimators.trials import TrialWarnings, check_same_setting, fit_in_batches, in_trial, trial_chunk
+from idkit.estimators.trials import TrialWarnings, fit_stacked_systems, in_trial
 from idkit.estimators.uncertainty import base_uncertainties
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
@@ -118,16 +118,7 @@ class LinearEstimator(Estimator):
             IdentificationError: a trial cannot be fitted; the message starts with
                 ``trial <index> (seed <seed>):`` and goes on as that trial's ``fit`` would.
         """
-        problems = list(problems)
-        if not problems:
-            return []
-        check_same_setting(problems)
-        trial_chunk(chunk, 1)  # check it
-
-        def trials_per_stack(problem: Problem) -> int:
-            return trial_chunk(chunk, problem.samples.tau.numel() * len(problem.robot.base_param_names))
-
-        return fit_in_batches(problems, trials_per_stack, self._fit_stack)
+        return fit_stacked_systems(problems, chunk, self._fit_stack)
 
     def _fit_stack(self, problems: list[Problem]) -> list[list[Estimate]]:
         """``fit_trials`` of one stack of trials with equal sample counts."""

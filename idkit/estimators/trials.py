@@ -14,7 +14,8 @@ trials are one batch. ``fit_trials`` is the one entry point a study calls:
 Every number depends only on each trial's problem (its samples and ``seed``) and the estimator's
 options, never on ``chunk`` or on the other trials in the batch (tested with chunks of 1, 3 and all).
 The helpers below are what a batched estimator needs besides its arithmetic: cutting the trials
-into batches (``fit_in_batches``), checking that they can share one (``check_same_setting``),
+into batches (``fit_in_batches``, ``fit_stacked_systems``), checking that they can share one
+(``check_same_setting``),
 keeping each trial's warnings apart (``TrialWarnings``) and naming the trial that fails
 (``in_trial``): a trial whose data cannot be fitted raises the error its own ``fit`` raises, its
 message prefixed with ``trial <index> (seed <seed>): `` — never a result computed from the others.
@@ -104,6 +105,28 @@ def fit_in_batches(
         for index, estimates in zip(members, fitted, strict=True):
             results[index] = estimates
     return results
+
+
+def fit_stacked_systems(
+    problems: Sequence[Problem],
+    chunk: int | None,
+    fit_stack: Callable[[list[Problem]], list[list[Estimate]]],
+) -> list[list[Estimate]]:
+    """``fit_trials`` of an estimator that solves the trials' stacked linear systems ``W[T, M, B]``
+    (the least-squares family, ``irls``): ``fit_stack`` on stacks of trials of equal sample
+    counts, at most ``chunk`` of them (``None``: as many as fit ``CHUNK_ELEMENTS`` elements of
+    ``W``), results in the order of ``problems``.
+    """
+    problems = list(problems)
+    if not problems:
+        return []
+    check_same_setting(problems)
+    trial_chunk(chunk, 1)  # check it
+
+    def trials_per_stack(problem: Problem) -> int:
+        return trial_chunk(chunk, problem.samples.tau.numel() * len(problem.robot.base_param_names))
+
+    return fit_in_batches(problems, trials_per_stack, fit_stack)
 
 
 def check_same_setting(problems: Sequence[Problem]) -> None:

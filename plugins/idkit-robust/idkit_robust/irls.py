@@ -39,7 +39,7 @@ from collections.abc import Callable, Sequence
 import torch
 from idkit.estimate import Estimate, jsonable
 from idkit.estimators.observation import stacked_system
-from idkit.estimators.trials import check_same_setting, fit_in_batches, in_trial, trial_chunk
+from idkit.estimators.trials import fit_stacked_systems, in_trial
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.relative import DEFAULT_FLOOR
@@ -232,16 +232,7 @@ class IRLS(Estimator):
             ValueError: a trial cannot be fitted; the message starts with ``trial <index> (seed
                 <seed>):`` and goes on as that trial's ``fit`` would.
         """
-        problems = list(problems)
-        if not problems:
-            return []
-        check_same_setting(problems)
-        trial_chunk(chunk, 1)  # check it
-
-        def trials_per_batch(problem: Problem) -> int:
-            return trial_chunk(chunk, problem.samples.tau.numel() * len(problem.robot.base_param_names))
-
-        return fit_in_batches(problems, trials_per_batch, self._fit_batch)
+        return fit_stacked_systems(problems, chunk, self._fit_batch)
 
     def _fit_batch(self, problems: list[Problem]) -> list[list[Estimate]]:
         """``_fit`` with the chosen threads and without autograd's bookkeeping (a part of every small op)."""
