@@ -5,12 +5,20 @@ Both solve in the base parameters ``α`` of ``robot.regressor`` and report physi
 (already computed for the rank check, and backward stable where the normal equations square the
 condition number); TLS uses the SVD of ``[W | τ_s]`` (Golub & Van Loan). ``LinearEstimator`` is the
 shared ``fit`` of the family (``rls`` too): build the system, check it, solve, report.
+
+The family works on stacks of trials: ``fit_trials`` builds ``W[T, M, B]`` for ``T`` trials (a
+study's noise draws) and every decomposition is one batched call, so a trial costs a few
+microseconds of arithmetic instead of a millisecond of per-call overhead; ``fit`` is a stack of one.
+Each trial's estimate is the one ``fit`` gives it — every check, warning and ``details`` entry is
+per trial — except for the batch's shared wall time (``wall_time_s`` is its share,
+``details["batch_wall_time_s"]`` the whole) and ``details["batched_trials"]``.
 """
 
 from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -25,10 +33,11 @@ from idkit.estimators.observation import (
     LinearSystem,
     check_conditioning,
     default_max_cond,
-    linear_system,
+    stacked_system,
 )
-from idkit.estimators.uncertainty import uncertainty_details
-from idkit.interfaces import Estimator
+from idkit.estimators.trials import TrialWarnings, fit_stacked_systems, in_trial
+from idkit.estimators.uncertainty import base_uncertainties
+from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.relative import DEFAULT_FLOOR
 from idkit.runtime import resolve_threads, torch_threads
@@ -36,19 +45,22 @@ from idkit.runtime import resolve_threads, torch_threads
 
 @dataclass
 class Solution:
-    """What a solver hands back to ``LinearEstimator.fit``: ``alpha[B]`` and its own criterion."""
+    """What a solver hands back to ``LinearEstimator``: ``alpha[T, B]``, its own criterion, and per
+    trial the criterion's value and the solver's ``details``."""
 
     alpha: Tensor
     criterion: str
-    value: float
-    details: dict[str, Any] = field(default_factory=dict)
+    values: list[float]
+    details: list[dict[str, Any]] = field(default_factory=list)
 
 
 class LinearEstimator(Estimator):
-    """``fit`` of the least-squares family; subclasses implement ``solve``.
+    """``fit`` and ``fit_trials`` of the least-squares family; subclasses implement ``solve``.
 
-    Warnings raised while fitting (near-zero torques floored, ill-conditioning, an inaccurate
-    solver) are both re-issued to the caller and listed in ``details["warnings"]``.
+    Warnings raised while fitting a trial (near-zero torques floored, ill-conditioning, an
+    inaccurate solver) are both re-issued to the caller and listed in that trial's
+    ``details["warnings"]``. An error in one trial of a batch (rank deficiency, ...) is the
+    error that trial's ``fit`` raises, its message prefixed with the trial's index and seed.
 
     Args:
         relative: solve the relative system of eqs. (36)–(37) (labels "LS-rel", ...).
@@ -74,8 +86,9 @@ class LinearEstimator(Estimator):
         self.max_cond = max_cond
         self.threads = threads
 
-    def solve(self, system: LinearSystem, conditioning: Conditioning) -> Solution:
-        """Base parameters ``alpha[B]`` for the checked system."""
+    def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
+        """Base parameters ``alpha[T, B]`` of the checked systems; trial ``t``'s warnings go to
+        ``log.recording(t)``, its errors are marked with ``in_trial``."""
         raise NotImplementedError
 
     @property
@@ -83,62 +96,113 @@ class LinearEstimator(Estimator):
         return f"{self.label}-rel" if self.relative else self.label
 
     def fit(self, problem: Problem) -> Estimate:
+        """Fit one problem (a stack of one trial)."""
+        return self._fit_stack([problem])[0][0]
+
+    def fit_trials(
+        self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None
+    ) -> list[list[Estimate]]:
+        """One estimate per trial, each the one the trial's own ``fit`` gives, from batched solves.
+
+        Args:
+            problems: ``T`` trials of one robot, device and dtype (trials of equal sample counts
+                are stacked).
+            costs: ignored: the criterion is fixed (each estimate's ``cost`` is its problem's
+                ``cost`` at the estimate, as in ``fit``).
+            chunk: trials per stack; ``None``: as many as fit ``CHUNK_ELEMENTS`` elements of ``W``.
+
+        Returns:
+            ``T`` lists of one estimate.
+
+        Raises:
+            IdentificationError: a trial cannot be fitted; the message starts with
+                ``trial <index> (seed <seed>):`` and goes on as that trial's ``fit`` would.
+        """
+        return fit_stacked_systems(problems, chunk, self._fit_stack)
+
+    def _fit_stack(self, problems: list[Problem]) -> list[list[Estimate]]:
+        """``fit_trials`` of one stack of trials with equal sample counts."""
         start = time.perf_counter()
-        s = problem.samples
-        threads = resolve_threads(
-            self.threads, s.n_samples * s.n_joints * len(problem.robot.base_param_names)
-        )
-        caught: list[warnings.WarningMessage] = []
+        robot, trials = problems[0].robot, len(problems)
+        work = trials * problems[0].samples.tau.numel() * len(robot.base_param_names)
+        threads = resolve_threads(self.threads, work)
+        log = TrialWarnings(trials)
         try:
-            with torch_threads(threads), warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                system = linear_system(problem, self.relative, self.floor)
-                conditioning = check_conditioning(system, self.max_cond)
-                solution = self.solve(system, conditioning)
-                params = problem.robot.params_from_base(solution.alpha)
-                if not bool(torch.isfinite(params).all()):
+            with torch_threads(threads), torch.no_grad():
+                system = stacked_system(problems, self.relative, self.floor, log)
+                conditioning = check_conditioning(system, self.max_cond, log)
+                solution = self.solve(system, conditioning, log)
+                params = robot.params_from_base(solution.alpha)  # [T, P]
+                costs = self._costs(problems, params, solution, log)
+                uncertainty = base_uncertainties(
+                    system.W, system.tau, solution.alpha, system.base_names, conditioning
+                )
+        finally:  # every trial's warnings, also when a later trial fails
+            log.reissue()
+        wall = time.perf_counter() - start
+        M, _ = system.shape
+        max_cond = default_max_cond(system.W.dtype) if self.max_cond is None else self.max_cond
+        place = {"device": str(system.W.device), "threads": threads}
+        dtype = str(system.W.dtype).removeprefix("torch.")
+        alpha, values = solution.alpha.tolist(), params.tolist()
+        return [
+            [
+                Estimate(
+                    estimator=self.name,
+                    params=dict(zip(robot.param_names, values[t], strict=True)),
+                    cost=costs[t],
+                    wall_time_s=wall / trials,
+                    base_params=dict(zip(system.base_names, alpha[t], strict=True)),
+                    details=jsonable(
+                        {
+                            "criterion": solution.criterion,
+                            "criterion_value": solution.values[t],
+                            "relative": self.relative,
+                            "floor": self.floor,
+                            "equations": M,
+                            "rank": conditioning.rank[t],
+                            "cond": conditioning.cond[t],
+                            "max_cond": max_cond,
+                            **solution.details[t],
+                            **uncertainty[t].to_details(),
+                            **place,
+                            "dtype": dtype,
+                            "warnings": log.messages(t),
+                            "batched_trials": trials,
+                            "batch_wall_time_s": wall,
+                        }
+                    ),
+                )
+            ]
+            for t in range(trials)
+        ]
+
+    def _costs(
+        self, problems: list[Problem], params: Tensor, solution: Solution, log: TrialWarnings
+    ) -> list[float]:
+        """Each estimate's ``cost``: its problem's cost at ``params[T, P]`` if it has one, else the
+        criterion's value; warns about parameters that are not finite."""
+        for t, finite in enumerate(torch.isfinite(params).all(-1).tolist()):
+            if not finite:
+                with log.recording(t):
                     warnings.warn(
-                        f"{self.name}: physical parameters {params.tolist()} are not finite "
-                        f"(base parameters {solution.alpha.tolist()}; params_from_base divides by "
+                        f"{self.name}: physical parameters {params[t].tolist()} are not finite "
+                        f"(base parameters {solution.alpha[t].tolist()}; params_from_base divides by "
                         "an estimate that came out 0)",
                         IdentificationWarning,
                         stacklevel=2,
                     )
-                cost = solution.value if problem.cost is None else float(problem.evaluate(params))
-        finally:  # outside the recording context, else the re-issued warnings are recorded again
-            for w in caught:
-                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
-        robot = problem.robot
-        M, B = system.shape
-        details = {
-            "criterion": solution.criterion,
-            "criterion_value": solution.value,
-            "relative": self.relative,
-            "floor": self.floor,
-            "equations": M,
-            "rank": conditioning.rank,
-            "cond": conditioning.cond,
-            "max_cond": default_max_cond(system.W.dtype) if self.max_cond is None else self.max_cond,
-            **solution.details,
-            **uncertainty_details(system, solution.alpha, conditioning),
-            "device": str(system.W.device),
-            "threads": threads,
-            "dtype": str(system.W.dtype).removeprefix("torch."),
-            "warnings": [f"{w.category.__name__}: {w.message}" for w in caught],
-        }
-        return Estimate(
-            estimator=self.name,
-            params=dict(zip(robot.param_names, params.tolist(), strict=True)),
-            cost=cost,
-            wall_time_s=time.perf_counter() - start,
-            base_params=dict(zip(system.base_names, solution.alpha.tolist(), strict=True)),
-            details=jsonable(details),
-        )
+        costs = list(solution.values)
+        for t, problem in enumerate(problems):
+            if problem.cost is not None:
+                with log.recording(t):
+                    costs[t] = float(problem.evaluate(params[t]))
+        return costs
 
 
-def residual_norm(system: LinearSystem, alpha: Tensor) -> float:
-    """``‖τ_s − W α‖₂`` (eq. 10) for ``alpha[B]``."""
-    return float(torch.linalg.vector_norm(system.tau - system.W @ alpha))
+def residual_norms(system: LinearSystem, alpha: Tensor) -> Tensor:
+    """``‖τ_s − W α‖₂`` (eq. 10) of each trial: ``[T]`` for ``alpha[T, B]``."""
+    return torch.linalg.vector_norm(system.tau - (system.W @ alpha[..., None])[..., 0], dim=-1)
 
 
 class LeastSquares(LinearEstimator):
@@ -150,14 +214,16 @@ class LeastSquares(LinearEstimator):
 
     label = "LS"
 
-    def solve(self, system: LinearSystem, conditioning: Conditioning) -> Solution:
+    def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
         c = conditioning
-        alpha = (c.Vh.mT @ ((c.U.mT @ system.tau) / c.sigma)) / c.scale
+        projected = (c.U.mT @ system.tau[..., None]) / c.sigma[..., None]  # [T, B, 1]
+        alpha = (c.Vh.mT @ projected)[..., 0] / c.scale
+        values = residual_norms(system, alpha).tolist()
         return Solution(
             alpha,
             "||tau_s - W alpha||_2 (eq. 10)",
-            residual_norm(system, alpha),
-            {"solver": "svd of column-equilibrated W"},
+            values,
+            [{"solver": "svd of column-equilibrated W"} for _ in values],
         )
 
 
@@ -171,42 +237,56 @@ class TLSSolution:
     sigma_max: float
 
 
-def smallest_singular_value(W: Tensor, tau: Tensor) -> float:
-    """``σ_{B+1}([W | τ])``, the TLS ``rho`` of eq. (14); 0 when ``[W | τ]`` has fewer rows than columns."""
-    C = torch.cat((W, tau[:, None]), dim=1)
-    if C.shape[0] < C.shape[1]:
-        return 0.0
-    return float(torch.linalg.svdvals(C)[-1])
+def smallest_singular_values(W: Tensor, tau: Tensor) -> list[float]:
+    """``σ_{B+1}([W | τ])`` of each ``W[T, M, B]``, ``tau[T, M]``: the TLS ``rho`` of eq. (14); 0 when
+    ``[W | τ]`` has fewer rows than columns."""
+    C = torch.cat((W, tau[..., None]), dim=-1)
+    if C.shape[-2] < C.shape[-1]:
+        return [0.0] * C.shape[0]
+    return torch.linalg.svdvals(C)[..., -1].tolist()
+
+
+def stacked_total_least_squares(W: Tensor, tau: Tensor) -> list[TLSSolution]:
+    """Classical TLS (Golub & Van Loan) of ``T`` systems in one batched SVD: the right singular
+    vector ``v`` of ``[W | τ]`` for its smallest singular value gives ``α = −v[:B] / v[B]``; ``rho``
+    is that singular value.
+
+    Args:
+        W: ``[T, M, B]`` with ``M ≥ B`` and full column rank.
+        tau: ``[T, M]``.
+
+    Raises:
+        IdentificationError: a trial's TLS problem has no unique solution (``σ_B(W) ≤
+            σ_{B+1}([W|τ])`` to working precision — then ``v[B]`` is 0 or the minimiser is not
+            unique); marked with the trial (``in_trial``).
+    """
+    M, B = W.shape[-2:]
+    C = torch.cat((W, tau[..., None]), dim=-1)  # [T, M, B+1]
+    _, S, Vh = torch.linalg.svd(C, full_matrices=M < B + 1)
+    v = Vh[..., -1, :]  # [T, B+1], right singular vector of the smallest singular value
+    rho = S[..., -1] if M >= B + 1 else torch.zeros_like(S[..., -1])
+    sigma_w = torch.linalg.svdvals(W)[..., -1]
+    sigma_max = S[..., 0]
+    gap = sigma_w - rho
+    tol = max(M, B + 1) * torch.finfo(W.dtype).eps * sigma_max
+    alpha = -v[..., :B] / v[..., B:]
+    rho_, gap_, sigma_max_ = rho.tolist(), gap.tolist(), sigma_max.tolist()
+    for t, unique in enumerate((gap > tol).tolist()):
+        if not unique:
+            raise in_trial(
+                IdentificationError(
+                    "total least squares has no unique solution: smallest singular value of W "
+                    f"({float(sigma_w[t]):.6g}) does not exceed that of [W | tau_s] ({rho_[t]:.6g}); τ_s "
+                    "is (nearly) orthogonal to the smallest right singular direction of W"
+                ),
+                t,
+            )
+    return [TLSSolution(alpha[t], rho_[t], gap_[t], sigma_max_[t]) for t in range(len(rho_))]
 
 
 def total_least_squares(W: Tensor, tau: Tensor) -> TLSSolution:
-    """Classical TLS (Golub & Van Loan): the right singular vector ``v`` of ``[W | τ]`` for its
-    smallest singular value gives ``α = −v[:B] / v[B]``; ``rho`` is that singular value.
-
-    Args:
-        W: ``[M, B]`` with ``M ≥ B`` and full column rank.
-        tau: ``[M]``.
-
-    Raises:
-        IdentificationError: the TLS problem has no unique solution (``σ_B(W) ≤ σ_{B+1}([W|τ])``
-            to working precision — then ``v[B]`` is 0 or the minimiser is not unique).
-    """
-    M, B = W.shape
-    C = torch.cat((W, tau[:, None]), dim=1)  # [M, B+1]
-    _, S, Vh = torch.linalg.svd(C, full_matrices=M < B + 1)
-    v = Vh[-1]  # [B+1], right singular vector of the smallest singular value
-    rho = float(S[-1]) if M >= B + 1 else 0.0
-    sigma_w = float(torch.linalg.svdvals(W)[-1])
-    sigma_max = float(S[0])
-    gap = sigma_w - rho
-    tol = max(M, B + 1) * torch.finfo(W.dtype).eps * sigma_max
-    if gap <= tol:
-        raise IdentificationError(
-            f"total least squares has no unique solution: smallest singular value of W ({sigma_w:.6g}) "
-            f"does not exceed that of [W | tau_s] ({rho:.6g}); τ_s is (nearly) orthogonal to the "
-            "smallest right singular direction of W"
-        )
-    return TLSSolution(-v[:B] / v[B], rho, gap, sigma_max)
+    """``stacked_total_least_squares`` of one system ``W[M, B]``, ``tau[M]``."""
+    return stacked_total_least_squares(W[None], tau[None])[0]
 
 
 class TotalLeastSquares(LinearEstimator):
@@ -218,25 +298,28 @@ class TotalLeastSquares(LinearEstimator):
 
     label = "TLS"
 
-    def solve(self, system: LinearSystem, conditioning: Conditioning) -> Solution:
-        tls = total_least_squares(system.W, system.tau)
-        tls_cond = tls.sigma_max / tls.gap
+    def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
+        solutions = stacked_total_least_squares(system.W, system.tau)
+        alpha = torch.stack([tls.alpha for tls in solutions])
+        residuals = residual_norms(system, alpha).tolist()
         limit = default_max_cond(system.W.dtype) if self.max_cond is None else self.max_cond
-        if tls_cond > limit:
-            warnings.warn(
-                f"{self.name}: the TLS problem of robot {system.robot_name} is nearly degenerate "
-                f"(sigma_1 / (sigma_B(W) - rho) = {tls_cond:.3g} > {limit:.3g})",
-                IdentificationWarning,
-                stacklevel=2,
+        details = []
+        for t, tls in enumerate(solutions):
+            tls_cond = tls.sigma_max / tls.gap
+            if tls_cond > limit:
+                with log.recording(t):
+                    warnings.warn(
+                        f"{self.name}: the TLS problem of robot {system.robot_name} is nearly degenerate "
+                        f"(sigma_1 / (sigma_B(W) - rho) = {tls_cond:.3g} > {limit:.3g})",
+                        IdentificationWarning,
+                        stacklevel=2,
+                    )
+            details.append(
+                {
+                    "solver": "svd of [W | tau_s]",
+                    "rho": tls.rho,
+                    "tls_cond": tls_cond,
+                    "residual_norm": residuals[t],
+                }
             )
-        return Solution(
-            tls.alpha,
-            "rho = ||[dW | dtau]||_F (eq. 14)",
-            tls.rho,
-            {
-                "solver": "svd of [W | tau_s]",
-                "rho": tls.rho,
-                "tls_cond": tls_cond,
-                "residual_norm": residual_norm(system, tls.alpha),
-            },
-        )
+        return Solution(alpha, "rho = ||[dW | dtau]||_F (eq. 14)", [tls.rho for tls in solutions], details)

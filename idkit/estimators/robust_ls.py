@@ -40,8 +40,9 @@ Facts used (all from the formulas above):
   ``α(μ) = 0`` for every ``μ``; large ``ρ`` gives ``μ ≈ ρ‖τ‖`` and a small but nonzero ``α``.
 - ``ρ = 0`` is ordinary least squares (``μ = 0``).
 
-The closed form works in numpy float64 on the CPU (see ``rls_closed_form`` for why); the root find
-runs on Python floats over the ``B`` singular values.
+The closed form works in numpy float64 on the CPU (see ``stacked_rls_closed_form`` for why), on a
+stack of trials at once (one batched SVD); the root find runs per trial on Python floats over the
+``B`` singular values (~20 µs: cheaper than any vectorised form for the few iterations it takes).
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ from __future__ import annotations
 import math
 import sys
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -56,13 +58,14 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.estimators.least_squares import LinearEstimator, Solution, smallest_singular_value
+from idkit.estimators.least_squares import LinearEstimator, Solution, residual_norms, smallest_singular_values
 from idkit.estimators.observation import (
     Conditioning,
     IdentificationError,
     IdentificationWarning,
     LinearSystem,
 )
+from idkit.estimators.trials import TrialWarnings, in_trial
 from idkit.relative import DEFAULT_FLOOR
 
 SOLVERS = ("closed_form", "cvxpy")
@@ -145,27 +148,48 @@ def host_float64(x: Tensor) -> np.ndarray:
     return x.detach().to(device="cpu", dtype=torch.float64).numpy()
 
 
-def rls_closed_form(W: Tensor, tau: Tensor, rho: float) -> RLSSolution:
-    """``argmin ‖Wα − τ‖ + ρ‖[α; 1]‖`` by the SVD of ``W[M, B]`` and a 1-D root find.
+def stacked_rls_closed_form(W: Tensor, tau: Tensor, rho: Sequence[float]) -> list[RLSSolution]:
+    """``argmin ‖Wα − τ‖ + ρ‖[α; 1]‖`` of ``T`` systems by batched SVDs of ``W[T, M, B]`` and a 1-D
+    root find per trial.
 
-    ``W`` must have full column rank (``M ≥ B``); ``tau`` is ``[M]``. The ``[M, B]`` SVD and the
-    few products around it run in numpy float64 on the CPU whatever the input's device and dtype:
-    for the thin matrices of identification (``B`` ≲ 100) LAPACK through numpy costs a fraction of
-    torch's per-call overhead (this solver's budget is ~0.1 ms for the paper's 30 × 4 problem),
-    and float32 inputs gain float64 accuracy. ``alpha`` comes back on ``W``'s device and dtype.
+    Each ``W`` must have full column rank (``M ≥ B``); ``tau`` is ``[T, M]``, ``rho`` one bound per
+    trial. The SVDs and the few products around them run in numpy float64 on the CPU whatever the
+    input's device and dtype: for the thin matrices of identification (``B`` ≲ 100) LAPACK through
+    numpy costs a fraction of torch's per-call overhead, and float32 inputs gain float64 accuracy.
+    ``alpha`` comes back on ``W``'s device and dtype.
+
+    Raises:
+        ValueError: a ``rho`` is negative or not finite.
+        IdentificationError: a trial's minimiser is not unique, or its root find failed (marked
+            with the trial, ``in_trial``).
     """
-    if rho < 0 or not math.isfinite(rho):
-        raise ValueError(f"RLS: rho must be a finite number >= 0, got {rho}")
+    for r in rho:
+        if r < 0 or not math.isfinite(r):
+            raise ValueError(f"RLS: rho must be a finite number >= 0, got {r}")
     Wn, tn = host_float64(W), host_float64(tau)
-    U, S, Vh = np.linalg.svd(Wn, full_matrices=False)
-    b = U.T @ tn  # [B]
-    beta = float(np.linalg.norm(tn - U @ b))
-    s, bl = S.tolist(), b.tolist()
-    mu, iterations = secular_root(s, bl, beta, float(rho))
-    if mu == 0.0 and s[-1] == 0.0:
-        raise IdentificationError("RLS: W is rank deficient and rho = 0 — the minimiser is not unique")
-    alpha = Vh.T @ (b * S / (S * S + mu))  # α = V diag(s/(s²+μ)) b
-    return RLSSolution(torch.from_numpy(alpha).to(device=W.device, dtype=W.dtype), mu, iterations)
+    U, S, Vh = np.linalg.svd(Wn, full_matrices=False)  # [T, M, B], [T, B], [T, B, B]
+    b = (U.swapaxes(-1, -2) @ tn[..., None])[..., 0]  # [T, B]
+    beta = np.linalg.norm(tn - (U @ b[..., None])[..., 0], axis=-1)  # [T]
+    roots = []
+    for t, (s, bt, beta_t) in enumerate(zip(S.tolist(), b.tolist(), beta.tolist(), strict=True)):
+        try:
+            mu, iterations = secular_root(s, bt, beta_t, float(rho[t]))
+        except IdentificationError as error:
+            raise in_trial(error, t) from None
+        if mu == 0.0 and s[-1] == 0.0:
+            raise in_trial(
+                IdentificationError("RLS: W is rank deficient and rho = 0 — the minimiser is not unique"), t
+            )
+        roots.append((mu, iterations))
+    mu = np.array([m for m, _ in roots])[:, None]  # [T, 1]
+    alpha = (Vh.swapaxes(-1, -2) @ (b * S / (S * S + mu))[..., None])[..., 0]  # α = V diag(s/(s²+μ)) b
+    alpha_t = torch.from_numpy(alpha).to(device=W.device, dtype=W.dtype)
+    return [RLSSolution(alpha_t[t], m, iterations) for t, (m, iterations) in enumerate(roots)]
+
+
+def rls_closed_form(W: Tensor, tau: Tensor, rho: float) -> RLSSolution:
+    """``stacked_rls_closed_form`` of one system ``W[M, B]``, ``tau[M]``."""
+    return stacked_rls_closed_form(W[None], tau[None], [rho])[0]
 
 
 def newton_polish(
@@ -265,10 +289,11 @@ def rls_cvxpy(
     return values, problem.status, used
 
 
-def rls_objective(W: Tensor, tau: Tensor, alpha: Tensor, rho: float) -> float:
-    """``‖Wα − τ‖ + ρ‖[α; 1]‖``, the worst-case residual r of eq. (16)."""
-    residual = torch.linalg.vector_norm(W @ alpha - tau)
-    return float(residual + rho * torch.sqrt(1.0 + alpha.square().sum()))
+def rls_objective(W: Tensor, tau: Tensor, alpha: Tensor, rho: Tensor) -> Tensor:
+    """``‖Wα − τ‖ + ρ‖[α; 1]‖``, the worst-case residual r of eq. (16), of each trial: ``[T]`` for
+    ``W[T, M, B]``, ``tau[T, M]``, ``alpha[T, B]`` and ``rho[T]``."""
+    residual = torch.linalg.vector_norm((W @ alpha[..., None])[..., 0] - tau, dim=-1)
+    return residual + rho * torch.sqrt(1.0 + alpha.square().sum(-1))
 
 
 class RobustLeastSquares(LinearEstimator):
@@ -311,32 +336,44 @@ class RobustLeastSquares(LinearEstimator):
         self.cvxpy_solver = cvxpy_solver
         self.polish = polish
 
-    def solve(self, system: LinearSystem, conditioning: Conditioning) -> Solution:
+    def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
         W, tau = system.W, system.tau
-        rho = smallest_singular_value(W, tau) if self.rho is None else float(self.rho)
-        details: dict = {"rho": rho, "rho_source": "tls (eq. 14)" if self.rho is None else "given"}
+        trials = W.shape[0]
+        rho = smallest_singular_values(W, tau) if self.rho is None else [float(self.rho)] * trials
+        source = "tls (eq. 14)" if self.rho is None else "given"
+        details: list[dict] = [{"rho": r, "rho_source": source} for r in rho]
         if self.solver == "closed_form":
-            sol = rls_closed_form(W, tau, rho)
-            alpha = sol.alpha
-            details.update(
-                solver="closed form (svd + secular equation)", mu=sol.mu, iterations=sol.iterations
-            )
+            solutions = stacked_rls_closed_form(W, tau, rho)
+            alpha = torch.stack([sol.alpha for sol in solutions])
+            for record, sol in zip(details, solutions, strict=True):
+                record.update(
+                    solver="closed form (svd + secular equation)", mu=sol.mu, iterations=sol.iterations
+                )
         else:
-            values, status, used = rls_cvxpy(W, tau, rho, self.cvxpy_solver, self.polish)
-            if status != "optimal":
+            alpha = torch.stack([self._cvxpy(W, tau, rho, details, log, t) for t in range(trials)])
+        for record, residual in zip(details, residual_norms(system, alpha).tolist(), strict=True):
+            record["residual_norm"] = residual
+        values = rls_objective(W, tau, alpha, torch.tensor(rho, dtype=W.dtype, device=W.device))
+        return Solution(
+            alpha, "||W alpha - tau_s||_2 + rho ||[alpha; 1]||_2 (eqs. 16-18)", values.tolist(), details
+        )
+
+    def _cvxpy(
+        self, W: Tensor, tau: Tensor, rho: list[float], details: list[dict], log: TrialWarnings, trial: int
+    ) -> Tensor:
+        """``alpha[B]`` of trial ``trial`` of ``W[T, M, B]`` by the reference SOCP (one conic solve
+        per trial); fills in ``details[trial]``."""
+        try:
+            values, status, used = rls_cvxpy(W[trial], tau[trial], rho[trial], self.cvxpy_solver, self.polish)
+        except IdentificationError as error:
+            raise in_trial(error, trial) from None
+        if status != "optimal":
+            with log.recording(trial):
                 warnings.warn(
                     f"{self.name}: cvxpy ({used}) reports status {status!r}; the estimate may be inaccurate",
                     IdentificationWarning,
                     stacklevel=2,
                 )
-            alpha = torch.as_tensor(values, dtype=W.dtype, device=W.device)
-            details.update(
-                solver=f"cvxpy ({used})" + (" + newton polish" if self.polish else ""), status=status
-            )
-        details["residual_norm"] = float(torch.linalg.vector_norm(W @ alpha - tau))
-        return Solution(
-            alpha,
-            "||W alpha - tau_s||_2 + rho ||[alpha; 1]||_2 (eqs. 16-18)",
-            rls_objective(W, tau, alpha, rho),
-            details,
-        )
+        solver = f"cvxpy ({used})" + (" + newton polish" if self.polish else "")
+        details[trial].update(solver=solver, status=status)
+        return torch.as_tensor(values, dtype=W.dtype, device=W.device)

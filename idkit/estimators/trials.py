@@ -1,27 +1,39 @@
 """Fitting many trials (e.g. a study's noise draws) of one setting in few batched computations.
 
 A robustness study fits the same estimators to thousands of problems that differ only in their
-samples. Fitted one after another, a paper-sized PSO is dominated by per-call overhead; stacked,
-trials × costs × runs are one batch. ``fit_trials`` is the one entry point a study calls:
+samples. Fitted one after another, a paper-sized fit is dominated by per-call overhead; stacked,
+trials are one batch. ``fit_trials`` is the one entry point a study calls:
 
-- estimators with a ``fit_trials(problems, costs, chunk)`` method (``pso``, ``adam``,
-  ``pso_f13_f14``) stack the trials themselves, in chunks of ``chunk`` trials (bounded memory);
+- estimators with a ``fit_trials(problems, costs, chunk)`` method stack the trials themselves, in
+  chunks of ``chunk`` trials (bounded memory): the searches (``pso``, ``adam``, ``pso_f13_f14``)
+  as trials × costs × runs, the least-squares family (``ls``, ``tls``, ``rls``, their relative
+  variants) as ``[T, M, B]`` systems solved by batched decompositions, and the third-party
+  ``irls`` as batched reweighting steps;
 - any other estimator is fitted trial by trial (its ``fit``), so third-party estimators work too.
-  That includes the least-squares family: a fit is 0.2–1 ms (about 5 s for 1,000 trials × 6
-  variants), small beside the searches, and its ``fit`` is where its diagnostics are made.
 
 Every number depends only on each trial's problem (its samples and ``seed``) and the estimator's
 options, never on ``chunk`` or on the other trials in the batch (tested with chunks of 1, 3 and all).
+The helpers below are what a batched estimator needs besides its arithmetic: cutting the trials
+into batches (``fit_in_batches``, ``fit_stacked_systems``), checking that they can share one
+(``check_same_setting``),
+keeping each trial's warnings apart (``TrialWarnings``) and naming the trial that fails
+(``in_trial``): a trial whose data cannot be fitted raises the error its own ``fit`` raises, its
+message prefixed with ``trial <index> (seed <seed>): `` — never a result computed from the others.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import replace
+from typing import TypeVar
 
 from idkit.estimate import Estimate
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
+
+E = TypeVar("E", bound=BaseException)
 
 #: Error-tensor elements per chunk of a batched search (about 2 MB of float64): big batches run
 #: as consecutive chunks whose tensors stay in the CPU cache.
@@ -57,17 +69,110 @@ def batches(problems: Sequence[Problem], chunk: Callable[[Problem], int]) -> Ite
             yield members[start : start + size]
 
 
+def in_trial(error: E, position: int) -> E:
+    """Mark ``error`` as caused by trial ``position`` of the batch being fitted.
+
+    ``fit_in_batches`` prefixes the message of a marked error with ``trial <index> (seed <seed>): ``
+    (the trial's index in the caller's list), so a study says which draw failed; ``fit`` — a batch
+    of one — raises it unchanged, exactly as before batching.
+    """
+    error.trial = position  # type: ignore[attr-defined]
+    return error
+
+
 def fit_in_batches(
     problems: Sequence[Problem],
     chunk: Callable[[Problem], int],
     fit_batch: Callable[[list[Problem]], list[list[Estimate]]],
 ) -> list[list[Estimate]]:
-    """``fit_batch`` over ``batches(problems, chunk)``, results back in the order of ``problems``."""
+    """``fit_batch`` over ``batches(problems, chunk)``, results back in the order of ``problems``.
+
+    An error that ``fit_batch`` marked with ``in_trial`` gets the trial's index and seed in front
+    of its message (same exception type, same traceback).
+    """
     results: list[list[Estimate]] = [[] for _ in problems]
     for members in batches(problems, chunk):
-        for index, estimates in zip(members, fit_batch([problems[i] for i in members]), strict=True):
+        batch = [problems[i] for i in members]
+        try:
+            fitted = fit_batch(batch)
+        except Exception as error:
+            position = getattr(error, "trial", None)
+            if isinstance(position, int) and error.args and isinstance(error.args[0], str):
+                seed = batch[position].seed
+                error.args = (f"trial {members[position]} (seed {seed}): {error.args[0]}", *error.args[1:])
+                del error.trial  # named once, for the list the caller passed
+            raise
+        for index, estimates in zip(members, fitted, strict=True):
             results[index] = estimates
     return results
+
+
+def fit_stacked_systems(
+    problems: Sequence[Problem],
+    chunk: int | None,
+    fit_stack: Callable[[list[Problem]], list[list[Estimate]]],
+) -> list[list[Estimate]]:
+    """``fit_trials`` of an estimator that solves the trials' stacked linear systems ``W[T, M, B]``
+    (the least-squares family, ``irls``): ``fit_stack`` on stacks of trials of equal sample
+    counts, at most ``chunk`` of them (``None``: as many as fit ``CHUNK_ELEMENTS`` elements of
+    ``W``), results in the order of ``problems``.
+    """
+    problems = list(problems)
+    if not problems:
+        return []
+    check_same_setting(problems)
+    trial_chunk(chunk, 1)  # check it
+
+    def trials_per_stack(problem: Problem) -> int:
+        return trial_chunk(chunk, problem.samples.tau.numel() * len(problem.robot.base_param_names))
+
+    return fit_in_batches(problems, trials_per_stack, fit_stack)
+
+
+def check_same_setting(problems: Sequence[Problem]) -> None:
+    """Raise ``ValueError`` unless every trial can share stacked computations with the first: the
+    same robot class, device and dtype (stacking with another robot's regressor would be silently
+    wrong; the rest would fail inside torch without naming a trial). Sample counts may differ:
+    ``batches`` stacks only trials of equal shape.
+    """
+    first = problems[0]
+    for index, other in enumerate(problems[1:], start=1):
+        if other.robot is not first.robot and type(other.robot) is not type(first.robot):
+            raise ValueError(f"trial {index}: robot {type(other.robot).__name__} differs from trial 0's")
+        if str(other.device) != str(first.device) or other.torch_dtype != first.torch_dtype:
+            raise ValueError(f"trial {index}: device/dtype differ from trial 0's")
+
+
+class TrialWarnings:
+    """The warnings raised while handling each trial of a batch, kept per trial.
+
+    A batched fit must report what each trial's own ``fit`` would: its warnings (in its
+    ``details["warnings"]``) and only its own. Per-trial work runs inside ``recording(t)``;
+    ``reissue`` then passes every recorded warning on to the caller, trial by trial.
+    """
+
+    def __init__(self, trials: int) -> None:
+        self.caught: list[list[warnings.WarningMessage]] = [[] for _ in range(trials)]
+
+    @contextmanager
+    def recording(self, trial: int) -> Iterator[None]:
+        """Record the warnings of the block as trial ``trial``'s."""
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                yield
+            finally:
+                self.caught[trial].extend(caught)
+
+    def messages(self, trial: int) -> list[str]:
+        """``"<Category>: <message>"`` of each warning of trial ``trial``."""
+        return [f"{w.category.__name__}: {w.message}" for w in self.caught[trial]]
+
+    def reissue(self) -> None:
+        """Warn the caller of every recorded warning (outside any ``recording`` block)."""
+        for caught in self.caught:
+            for w in caught:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
 
 
 def criteria(problems: Sequence[Problem], costs: Sequence[Cost] | None) -> list[Cost]:
@@ -95,8 +200,8 @@ def fit_trials(
         estimator: any estimator; batched where it knows how (module docstring).
         problems: ``T`` trials of the same robot, sample count, device and dtype.
         costs: the criteria for search estimators (``None``: each problem's own ``cost``, one
-            estimate per trial); ignored by estimators with a fixed criterion (the LS family),
-            which return one estimate per trial.
+            estimate per trial); ignored by estimators with a fixed criterion (the LS family,
+            ``irls``), which return one estimate per trial, as their ``fit`` of that trial.
         chunk: trials per batched computation (``None``: chosen from the problem size).
     """
     problems = list(problems)

@@ -16,6 +16,7 @@ every parameter touching them gets an infinite standard deviation.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -23,7 +24,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from idkit.estimators.observation import Conditioning, LinearSystem, _null_directions
+from idkit.estimators.observation import Conditioning, _null_directions
 
 
 @dataclass(frozen=True)
@@ -65,44 +66,58 @@ class BaseUncertainty:
         }
 
 
-def base_uncertainty(
+def base_uncertainties(
     W: Tensor,
     tau: Tensor,
     alpha: Tensor,
     names: Sequence[str],
     conditioning: Conditioning | None = None,
-) -> BaseUncertainty:
-    """Standard deviations ``sqrt(diag(σ² (WᵀW)⁻¹))`` of ``alpha[B]`` fitted on ``W[M, B]``, ``tau[M]``.
+) -> list[BaseUncertainty]:
+    """Standard deviations ``sqrt(diag(σ² (WᵀW)⁻¹))`` of each trial's ``alpha[T, B]`` fitted on
+    ``W[T, M, B]``, ``tau[T, M]``, in float64 whatever the input dtype.
 
     Args:
-        W, tau, alpha: the (possibly relative) linear system and its estimate.
+        W, tau, alpha: the (possibly relative) linear systems and their estimates.
         names: base parameter names ``[B]``.
         conditioning: the SVD of the equilibrated ``W`` if already computed (the LS family has it).
     """
     W, tau, alpha = W.detach().double(), tau.detach().double(), alpha.detach().to(W).double()
-    M, B = W.shape
+    M, B = W.shape[-2:]
     if conditioning is None:
-        scale = torch.linalg.vector_norm(W, dim=0)
+        scale = torch.linalg.vector_norm(W, dim=-2)
         scale = torch.where(scale > 0, scale, torch.ones_like(scale))
-        _, sigma, Vh = torch.linalg.svd(W / scale, full_matrices=False)
+        _, sigma, Vh = torch.linalg.svd(W / scale[..., None, :], full_matrices=False)
     else:
         scale, sigma, Vh = conditioning.scale.double(), conditioning.sigma.double(), conditioning.Vh.double()
-    tol = max(M, B) * torch.finfo(torch.float64).eps * float(sigma[0]) if float(sigma[0]) > 0 else 0.0
-    kept = sigma > tol
-    rank = int(kept.sum())
+    tol = max(M, B) * torch.finfo(torch.float64).eps * sigma[..., :1]  # [T, 1]; 0 if sigma_max is 0
+    kept = sigma > tol  # [T, B]
+    ranks = kept.sum(-1).tolist()
     dof = M - B
-    residual = tau - W @ alpha
-    sigma2 = float(residual @ residual) / dof if dof > 0 else float("nan")
-    V = Vh.mT[:, kept] / sigma[kept]  # columns V_k / s_k
-    variance = sigma2 * (V.square().sum(1)) / scale.square()
-    touched = (Vh[~kept].abs() > 1e-8).any(0) if rank < B else torch.zeros(B, dtype=torch.bool)
-    std = torch.where(touched, torch.full_like(variance, float("inf")), variance.sqrt())
+    residual = tau - (W @ alpha[..., None])[..., 0]
+    sigma2 = residual.square().sum(-1) / dof if dof > 0 else torch.full_like(residual[..., 0], math.nan)
+    inverse = torch.where(kept, 1 / sigma, torch.zeros_like(sigma))  # 1/s_k on kept directions only
+    variance = sigma2[..., None] * (Vh.mT * inverse[..., None, :]).square().sum(-1) / scale.square()
+    touched = ((Vh.abs() > 1e-8) & ~kept[..., None]).any(-2)  # parameters in a null direction
+    std = torch.where(touched, torch.full_like(variance, math.inf), variance.sqrt())
     relative = 100.0 * std / alpha.abs()
-    cond = float(sigma[0] / sigma[-1]) if float(sigma[-1]) > 0 else float("inf")
-    null = tuple(_null_directions(Vh, sigma, tol, tuple(names))) if rank < B else ()
-    return BaseUncertainty(tuple(names), std.cpu(), relative.cpu(), sigma2, dof, rank, cond, null)
+    cond = torch.where(sigma[..., -1] > 0, sigma[..., 0] / sigma[..., -1], math.inf).tolist()
+    sigma2_list, std, relative = sigma2.tolist(), std.cpu(), relative.cpu()
+    names = tuple(names)
+    return [
+        BaseUncertainty(
+            names,
+            std[t],
+            relative[t],
+            sigma2_list[t],
+            dof,
+            ranks[t],
+            cond[t],
+            tuple(_null_directions(Vh[t], sigma[t], float(tol[t]), names)) if ranks[t] < B else (),
+        )
+        for t in range(len(ranks))
+    ]
 
 
-def uncertainty_details(system: LinearSystem, alpha: Tensor, conditioning: Conditioning) -> dict[str, Any]:
-    """``details`` entry of the least-squares family: :func:`base_uncertainty` of its system and fit."""
-    return base_uncertainty(system.W, system.tau, alpha, system.base_names, conditioning).to_details()
+def base_uncertainty(W: Tensor, tau: Tensor, alpha: Tensor, names: Sequence[str]) -> BaseUncertainty:
+    """``base_uncertainties`` of one system ``W[M, B]``, ``tau[M]`` and its ``alpha[B]``."""
+    return base_uncertainties(W[None], tau[None], alpha[None], names)[0]

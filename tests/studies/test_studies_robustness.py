@@ -90,15 +90,15 @@ def test_interrupted_study_keeps_whole_trials_and_says_partial(tmp_path, monkeyp
     from idkit.estimators.least_squares import LeastSquares
 
     calls = {"n": 0}
-    fit = LeastSquares.fit
+    fit_trials = LeastSquares.fit_trials
 
-    def interrupting_fit(self, problem):
+    def interrupting_fit_trials(self, problems, costs=None, chunk=None):
         calls["n"] += 1
-        if calls["n"] == 5:  # 2 estimators per trial: the 5th fit is in trial 3
+        if calls["n"] == 5:  # chunks of 1 trial, 2 estimators per trial: the 5th call is in trial 3
             raise KeyboardInterrupt
-        return fit(self, problem)
+        return fit_trials(self, problems, costs, chunk)
 
-    monkeypatch.setattr(LeastSquares, "fit", interrupting_fit)
+    monkeypatch.setattr(LeastSquares, "fit_trials", interrupting_fit_trials)
     with pytest.raises(StudyInterrupted) as stop:
         robustness.run(
             trials=5, chunk=1, **{**SMALL, "estimators": [{"_name_": "ls", "relative": True}, "ls"]}

@@ -14,18 +14,33 @@ until ``||alpha_new - alpha|| <= tol ||alpha||``. The fixed point solves the M-e
 equations ``sum psi(r_i / s) W_i = 0``. The default tuning constants (Huber 1.345, Tukey 4.685)
 give 95 % efficiency under Gaussian noise. Tukey's weights redescend to zero, so its iteration
 has several fixed points; it starts from the converged Huber fit, as is customary.
+
+Convergence: with one MAD for all joints, the quiet joints set the scale. On the cylindrical robot
+every joint-2 residual can then lie far out (9 to 160 scales in one outliers draw), all clipped,
+so joint 2's parameter is fitted by a weighted L1 criterion that is nearly flat, and IRLS creeps
+along it (monotonically: no oscillation). Measured on the robustness study's 4 x 1,000 draws:
+155 trials (3.9 %) reach ``max_iter=200`` and warn; run on, they converge after a median of
+380-520 iterations (up to 8,672; one not within 20,000), their ``m2`` moving by up to 0.5 kg, but
+the study's median and 90th percentile of the parameter error move by at most 1 % and the win
+rates against RLS-rel by at most 0.005. So ``max_iter`` stays a safety net whose warning marks
+those trials.
+
+``fit_trials`` runs the iterations of many trials (a study's noise draws) as batched tensor ops:
+a trial leaves the batch at the iteration where its own ``fit`` stops (same test, same numbers),
+so the others never change its result; ``fit`` is a batch of one.
 """
 
 from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import torch
 from idkit.estimate import Estimate, jsonable
-from idkit.estimators.observation import linear_system
-from idkit.interfaces import Estimator
+from idkit.estimators.observation import stacked_system
+from idkit.estimators.trials import fit_stacked_systems, in_trial
+from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.relative import DEFAULT_FLOOR
 from idkit.runtime import resolve_threads, torch_threads
@@ -47,24 +62,46 @@ def tukey_weights(u: Tensor, c: float) -> Tensor:
 
 
 WEIGHTS: dict[str, Callable[[Tensor, float], Tensor]] = {"huber": huber_weights, "tukey": tukey_weights}
+#: Weights that reach 0 and so can leave fewer weighted equations than parameters (Huber's never do).
+REDESCENDING = frozenset({"tukey"})
+
+
+def _check_enough_weights(weights: Tensor, parameters: int, name: str, c: float, trials: Tensor) -> None:
+    """Raise (marked with the trial, from ``trials[A]``) if a row of ``weights[A, M]`` keeps fewer
+    non-zero weights than there are parameters: its weighted system would be singular."""
+    nonzero = (weights > 0).sum(dim=-1)
+    short = nonzero < parameters
+    if bool(short.any()):
+        first = int(short.nonzero()[0])
+        raise in_trial(
+            ValueError(
+                f"irls: only {int(nonzero[first])} residuals keep a non-zero {name} weight, "
+                f"fewer than the {parameters} base parameters; increase tuning (now {c})"
+            ),
+            int(trials[first]),
+        )
 
 
 def mad_scale(r: Tensor) -> Tensor:
-    """Robust scale ``median(|r|) / 0.6745`` of residuals ``r[M]`` (the median of an even count
-    averages the two middle values, as numpy's does)."""
-    v = r.abs().sort().values
-    m = v.shape[0]
-    return (v[(m - 1) // 2] + v[m // 2]) / (2 * MAD_TO_SIGMA)
+    """Robust scale ``median(|r|) / 0.6745`` of each row of residuals ``r[T, M]``: ``[T]`` (the
+    median of an even count averages the two middle values, as numpy's does)."""
+    v = r.abs().sort(dim=-1).values
+    m = v.shape[-1]
+    return (v[..., (m - 1) // 2] + v[..., m // 2]) / (2 * MAD_TO_SIGMA)
 
 
 def _solve(w: Tensor, t: Tensor) -> Tensor:
-    """Least-squares ``alpha[B]`` of ``w[M, B] alpha = t[M]``.
+    """Least-squares ``alpha[T, B]`` of each ``w[T, M, B] alpha = t[T, M]`` by Householder QR.
 
-    QR-based ``gels`` (the caller checks that ``w`` has full column rank): torch's CPU default,
-    ``gelsy``, is not bitwise reproducible from call to call with MKL (differences of ~1e-15
-    measured), which would break "same seed → same estimate"; ``gels`` is, and CUDA has it too.
+    ``w = Q R``, ``alpha = R⁻¹ Qᵀ t`` (the caller checks that ``w`` has full column rank): the
+    algorithm of LAPACK's ``gels``, backward stable, bitwise reproducible from call to call and
+    across thread counts (torch's CPU ``lstsq`` default, ``gelsy``, is not with MKL: differences of
+    ~1e-15 measured, which would break "same seed → same estimate"), and a quarter of
+    ``torch.linalg.lstsq``'s per-call cost on these small systems (~25 µs against ~100 µs for a
+    30 × 4 system, measured): IRLS solves one per iteration.
     """
-    return torch.linalg.lstsq(w, t[:, None], driver="gels").solution[:, 0]
+    Q, R = torch.linalg.qr(w)
+    return torch.linalg.solve_triangular(R, Q.mT @ t[..., None], upper=True)[..., 0]
 
 
 class IRLS(Estimator):
@@ -116,102 +153,166 @@ class IRLS(Estimator):
     def label(self) -> str:
         return f"IRLS-{self.weight.capitalize()}" + ("-rel" if self.relative else "")
 
-    def _stage(self, w: Tensor, t: Tensor, alpha: Tensor, name: str, c: float) -> tuple[Tensor, dict]:
-        """Reweight until converged; returns ``alpha`` and this stage's record."""
+    def _stage(self, w: Tensor, t: Tensor, alpha: Tensor, name: str, c: float) -> tuple[Tensor, list[dict]]:
+        """Reweight every trial of ``w[T, M, B]``, ``t[T, M]`` from ``alpha[T, B]`` until it converges.
+
+        A trial leaves the batch at the iteration its own fit stops at, so each trial's ``alpha``
+        and record (``iterations``, ``converged``, ``exact_fit``) are those of a batch of one.
+        """
         weights_of = WEIGHTS[name]
         eps = torch.finfo(t.dtype).eps
-        exact, tol = 64 * eps * t.abs().max(), max(self.tol, 100 * eps)
-        for iteration in range(1, self.max_iter + 1):
-            r = t - w @ alpha
-            scale = mad_scale(r)
-            if scale <= exact:  # (nearly) exact fit: nothing to reweight
-                return alpha, {
+        limit, tol = 64 * eps * t.abs().amax(dim=-1), max(self.tol, 100 * eps)
+        alpha = alpha.clone()  # the result; the loop below never writes into ``aa``
+        records: list[dict] = [{} for _ in range(t.shape[0])]
+
+        def stop(trials: Tensor, iterations: int, converged: bool, exact_fit: bool) -> None:
+            for i in trials.tolist():
+                records[i] = {
                     "weight": name,
-                    "iterations": iteration - 1,
-                    "converged": True,
-                    "exact_fit": True,
+                    "iterations": iterations,
+                    "converged": converged,
+                    "exact_fit": exact_fit,
                 }
-            weights = weights_of(r / scale, c)
-            if int((weights > 0).sum()) < w.shape[1]:
-                raise ValueError(
-                    f"irls: only {int((weights > 0).sum())} residuals keep a non-zero {name} weight, "
-                    f"fewer than the {w.shape[1]} base parameters; increase tuning (now {c})"
+
+        # The trials still iterating: their indices, systems, exact-fit limits and current alpha,
+        # compacted when one stops.
+        active, wa, ta, exact, aa = torch.arange(t.shape[0], device=t.device), w, t, limit, alpha
+        for iteration in range(1, self.max_iter + 1):
+            r = torch.baddbmm(ta[..., None], wa, aa[..., None], alpha=-1)[..., 0]  # t - W alpha
+            scale = mad_scale(r)
+            fitted = scale <= exact  # (nearly) exact fit: nothing to reweight
+            if bool(fitted.any()):
+                alpha[active[fitted]] = aa[fitted]
+                stop(active[fitted], iteration - 1, True, True)
+                active, wa, ta, exact, aa, r, scale = (
+                    x[~fitted] for x in (active, wa, ta, exact, aa, r, scale)
                 )
+                if not len(active):
+                    break
+            weights = weights_of(r / scale[:, None], c)
+            if name in REDESCENDING:
+                _check_enough_weights(weights, w.shape[-1], name, c, active)
             root = weights.sqrt()
-            new = _solve(w * root[:, None], t * root)
-            change = torch.linalg.vector_norm(new - alpha)
-            alpha = new
-            if change <= tol * torch.linalg.vector_norm(alpha):
-                return alpha, {"weight": name, "iterations": iteration, "converged": True, "exact_fit": False}
-        warnings.warn(
-            f"irls: {name} stage did not converge in {self.max_iter} iterations (tol {self.tol:g})",
-            RuntimeWarning,
-            stacklevel=3,
-        )
-        return alpha, {"weight": name, "iterations": self.max_iter, "converged": False, "exact_fit": False}
+            new = _solve(wa * root[..., None], ta * root)
+            done = torch.linalg.vector_norm(new - aa, dim=-1) <= tol * torch.linalg.vector_norm(new, dim=-1)
+            aa = new
+            if bool(done.any()):
+                alpha[active[done]] = aa[done]
+                stop(active[done], iteration, True, False)
+                active, wa, ta, exact, aa = (x[~done] for x in (active, wa, ta, exact, aa))
+                if not len(active):
+                    break
+        alpha[active] = aa
+        for _ in active.tolist():
+            warnings.warn(
+                f"irls: {name} stage did not converge in {self.max_iter} iterations (tol {self.tol:g})",
+                RuntimeWarning,
+                stacklevel=4,
+            )
+        stop(active, self.max_iter, False, False)
+        return alpha, records
 
     def fit(self, problem: Problem) -> Estimate:
         """Estimate base and physical parameters; ``[N, n]`` samples become ``N n`` equations."""
-        if self.threads is None:
-            return self._fit(problem)
-        with torch_threads(resolve_threads(self.threads, 0)):
-            return self._fit(problem)
+        return self._fit_batch([problem])[0][0]
 
-    def _fit(self, problem: Problem) -> Estimate:
-        robot = problem.robot
+    def fit_trials(
+        self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None
+    ) -> list[list[Estimate]]:
+        """One estimate per trial, each the one its own ``fit`` gives, from batched iterations.
+
+        Args:
+            problems: ``T`` trials of one robot, device and dtype (trials of equal sample counts
+                are stacked).
+            costs: ignored: the criterion is fixed (each estimate's ``cost`` is its problem's
+                ``cost`` at the estimate, as in ``fit``).
+            chunk: trials per batch; ``None``: as many as fit ``CHUNK_ELEMENTS`` elements of ``W``.
+
+        Raises:
+            ValueError: a trial cannot be fitted; the message starts with ``trial <index> (seed
+                <seed>):`` and goes on as that trial's ``fit`` would.
+        """
+        return fit_stacked_systems(problems, chunk, self._fit_batch)
+
+    def _fit_batch(self, problems: list[Problem]) -> list[list[Estimate]]:
+        """``_fit`` with the chosen threads and without autograd's bookkeeping (a part of every small op)."""
+        threads = torch.get_num_threads() if self.threads is None else resolve_threads(self.threads, 0)
+        with torch_threads(threads), torch.no_grad():
+            return self._fit(problems)
+
+    def _fit(self, problems: list[Problem]) -> list[list[Estimate]]:
+        """``fit_trials`` of one batch of trials with equal sample counts."""
+        robot = problems[0].robot
         if not robot.has_regressor:
             raise ValueError(
                 f"irls needs a robot with a linear regressor; {type(robot).__name__} has none "
                 "(use a search-based estimator such as pso instead)"
             )
         start = time.perf_counter()
-        s = problem.tensors()
-        system = linear_system(problem, self.relative, self.floor)  # rows ordered (sample, joint)
-        w, t = system.W, system.tau
+        system = stacked_system(problems, self.relative, self.floor)  # rows ordered (sample, joint)
+        w, t = system.W, system.tau  # [T, M, B], [T, M]
         b = w.shape[-1]
-        rank = int(torch.linalg.matrix_rank(w))
-        if rank < b:
-            raise ValueError(
-                f"irls: the stacked regressor has rank {rank} < {b} base parameters: these "
-                f"{s.n_samples} samples do not excite every base parameter"
-            )
+        for trial, rank in enumerate(torch.linalg.matrix_rank(w).tolist()):
+            if rank < b:
+                raise in_trial(
+                    ValueError(
+                        f"irls: the stacked regressor has rank {rank} < {b} base parameters: these "
+                        f"{problems[trial].samples.n_samples} samples do not excite every base parameter"
+                    ),
+                    trial,
+                )
         c = self.tuning if self.tuning is not None else TUNING[self.weight]
         alpha = _solve(w, t)
-        stages = []
+        stages: list[list[dict]] = [[] for _ in problems]
         if self.weight == "tukey":  # the redescending stage starts from the Huber fit
-            alpha, record = self._stage(w, t, alpha, "huber", TUNING["huber"])
-            stages.append(record)
-        alpha, record = self._stage(w, t, alpha, self.weight, c)
-        stages.append(record)
+            alpha, records = self._stage(w, t, alpha, "huber", TUNING["huber"])
+            for trial_stages, record in zip(stages, records, strict=True):
+                trial_stages.append(record)
+        alpha, records = self._stage(w, t, alpha, self.weight, c)
+        for trial_stages, record in zip(stages, records, strict=True):
+            trial_stages.append(record)
 
-        r = t - w @ alpha
+        r = t - (w @ alpha[..., None])[..., 0]
         scale = mad_scale(r)
-        weights = WEIGHTS[self.weight](r / scale, c) if scale > 0 else torch.ones_like(r)
+        weights = torch.where(scale[:, None] > 0, WEIGHTS[self.weight](r / scale[:, None], c), 1.0)
         params = robot.params_from_base(alpha)
-        criterion = float((r.square() * weights).sum())
-        cost = float(problem.evaluate(params)) if problem.cost is not None else criterion
-        return Estimate(
-            estimator=self.label,
-            params=dict(zip(robot.param_names, params.tolist(), strict=True)),
-            cost=cost,
-            wall_time_s=time.perf_counter() - start,
-            base_params=dict(zip(robot.base_param_names, alpha.tolist(), strict=True)),
-            details=jsonable(
-                {
-                    "criterion": "weighted sum of squared residuals at the final weights",
-                    "criterion_value": criterion,
-                    "weight": self.weight,
-                    "tuning": c,
-                    "relative": self.relative,
-                    "scale": float(scale),
-                    "stages": stages,
-                    "weights": weights.reshape(s.n_samples, robot.n_joints),
-                    "downweighted": int((weights < 1).sum()),
-                    "rejected": int((weights == 0).sum()),
-                    "equations": int(t.shape[0]),
-                    "dtype": str(s.tau.dtype).removeprefix("torch."),
-                    "device": str(s.tau.device),
-                    "threads": torch.get_num_threads(),
-                }
-            ),
-        )
+        criterion = (r.square() * weights).sum(dim=-1).tolist()
+        costs = [
+            criterion[i] if p.cost is None else float(p.evaluate(params[i])) for i, p in enumerate(problems)
+        ]
+        wall = time.perf_counter() - start
+        n_samples, n_joints = problems[0].samples.tau.shape
+        scales, alphas, values = scale.tolist(), alpha.tolist(), params.tolist()
+        downweighted, rejected = (weights < 1).sum(-1).tolist(), (weights == 0).sum(-1).tolist()
+        return [
+            [
+                Estimate(
+                    estimator=self.label,
+                    params=dict(zip(robot.param_names, values[i], strict=True)),
+                    cost=costs[i],
+                    wall_time_s=wall / len(problems),
+                    base_params=dict(zip(robot.base_param_names, alphas[i], strict=True)),
+                    details=jsonable(
+                        {
+                            "criterion": "weighted sum of squared residuals at the final weights",
+                            "criterion_value": criterion[i],
+                            "weight": self.weight,
+                            "tuning": c,
+                            "relative": self.relative,
+                            "scale": scales[i],
+                            "stages": stages[i],
+                            "weights": weights[i].reshape(n_samples, n_joints),
+                            "downweighted": downweighted[i],
+                            "rejected": rejected[i],
+                            "equations": int(t.shape[-1]),
+                            "dtype": str(t.dtype).removeprefix("torch."),
+                            "device": str(t.device),
+                            "threads": torch.get_num_threads(),
+                            "batched_trials": len(problems),
+                            "batch_wall_time_s": wall,
+                        }
+                    ),
+                )
+            ]
+            for i in range(len(problems))
+        ]
