@@ -32,6 +32,7 @@ from torch import Tensor
 
 from idkit.costs.norms import NORMS
 from idkit.costs.reductions import PARAMETRIC
+from idkit.estimators.trials import check_same_setting
 from idkit.interfaces import Cost, NormStructure, Robot
 from idkit.problem import Problem, Samples
 from idkit.relative import relative_denominator
@@ -270,7 +271,8 @@ class Objective:
         self.lower, self.upper = (b.to(device=device, dtype=dtype) for b in box)
         if not bool((self.lower < self.upper).all()):
             raise ValueError(f"{type(robot).__name__}: empty search box {self.lower} .. {self.upper}")
-        self.trials = [_same_setting(problem, p, t).tensors() for t, p in enumerate(self.problems)]
+        _check_stackable(self.problems)
+        self.trials = [p.tensors() for p in self.problems]
         self.measured = torch.stack([s.measured_matrix() for s in self.trials])  # [T, n, N]
         self.shape = tuple(self.measured.shape[1:])
         # Per slot, the divisor of the error: the relative denominator (eq. 27) for costs that
@@ -392,15 +394,13 @@ def _regressor_t(robot: Robot, samples: Samples) -> Tensor:
     return y.permute(2, 1, 0).reshape(y.shape[-1], -1)
 
 
-def _same_setting(first: Problem, other: Problem, trial: int) -> Problem:
-    """``other`` if it can share a batch with ``first`` (same robot, shape, device, dtype)."""
-    if other.robot is not first.robot and type(other.robot) is not type(first.robot):
-        raise ValueError(f"trial {trial}: robot {type(other.robot).__name__} differs from trial 0's")
-    if other.samples.q.shape != first.samples.q.shape:
-        raise ValueError(
-            f"trial {trial}: samples have shape {tuple(other.samples.q.shape)}, trial 0 has "
-            f"{tuple(first.samples.q.shape)}; stacked trials need equal sample counts"
-        )
-    if str(other.device) != str(first.device) or other.torch_dtype != first.torch_dtype:
-        raise ValueError(f"trial {trial}: device/dtype differ from trial 0's")
-    return other
+def _check_stackable(problems: Sequence[Problem]) -> None:
+    """Trials share one stacked error tensor: ``check_same_setting`` plus equal sample counts."""
+    check_same_setting(problems)
+    first = problems[0].samples.q.shape
+    for trial, other in enumerate(problems[1:], start=1):
+        if other.samples.q.shape != first:
+            raise ValueError(
+                f"trial {trial}: samples have shape {tuple(other.samples.q.shape)}, trial 0 has "
+                f"{tuple(first)}; stacked trials need equal sample counts"
+            )
