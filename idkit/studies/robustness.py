@@ -18,9 +18,10 @@ straddles 1/2 never counts as a loss. The conclusion (:meth:`RobustnessStudy.con
 when every scenario is ``better``, "does not hold" when one is ``worse``, else "undecided".
 
 Trials are fitted in chunks through ``idkit.estimators.trials.fit_trials``: the search estimator
-stacks trials × costs × runs into one batched swarm, the others batch as far as they know how (the
-LS family and third-party estimators trial by trial). ``shard``/``shards`` split the trials into
-contiguous slices for parallel jobs, which :func:`merge` joins (the multirun callback does it).
+stacks trials × costs × runs into one batched swarm, the LS family and IRLS stack the chunk's
+linear systems, and third-party estimators without ``fit_trials`` are fitted trial by trial.
+``shard``/``shards`` split the trials into contiguous slices for parallel jobs, which
+:func:`merge` joins (the multirun callback does it).
 """
 
 from __future__ import annotations
