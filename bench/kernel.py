@@ -83,9 +83,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     robot = CylindricalRobot()
-    problems = [
-        Problem(robot, simulate(robot, "torque_noise", seed=t), None, seed=t) for t in range(TRIALS)
-    ]
+    problems = [Problem(robot, simulate(robot, "torque_noise", seed=t), None, seed=t) for t in range(TRIALS)]
     pso = ParticleSwarm(history=False)
     rules = pso.rules(pso.settings())
     before = load()
@@ -114,12 +112,9 @@ def main() -> None:
         rows.append(f"| {name} | {ns(chunk[0])} | {ns(chunk[1])} | {ns(single)} |")
     structured = [paper.f1(), paper.f9(), paper.f13(), paper.f14()]
     evaluations = TRIALS * len(structured) * RUNS * PARTICLES * ITERATIONS
-    whole = [
-        best_wall(lambda t=threads: ParticleSwarm(threads=t, history=False).fit_trials(problems, structured), 1)
-        / evaluations
-        * 1e9
-        for threads in (1, 2)
-    ]
+    fits = {t: ParticleSwarm(threads=t, history=False) for t in (1, 2)}
+    whole = [best_wall(lambda p=pso: p.fit_trials(problems, structured), 1) for pso in fits.values()]
+    whole = [seconds / evaluations * 1e9 for seconds in whole]
     rows.append(f"| whole `fit_trials`, f1 + f9 + f13 + f14 | {ns(whole[0])} | {ns(whole[1])} | |")
     print(f"load average before: {before}; after: {load()} ({os.cpu_count()} cores)")
     print(

@@ -354,9 +354,9 @@ class ParticleSwarm(Estimator):
                     f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'"
                 )
             return [eager(everything, reason)]
-        base_map = native.robot_map(part)
-        _, how, seconds = native.kernel(base_map or native.NO_MAP)
-        how += "; base map in C" if base_map is not None else "; base map in torch (not translatable)"
+        _, how, seconds = native.build(part)
+        in_c = native.robot_map(part) is not None
+        how += "; base map in C" if in_c else "; base map in torch (not translatable)"
         seconds += native.map_seconds(part)
         groups = [
             (fast, part, {"engine": "native", "engine_build": how, "engine_compile_s": seconds}, _run_native)

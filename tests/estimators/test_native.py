@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
@@ -49,15 +53,37 @@ def test_native_step_equals_the_eager_step_for_every_paper_cost(problem, name):
     rules = RULES[name]
     objective = Objective(problem, COSTS[name])
     shape = (objective.slots, 3)
+    eager_draws, native_draws = _draws(7, objective.lower), _draws(7, objective.lower)
     eager_state, eager_history = swarm.run(
-        objective, objective.lower, objective.upper, shape, 5, 12, rules, _draws(7, objective.lower)
+        objective, objective.lower, objective.upper, shape, 5, 12, rules, eager_draws
     )
-    state, history = native.run(objective, shape, 5, 12, rules, _draws(7, objective.lower))
+    state, history = native.run(objective, shape, 5, 12, rules, native_draws)
+    # the kernel drew the same numbers in C and left the stream where the eager engine leaves it
+    assert np.array_equal(native_draws.bit_states(), eager_draws.bit_states())
     np.testing.assert_allclose(history.numpy(), eager_history.numpy(), rtol=1e-9, atol=0)
     np.testing.assert_allclose(
         state.global_position.numpy(), eager_state.global_position.numpy(), rtol=1e-9, atol=1e-12
     )
     np.testing.assert_allclose(state.position.numpy(), eager_state.position.numpy(), rtol=1e-9, atol=1e-12)
+
+
+@needs_kernel
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**63 - 1), lengths=st.lists(st.integers(0, 41), min_size=1, max_size=6))
+def test_c_stream_continues_numpy_sfc64_bit_for_bit(seed, lengths):
+    """Odd lengths leave half of a 64-bit draw in numpy's buffer for the next call: C must too."""
+    library = native.kernel()[0]
+    like = torch.zeros(1, dtype=torch.float64)
+    by_numpy, by_c = (swarm.Uniform(torch.Generator().manual_seed(seed), like) for _ in range(2))
+    for length in lengths:
+        bits = by_c.bit_state()
+        numbers = np.empty(length, dtype=np.float32)
+        library.idkit_uniform(bits.ctypes.data, length, numbers.ctypes.data)
+        by_c.set_bit_state(bits)
+        np.testing.assert_array_equal(numbers, by_numpy.numpy.random(length, dtype=np.float32))
+        assert by_c.bit_state()[4] == by_numpy.bit_state()[4]  # the same half-used draw, or none
+    assert np.array_equal(by_c.bit_state(), by_numpy.bit_state())
+    assert torch.equal(by_c((3, 5)), by_numpy((3, 5)))  # and numpy goes on from the same place
 
 
 @needs_kernel
@@ -122,8 +148,6 @@ def test_kernel_is_built_once_and_cached_on_disk(tmp_path, monkeypatch):
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
 def test_cuda_runs_the_same_code(problem):
-    from dataclasses import replace
-
     cuda = replace(problem, device="cuda")
     estimate = ParticleSwarm(runs=3, particles=6, iterations=15).fit(cuda)
     assert estimate.details["device"].startswith("cuda") and estimate.details["engine"] == "eager"
@@ -132,10 +156,18 @@ def test_cuda_runs_the_same_code(problem):
 
 
 @needs_kernel
-def test_threads_split_swarms_without_changing_numbers(problem, monkeypatch):
-    monkeypatch.setattr(native, "PARTICLES_PER_THREAD", 1)  # split even this small batch
-    objective = Objective(problem, [paper.f13(), paper.f6()])
+def test_threads_split_trials_without_changing_numbers(problem, monkeypatch):
+    monkeypatch.setattr(native, "EVALUATIONS_PER_THREAD", 1)  # split even this small batch
+    trials = [problem, *(replace(problem, seed=seed) for seed in (6, 7))]
+    objective = Objective(trials, [paper.f13(), paper.f6()])
     rules = RULES["constriction (reflect)"]
-    one = native.run(objective, (objective.slots, 5), 4, 8, rules, _draws(3, objective.lower), threads=1)
-    three = native.run(objective, (objective.slots, 5), 4, 8, rules, _draws(3, objective.lower), threads=3)
-    assert torch.equal(one[1], three[1]) and torch.equal(one[0].position, three[0].position)
+
+    def fit(threads: int) -> tuple[swarm.SwarmState, torch.Tensor, np.ndarray]:
+        draws = swarm.Draws([swarm.Uniform(p.generator(), objective.lower) for p in trials])
+        state, history = native.run(objective, (objective.slots, 5), 4, 8, rules, draws, threads=threads)
+        return state, history, draws.bit_states()
+
+    one, two, three = fit(1), fit(2), fit(3)
+    for other in (two, three):
+        assert torch.equal(one[1], other[1]) and torch.equal(one[0].position, other[0].position)
+        assert np.array_equal(one[2], other[2])
