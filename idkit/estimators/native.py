@@ -65,14 +65,16 @@ NORM_CODES = {"fro": 1, "2": 2, "1": 3, "inf": 4, "max_row_sq": 5, "max_abs": 6,
 MAX_NORMS = 4
 BOUNDARY_CODES = {"clamp": 0, "reflect": 1, "random": 2}
 #: Compiler flags: optimised, vectorised for this CPU, IEEE arithmetic (no fast-math, no FMA
-#: contraction, so the kernel rounds like the eager engine's separate multiplies and adds;
-#: ``-fno-math-errno`` only lets ``sqrt`` vectorise: it changes no result).
+#: contraction, so the kernel rounds like the eager engine's separate multiplies and adds).
+#: ``-fno-math-errno`` and ``-fno-trapping-math`` change no result: they let ``sqrt`` and the
+#: selects of the boundary rules vectorise (no errno to set, no floating-point traps to keep).
 FLAGS = (
     "-O3",
     "-march=native",
     "-ffp-contract=off",
     "-fno-fast-math",
     "-fno-math-errno",
+    "-fno-trapping-math",
     "-fPIC",
     "-shared",
     "-pthread",

@@ -82,17 +82,30 @@ typedef struct {
     const double *alpha; /* [S, K, NB]: the base parameters of x, read when USE_MAP is 0 */
 } Batch;
 
-/* One thread's working memory, sized for K particles and a trial's random numbers. */
-typedef struct {
-    double *alpha, *e, *work, *cost, *value, *moved;
-    float *random;
-} Scratch;
+/* ---- Norms of a group of LANES particles at once: e[NM] -> one value per lane ---- */
 
-/* ---- Norms of e[NM][K] for every particle at once: out[K] ---- */
+/* Particles are evaluated LANES at a time, one per lane of a vector (GCC/Clang vector
+   extensions: one AVX2 register of doubles; plain SSE or scalar code elsewhere), so the error
+   matrix and its norms are vector arithmetic with compile-time loop bounds. */
+#define LANES 4
+typedef double Lanes __attribute__((vector_size(LANES * sizeof(double))));
+typedef int64_t LaneMask __attribute__((vector_size(LANES * sizeof(double))));
+
+/* mask ? a : b, lane by lane (C has no vector ?:) */
+static inline Lanes pick(LaneMask mask, Lanes a, Lanes b) {
+    return (Lanes)((mask & (LaneMask)a) | (~mask & (LaneMask)b));
+}
+static inline Lanes lanes_abs(Lanes a) { return (Lanes)((LaneMask)a & INT64_MAX); }
+/* a > b ? a : b, as the scalar running maximum (a NaN sum never wins) */
+static inline Lanes larger(Lanes a, Lanes b) { return pick(a > b, a, b); }
+static inline Lanes lanes_sqrt(Lanes a) {
+    for (int l = 0; l < LANES; l++) a[l] = sqrt(a[l]);
+    return a;
+}
 
 /* Largest singular value of a 3 x N matrix from its Gram matrix g: Smith's closed form for the
    top eigenvalue of a symmetric 3 x 3 matrix (as idkit.estimators.objective.spectral_norm_3). */
-static double spectral3(double g00, double g11, double g22, double g01, double g02, double g12) {
+static inline double spectral3(double g00, double g11, double g22, double g01, double g02, double g12) {
     double q = (g00 + g11 + g22) / 3;
     double x = g00 - q, y = g11 - q, z = g22 - q;
     double off = g01 * g01 + g02 * g02 + g12 * g12;
@@ -105,139 +118,118 @@ static double spectral3(double g00, double g11, double g22, double g01, double g
     return sqrt(top > 0 ? top : 0);
 }
 
-/* Sum of the `keep` smallest of the NM values sq[NM][K] of each particle: bubble the largest
-   (or, when fewer are kept than dropped, the smallest) to the end, as many times as needed. */
-static void trimmed_sum(double *sq, int64_t K, int64_t keep, double *out) {
-    int64_t drop = NM - keep;
-    int largest = drop <= keep;
-    int64_t passes = largest ? drop : keep;
+/* Sum of the `keep` smallest of the NM values sq[NM] of each lane: bubble the largest (or, when
+   fewer are kept than dropped, the smallest) to the end, as many times as needed. */
+static Lanes trimmed_sum(Lanes *sq, int64_t keep) {
+    const int64_t drop = NM - keep;
+    const int largest = drop <= keep;
+    const int64_t passes = largest ? drop : keep;
     for (int64_t pass = 0; pass < passes; pass++)
         for (int64_t m = 0; m + 1 < NM - pass; m++) {
-            double *a = sq + m * K, *b = a + K;
-            for (int64_t k = 0; k < K; k++) {
-                double lo = a[k] < b[k] ? a[k] : b[k], hi = a[k] < b[k] ? b[k] : a[k];
-                a[k] = largest ? lo : hi;
-                b[k] = largest ? hi : lo;
-            }
+            const LaneMask less = sq[m] < sq[m + 1];
+            const Lanes low = pick(less, sq[m], sq[m + 1]), high = pick(less, sq[m + 1], sq[m]);
+            sq[m] = largest ? low : high;
+            sq[m + 1] = largest ? high : low;
         }
     /* largest: the kept values are the first `keep`; else the last `keep` (smallest bubbled there) */
-    int64_t first = largest ? 0 : NM - keep;
-    for (int64_t k = 0; k < K; k++) out[k] = 0;
-    for (int64_t m = first; m < first + keep; m++)
-        for (int64_t k = 0; k < K; k++) out[k] += sq[m * K + k];
+    const int64_t first = largest ? 0 : NM - keep;
+    Lanes sum = {0};
+    for (int64_t m = first; m < first + keep; m++) sum += sq[m];
+    return sum;
 }
 
-static void norm_values(int32_t code, double param, const double *e, int64_t K, double *work, double *out) {
-    for (int64_t k = 0; k < K; k++) out[k] = 0;
+static Lanes norm_values(int32_t code, double param, const Lanes *e) {
+    Lanes acc = {0}, sums;
     switch (code) {
     case 1: /* Frobenius */
-        for (int64_t m = 0; m < NM; m++)
-            for (int64_t k = 0; k < K; k++) out[k] += e[m * K + k] * e[m * K + k];
-        for (int64_t k = 0; k < K; k++) out[k] = sqrt(out[k]);
-        return;
+        for (int m = 0; m < NM; m++) acc += e[m] * e[m];
+        return lanes_sqrt(acc);
     case 2: { /* spectral (NJ == 3): Gram matrix of the rows, then the closed form */
-        double *g = work; /* [6][K]: g00, g11, g22, g01, g02, g12 */
         static const int rows[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
-        for (int c = 0; c < 6; c++) {
-            const double *a = e + rows[c][0] * NS * K, *b = e + rows[c][1] * NS * K;
-            double *gc = g + c * K;
-            for (int64_t k = 0; k < K; k++) gc[k] = 0;
-            for (int64_t j = 0; j < NS; j++)
-                for (int64_t k = 0; k < K; k++) gc[k] += a[j * K + k] * b[j * K + k];
-        }
-        for (int64_t k = 0; k < K; k++)
-            out[k] = spectral3(g[k], g[K + k], g[2 * K + k], g[3 * K + k], g[4 * K + k], g[5 * K + k]);
-        return;
+        Lanes g[6] = {{0}};
+        for (int c = 0; c < 6; c++)
+            for (int j = 0; j < NS; j++) g[c] += e[rows[c][0] * NS + j] * e[rows[c][1] * NS + j];
+        for (int l = 0; l < LANES; l++) acc[l] = spectral3(g[0][l], g[1][l], g[2][l], g[3][l], g[4][l], g[5][l]);
+        return acc;
     }
     case 3: /* largest column (sample) absolute sum */
-        for (int64_t j = 0; j < NS; j++) {
-            double *col = work;
-            for (int64_t k = 0; k < K; k++) col[k] = 0;
-            for (int64_t i = 0; i < NJ; i++)
-                for (int64_t k = 0; k < K; k++) col[k] += fabs(e[(i * NS + j) * K + k]);
-            for (int64_t k = 0; k < K; k++) out[k] = col[k] > out[k] ? col[k] : out[k];
+        for (int j = 0; j < NS; j++) {
+            sums = (Lanes){0};
+            for (int i = 0; i < NJ; i++) sums += lanes_abs(e[i * NS + j]);
+            acc = larger(sums, acc);
         }
-        return;
+        return acc;
     case 4: /* largest row (joint) absolute sum */
-    case 5: /* largest row square sum */
-        for (int64_t i = 0; i < NJ; i++) {
-            double *row = work;
-            for (int64_t k = 0; k < K; k++) row[k] = 0;
-            for (int64_t j = 0; j < NS; j++)
-                for (int64_t k = 0; k < K; k++) {
-                    double a = e[(i * NS + j) * K + k];
-                    row[k] += code == 4 ? fabs(a) : a * a;
-                }
-            for (int64_t k = 0; k < K; k++) out[k] = row[k] > out[k] ? row[k] : out[k];
+        for (int i = 0; i < NJ; i++) {
+            sums = (Lanes){0};
+            for (int j = 0; j < NS; j++) sums += lanes_abs(e[i * NS + j]);
+            acc = larger(sums, acc);
         }
-        return;
+        return acc;
+    case 5: /* largest row square sum */
+        for (int i = 0; i < NJ; i++) {
+            sums = (Lanes){0};
+            for (int j = 0; j < NS; j++) sums += e[i * NS + j] * e[i * NS + j];
+            acc = larger(sums, acc);
+        }
+        return acc;
     case 6: /* largest absolute entry */
-        for (int64_t m = 0; m < NM; m++)
-            for (int64_t k = 0; k < K; k++) {
-                double a = fabs(e[m * K + k]);
-                out[k] = a > out[k] ? a : out[k];
-            }
-        return;
+        for (int m = 0; m < NM; m++) acc = larger(lanes_abs(e[m]), acc);
+        return acc;
     case 7: /* mean Huber loss, threshold param */
-        for (int64_t m = 0; m < NM; m++)
-            for (int64_t k = 0; k < K; k++) {
-                double a = fabs(e[m * K + k]);
-                out[k] += a <= param ? 0.5 * (a * a) : param * (a - 0.5 * param);
-            }
-        for (int64_t k = 0; k < K; k++) out[k] = out[k] / NM;
-        return;
+        for (int m = 0; m < NM; m++) {
+            const Lanes a = lanes_abs(e[m]);
+            acc += pick(a <= param, 0.5 * (a * a), param * (a - 0.5 * param));
+        }
+        return acc / NM;
     case 8: { /* mean of the smallest squares, the fraction param of the largest left out */
-        int64_t keep = NM - (int64_t)floor(param * NM + 1e-9);
-        double *sq = work; /* [NM][K] */
-        for (int64_t m = 0; m < NM * K; m++) sq[m] = e[m] * e[m];
-        trimmed_sum(sq, K, keep, out);
-        for (int64_t k = 0; k < K; k++) out[k] = out[k] / keep;
-        return;
+        const int64_t keep = NM - (int64_t)floor(param * NM + 1e-9);
+        Lanes sq[NM];
+        for (int m = 0; m < NM; m++) sq[m] = e[m] * e[m];
+        return trimmed_sum(sq, keep) / (double)keep;
     }
     }
-    for (int64_t k = 0; k < K; k++) out[k] = NAN;
+    return acc + NAN;
 }
 
 /* ---- One swarm: evaluate, update bests, move ---- */
 
-/* Cost of every particle of swarm s into w->cost, then personal bests and the swarm's best
-   (its cost into *best). */
-static void evaluate(const Batch *b, int64_t s, Scratch *w, double *best) {
+/* Cost of every particle of swarm s, then personal bests and the swarm's best (its cost into
+   *best, its position into gpos). */
+static void evaluate(const Batch *b, int64_t s, double *best) {
     const int64_t K = b->K, slot = b->slot_of[s];
-    const double *x = b->x + s * K * NP;
-    double *alpha = w->alpha, *e = w->e, *cost = w->cost;
-    for (int64_t k = 0; k < K; k++) {
-        double a[NB];
-#if USE_MAP
-        base_map(x + k * NP, a);
-#else
-        memcpy(a, b->alpha + (s * K + k) * NB, sizeof a);
-#endif
-        for (int bb = 0; bb < NB; bb++) alpha[bb * K + k] = a[bb];
-    }
-    /* E = T/d - alpha . Y^T/d, added up in the order of the eager engine's baddbmm */
-    const double *linear = b->linear + slot * NB * NM, *offset = b->offset + slot * NM;
-    for (int64_t m = 0; m < NM; m++) {
-        double *row = e + m * K;
-        for (int64_t k = 0; k < K; k++) row[k] = offset[m] + alpha[k] * linear[m];
-        for (int bb = 1; bb < NB; bb++) {
-            const double c = linear[bb * NM + m], *ab = alpha + bb * K;
-            for (int64_t k = 0; k < K; k++) row[k] += ab[k] * c;
-        }
-    }
+    const double *restrict x = b->x + s * K * NP;
+    const double *restrict linear = b->linear + slot * NB * NM, *restrict offset = b->offset + slot * NM;
     const int32_t *codes = b->codes + slot * MAX_NORMS;
     const double *params = b->params + slot * MAX_NORMS;
-    for (int64_t k = 0; k < K; k++) cost[k] = 1;
-    for (int c = 0; c < MAX_NORMS && codes[c]; c++) {
-        norm_values(codes[c], params[c], e, K, w->work, w->value);
-        for (int64_t k = 0; k < K; k++) cost[k] *= w->value[k];
-    }
-    double *pcost = b->pcost + s * K, *pbest = b->pbest + s * K * NP;
-    for (int64_t k = 0; k < K; k++)
-        if (cost[k] < pcost[k]) { /* strictly better; NaN never is */
-            pcost[k] = cost[k];
-            for (int p = 0; p < NP; p++) pbest[k * NP + p] = x[k * NP + p];
+    double *restrict pcost = b->pcost + s * K, *restrict pbest = b->pbest + s * K * NP;
+    for (int64_t k0 = 0; k0 < K; k0 += LANES) {
+        Lanes alpha[NB], e[NM];
+        for (int l = 0; l < LANES; l++) {
+            const int64_t k = k0 + l < K ? k0 + l : K - 1; /* a last, partial group repeats a particle */
+            double a[NB];
+#if USE_MAP
+            base_map(x + k * NP, a);
+#else
+            memcpy(a, b->alpha + (s * K + k) * NB, sizeof a);
+#endif
+            for (int i = 0; i < NB; i++) alpha[i][l] = a[i];
         }
+        /* E = T/d - alpha . Y^T/d, added up in the order of the eager engine's baddbmm */
+        for (int m = 0; m < NM; m++) {
+            e[m] = offset[m] + alpha[0] * linear[m];
+            for (int i = 1; i < NB; i++) e[m] += alpha[i] * linear[i * NM + m];
+        }
+        Lanes cost = norm_values(codes[0], params[0], e);
+        for (int c = 1; c < MAX_NORMS && codes[c]; c++) cost *= norm_values(codes[c], params[c], e);
+        for (int l = 0; l < LANES && k0 + l < K; l++) {
+            const int64_t k = k0 + l;
+            if (cost[l] < pcost[k]) { /* strictly better; NaN never is */
+                pcost[k] = cost[l];
+                for (int p = 0; p < NP; p++) pbest[k * NP + p] = x[k * NP + p];
+            }
+        }
+    }
     /* the first particle with the smallest personal best (NaN propagates, as torch.min) */
     int64_t arg = 0;
     double low = pcost[0];
@@ -257,59 +249,85 @@ static double remainder_(double a, double b) {
     return r;
 }
 
-/* Move swarm s with inertia `weight` and its uniform numbers r1, r2 (and u3 for the random
-   wall rule), each [K][NP] (or [K] per particle), then apply the boundary rule. */
+/* A thread's working memory for moves: flat arrays of the K x NP coordinates of a swarm, so that
+   every loop over coordinates is one flat loop that vectorises. The box is set once. */
+typedef struct {
+    double *lower, *upper, *width, *vmax; /* the box and the velocity limit per coordinate */
+    double *g, *r1, *r2, *u, *moved;      /* the swarm's best, scaled numbers, moved positions */
+} Coordinates;
+
+/* The per-coordinate view of one of the swarm's [K][NP] (or [K] per particle) number blocks. */
+static void spread(const float *restrict numbers, double scale, int64_t K, int per_particle, double *restrict out) {
+    if (per_particle)
+        for (int64_t k = 0; k < K; k++)
+            for (int p = 0; p < NP; p++) out[k * NP + p] = (double)numbers[k] * scale;
+    else
+        for (int64_t i = 0; i < K * NP; i++) out[i] = (double)numbers[i] * scale;
+}
+
+/* Move swarm s with inertia `weight` and its uniform numbers r1, r2 (and u3 for the random wall
+   rule), then apply the boundary rule; as swarm.step, operation by operation. */
 static void move(const Batch *b, int64_t s, double weight, const float *r1, const float *r2, const float *u3,
-                 double *moved) {
-    const int64_t K = b->K;
-    const int64_t rk = b->per_particle ? 1 : NP, rp = b->per_particle ? 0 : 1; /* strides into r */
-    double *x = b->x + s * K * NP, *v = b->v + s * K * NP;
-    const double *pbest = b->pbest + s * K * NP, *g = b->gpos + s * NP;
-    const double *lower = b->lower, *upper = b->upper;
-    double vmax[NP];
-    for (int p = 0; p < NP; p++) vmax[p] = b->velocity_limit > 0 ? b->velocity_limit * (upper[p] - lower[p]) : INFINITY;
+                 const Coordinates *c) {
+    const int64_t K = b->K, n = K * NP;
+    double *restrict x = b->x + s * n, *restrict v = b->v + s * n;
+    const double *restrict pbest = b->pbest + s * n;
+    const double *restrict lower = c->lower, *restrict upper = c->upper, *restrict width = c->width;
+    const double *restrict vmax = c->vmax;
+    double *restrict g = c->g, *restrict c1r1 = c->r1, *restrict c2r2 = c->r2, *restrict moved = c->moved;
     for (int64_t k = 0; k < K; k++)
-        for (int p = 0; p < NP; p++) {
-            int64_t i = k * NP + p, ri = k * rk + p * rp;
-            double xi = x[i];
-            double vel = v[i] * weight + ((double)r1[ri] * b->c1) * (pbest[i] - xi);
-            vel = vel + ((double)r2[ri] * b->c2) * (g[p] - xi);
-            vel = vel < -vmax[p] ? -vmax[p] : (vel > vmax[p] ? vmax[p] : vel);
-            v[i] = vel;
-            moved[i] = xi + vel;
-        }
+        for (int p = 0; p < NP; p++) g[k * NP + p] = b->gpos[s * NP + p];
+    spread(r1, b->c1, K, (int)b->per_particle, c1r1);
+    spread(r2, b->c2, K, (int)b->per_particle, c2r2);
+    for (int64_t i = 0; i < n; i++) {
+        double vel = v[i] * weight + c1r1[i] * (pbest[i] - x[i]);
+        vel = vel + c2r2[i] * (g[i] - x[i]);
+        vel = vel < -vmax[i] ? -vmax[i] : vel; /* vmax is infinite without a velocity limit */
+        vel = vel > vmax[i] ? vmax[i] : vel;
+        v[i] = vel;
+        moved[i] = x[i] + vel;
+    }
     switch (b->boundary) {
     case CLAMP:
-        for (int64_t k = 0; k < K; k++)
-            for (int p = 0; p < NP; p++) {
-                int64_t i = k * NP + p;
-                double pos = moved[i], c = pos < lower[p] ? lower[p] : (pos > upper[p] ? upper[p] : pos);
-                v[i] = c != pos ? 0 : v[i];
-                x[i] = c;
-            }
+        for (int64_t i = 0; i < n; i++) {
+            const double low = moved[i] < lower[i] ? lower[i] : moved[i];
+            const double clamped = low > upper[i] ? upper[i] : low;
+            v[i] = v[i] * (double)(clamped == moved[i]); /* velocity * (clamped == position) */
+            x[i] = clamped;
+        }
         return;
-    case REFLECT:
-        for (int64_t k = 0; k < K; k++)
-            for (int p = 0; p < NP; p++) {
-                int64_t i = k * NP + p;
-                double width = upper[p] - lower[p];
-                double t = moved[i] - lower[p]; /* fmod(t, 2 width) is t itself inside [0, 2 width) */
-                double folded = width - (t >= 0 && t < 2 * width ? t : remainder_(t, 2 * width));
-                x[i] = upper[p] - fabs(folded);
-                v[i] = folded > 0 ? v[i] : (folded < 0 ? -v[i] : 0 * v[i]);
-            }
+    case REFLECT: {
+        /* t = (x - lower) mod 2 width (torch.remainder) folded onto the box. The remainder is t
+           itself on [0, 2 width) and t + 2 width on [-2 width, 0), exactly as fmod and the sign
+           correction give it; farther out (rare) it is computed in full. */
+        int far = 0;
+        for (int64_t i = 0; i < n; i++) {
+            moved[i] = moved[i] - lower[i];
+            far |= !(moved[i] >= -2 * width[i] && moved[i] < 2 * width[i]);
+        }
+        if (far)
+            for (int64_t i = 0; i < n; i++)
+                if (!(moved[i] >= -2 * width[i] && moved[i] < 2 * width[i]))
+                    moved[i] = remainder_(moved[i], 2 * width[i]);
+        for (int64_t i = 0; i < n; i++) {
+            const double t = moved[i] < 0 ? moved[i] + 2 * width[i] : moved[i];
+            const double folded = width[i] - t;
+            x[i] = upper[i] - fabs(folded);
+            v[i] = v[i] * ((double)(folded > 0) - (double)(folded < 0)); /* velocity * sign(folded) */
+        }
         return;
-    default: /* RANDOM: between the previous position and the wall it crossed */
-        for (int64_t k = 0; k < K; k++)
-            for (int p = 0; p < NP; p++) {
-                int64_t i = k * NP + p;
-                double pos = moved[i], xi = x[i], u = (double)u3[k * rk + p * rp];
-                int out_low = pos < lower[p], out_high = pos > upper[p];
-                if (out_low) pos = lower[p] + (xi - lower[p]) * u;
-                if (out_high) pos = upper[p] - (upper[p] - xi) * u;
-                if (out_low || out_high) v[i] = 0;
-                x[i] = pos;
-            }
+    }
+    default: { /* RANDOM: between the previous position and the wall it crossed */
+        double *restrict u = c->u;
+        spread(u3, 1.0, K, (int)b->per_particle, u);
+        for (int64_t i = 0; i < n; i++) {
+            const int out_low = moved[i] < lower[i], out_high = moved[i] > upper[i];
+            const double low = lower[i] + (x[i] - lower[i]) * u[i], high = upper[i] - (upper[i] - x[i]) * u[i];
+            const double pos = out_low ? low : moved[i];
+            x[i] = out_high ? high : pos;
+            v[i] = out_low | out_high ? 0 : v[i];
+        }
+    }
     }
 }
 
@@ -325,35 +343,39 @@ static int64_t run_trials(const Batch *b, int64_t t0, int64_t t1, double *histor
                           const double *weights, int64_t last) {
     const int64_t K = b->K, per = b->S / b->T, width = b->per_particle ? 1 : NP;
     const int64_t draws = draws_of(b), block = per * K * width;
-    int64_t work = NM * K > 6 * K ? NM * K : 6 * K;
-    Scratch w;
-    double *memory = malloc(sizeof(double) * (size_t)(NB * K + NM * K + work + 2 * K + K * NP));
-    w.random = malloc(sizeof(float) * (size_t)(draws * block));
-    if (!memory || !w.random) {
+    double *memory = malloc(sizeof(double) * (size_t)(9 * K * NP));
+    float *random = malloc(sizeof(float) * (size_t)(draws * block));
+    if (!memory || !random) {
         free(memory);
-        free(w.random);
+        free(random);
         return -1;
     }
-    w.alpha = memory;
-    w.e = w.alpha + NB * K;
-    w.work = w.e + NM * K;
-    w.cost = w.work + work;
-    w.value = w.cost + K;
-    w.moved = w.value + K;
+    double *arrays[9];
+    for (int a = 0; a < 9; a++) arrays[a] = memory + a * K * NP;
+    const Coordinates c = {arrays[0], arrays[1], arrays[2], arrays[3], arrays[4], arrays[5], arrays[6], arrays[7],
+                           arrays[8]};
+    for (int64_t k = 0; k < K; k++)
+        for (int p = 0; p < NP; p++) {
+            const int64_t i = k * NP + p;
+            c.lower[i] = b->lower[p];
+            c.upper[i] = b->upper[p];
+            c.width[i] = b->upper[p] - b->lower[p];
+            c.vmax[i] = b->velocity_limit > 0 ? b->velocity_limit * c.width[i] : INFINITY;
+        }
     for (int64_t t = t0; t < t1; t++) {
         for (int64_t m = 0; m < moves + last; m++) {
-            int moving = m < moves;
-            if (moving) idkit_uniform(b->streams + t, draws * block, w.random);
+            const int moving = m < moves;
+            if (moving) idkit_uniform(b->streams + t, draws * block, random);
             for (int64_t s = t * per; s < (t + 1) * per; s++) {
-                evaluate(b, s, &w, history + m * b->S + s);
+                evaluate(b, s, history + m * b->S + s);
                 if (!moving) continue;
-                const float *r = w.random + (s - t * per) * K * width;
-                move(b, s, weights[m], r, r + block, draws > 2 ? r + 2 * block : NULL, w.moved);
+                const float *r = random + (s - t * per) * K * width;
+                move(b, s, weights[m], r, r + block, draws > 2 ? r + 2 * block : NULL, &c);
             }
         }
     }
     free(memory);
-    free(w.random);
+    free(random);
     return 0;
 }
 
