@@ -103,19 +103,66 @@ static inline Lanes lanes_sqrt(Lanes a) {
     return a;
 }
 
-/* Largest singular value of a 3 x N matrix from its Gram matrix g: Smith's closed form for the
-   top eigenvalue of a symmetric 3 x 3 matrix (as idkit.estimators.objective.spectral_norm_3). */
-static inline double spectral3(double g00, double g11, double g22, double g01, double g02, double g12) {
-    double q = (g00 + g11 + g22) / 3;
-    double x = g00 - q, y = g11 - q, z = g22 - q;
-    double off = g01 * g01 + g02 * g02 + g12 * g12;
-    double p = sqrt((x * x + y * y + z * z + 2 * off) / 6);
-    if (!(p > 0)) return sqrt(q > 0 ? q : 0);
-    double det = x * (y * z - g12 * g12) - g01 * (g01 * z - g12 * g02) + g02 * (g01 * g12 - y * g02);
-    double r = det / (2 * p * p * p);
-    r = r < -1 ? -1 : (r > 1 ? 1 : r);
-    double top = q + 2 * p * cos(acos(r) / 3);
-    return sqrt(top > 0 ? top : 0);
+static inline Lanes splat(double value) { return (Lanes){0} + value; }
+
+/* acos and cos lane by lane, to a few ulp, for the spectral norm's closed form (libm's scalar
+   calls were half of an f14 evaluation). Polynomials fitted by mpmath.chebyfit: degree 12 for
+   (asin(s) - s) / s^3 in z = s^2 on [0, 1/4], degree 7 for cos(t) in u = t^2 on [0, (pi/3)^2];
+   highest degree first. The tests compare the spectral norm with numpy's SVD. */
+static const double ASIN_FIT[13] = {
+    0.028757851367421566, -0.014851887071247204, 0.01740087944269402,  0.005457506718640358, 0.01032281435018578,
+    0.011479177415184906, 0.013971212973552933,  0.017352392720869973, 0.02237217294214989,  0.030381944138531247,
+    0.04464285714635543,  0.07499999999998433,   0.16666666666666669};
+static const double COS_FIT[8] = {-1.1262869231464423e-11, 2.0873062951942423e-09, -2.755728499304865e-07,
+                                  2.480158712576133e-05,   -0.0013888888888398316, 0.04166666666665994,
+                                  -0.49999999999999967,    1.0};
+#define PI_HI 3.141592653589793
+#define PI_LO 1.2246467991473532e-16
+
+/* The polynomial fit[0] z^(terms-1) + ... + fit[terms-1] by Estrin's scheme (pairs, then pairs of
+   pairs): a few dependent steps instead of Horner's `terms`, so that its latency does not bound
+   the evaluation. */
+static inline Lanes polynomial(const double *fit, int terms, Lanes z) {
+    Lanes c[16];
+    for (int i = 0; i < terms; i++) c[i] = splat(fit[terms - 1 - i]);
+    for (int n = terms; n > 1; n = (n + 1) / 2, z = z * z)
+        for (int i = 0; 2 * i < n; i++) c[i] = 2 * i + 1 < n ? c[2 * i] + z * c[2 * i + 1] : c[2 * i];
+    return c[0];
+}
+
+/* asin(s) for |s| <= 1/2 */
+static inline Lanes asin_half(Lanes s) {
+    const Lanes z = s * s;
+    return s + s * (z * polynomial(ASIN_FIT, 13, z));
+}
+
+/* acos(r) for r in [-1, 1]: pi/2 - asin(r) in the middle, 2 asin(sqrt((1 - |r|)/2)) (or pi minus
+   it) near the ends, where 1 - |r| is exact. */
+static inline Lanes lanes_acos(Lanes r) {
+    const Lanes a = lanes_abs(r);
+    const LaneMask ends = a > 0.5;
+    const Lanes angle = asin_half(pick(ends, lanes_sqrt((1 - a) * 0.5), r));
+    const Lanes end = pick(r > 0, 2 * angle, PI_HI - (2 * angle - PI_LO));
+    return pick(ends, end, (0.5 * PI_HI - angle) + 0.5 * PI_LO);
+}
+
+/* Largest singular value of a 3 x N matrix from its Gram matrix g (g00, g11, g22, g01, g02, g12):
+   Smith's closed form for the top eigenvalue of a symmetric 3 x 3 matrix, as
+   idkit.estimators.objective.spectral_norm_3. */
+static Lanes spectral3(const Lanes *g) {
+    const Lanes q = (g[0] + g[1] + g[2]) / 3;
+    const Lanes x = g[0] - q, y = g[1] - q, z = g[2] - q;
+    const Lanes off = g[3] * g[3] + g[4] * g[4] + g[5] * g[5];
+    const Lanes p = lanes_sqrt((x * x + y * y + z * z + 2 * off) / 6);
+    const LaneMask positive = p > 0;
+    const Lanes safe = pick(positive, p, splat(1));
+    const Lanes det = x * (y * z - g[5] * g[5]) - g[3] * (g[3] * z - g[5] * g[4]) + g[4] * (g[3] * g[5] - y * g[4]);
+    Lanes r = det / (2 * safe * safe * safe);
+    r = pick(r < -1, splat(-1), r);
+    r = pick(r > 1, splat(1), r);
+    const Lanes t = lanes_acos(r) / 3;
+    const Lanes top = pick(positive, q + 2 * p * polynomial(COS_FIT, 8, t * t), q);
+    return lanes_sqrt(pick(top > 0, top, splat(0)));
 }
 
 /* Sum of the `keep` smallest of the NM values sq[NM] of each lane: bubble the largest (or, when
@@ -138,20 +185,23 @@ static Lanes trimmed_sum(Lanes *sq, int64_t keep) {
     return sum;
 }
 
+/* The Gram matrix of e's rows (NJ == 3), g00, g11, g22, g01, g02, g12: what the spectral norm's
+   closed form (spectral3) needs. */
+static void gram3(const Lanes *e, Lanes *g) {
+    static const int rows[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
+    for (int c = 0; c < 6; c++) {
+        g[c] = splat(0);
+        for (int j = 0; j < NS; j++) g[c] += e[rows[c][0] * NS + j] * e[rows[c][1] * NS + j];
+    }
+}
+
+/* Every norm but the spectral one (code 2: gram3, then spectral3). */
 static Lanes norm_values(int32_t code, double param, const Lanes *e) {
     Lanes acc = {0}, sums;
     switch (code) {
     case 1: /* Frobenius */
         for (int m = 0; m < NM; m++) acc += e[m] * e[m];
         return lanes_sqrt(acc);
-    case 2: { /* spectral (NJ == 3): Gram matrix of the rows, then the closed form */
-        static const int rows[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
-        Lanes g[6] = {{0}};
-        for (int c = 0; c < 6; c++)
-            for (int j = 0; j < NS; j++) g[c] += e[rows[c][0] * NS + j] * e[rows[c][1] * NS + j];
-        for (int l = 0; l < LANES; l++) acc[l] = spectral3(g[0][l], g[1][l], g[2][l], g[3][l], g[4][l], g[5][l]);
-        return acc;
-    }
     case 3: /* largest column (sample) absolute sum */
         for (int j = 0; j < NS; j++) {
             sums = (Lanes){0};
@@ -194,19 +244,29 @@ static Lanes norm_values(int32_t code, double param, const Lanes *e) {
 
 /* ---- One swarm: evaluate, update bests, move ---- */
 
+/* A thread's working memory for evaluations, per group of LANES particles of a swarm: each
+   norm's value [MAX_NORMS][groups] and the spectral norm's Gram matrices [MAX_NORMS][groups][6].
+   The spectral norm's closed forms of all groups then run back to back: their long dependency
+   chains (square roots, divisions, polynomials) overlap instead of following each other. */
+typedef struct {
+    Lanes *values, *grams;
+} Norms;
+
 /* Cost of every particle of swarm s, then personal bests and the swarm's best (its cost into
    *best, its position into gpos). */
-static void evaluate(const Batch *b, int64_t s, double *best) {
-    const int64_t K = b->K, slot = b->slot_of[s];
+static void evaluate(const Batch *b, int64_t s, const Norms *w, double *best) {
+    const int64_t K = b->K, slot = b->slot_of[s], groups = (K + LANES - 1) / LANES;
     const double *restrict x = b->x + s * K * NP;
     const double *restrict linear = b->linear + slot * NB * NM, *restrict offset = b->offset + slot * NM;
     const int32_t *codes = b->codes + slot * MAX_NORMS;
     const double *params = b->params + slot * MAX_NORMS;
     double *restrict pcost = b->pcost + s * K, *restrict pbest = b->pbest + s * K * NP;
-    for (int64_t k0 = 0; k0 < K; k0 += LANES) {
+    int norms = 0;
+    while (norms < MAX_NORMS && codes[norms]) norms++;
+    for (int64_t group = 0; group < groups; group++) {
         Lanes alpha[NB], e[NM];
         for (int l = 0; l < LANES; l++) {
-            const int64_t k = k0 + l < K ? k0 + l : K - 1; /* a last, partial group repeats a particle */
+            const int64_t k0 = group * LANES + l, k = k0 < K ? k0 : K - 1; /* a partial group repeats one */
             double a[NB];
 #if USE_MAP
             base_map(x + k * NP, a);
@@ -220,10 +280,19 @@ static void evaluate(const Batch *b, int64_t s, double *best) {
             e[m] = offset[m] + alpha[0] * linear[m];
             for (int i = 1; i < NB; i++) e[m] += alpha[i] * linear[i * NM + m];
         }
-        Lanes cost = norm_values(codes[0], params[0], e);
-        for (int c = 1; c < MAX_NORMS && codes[c]; c++) cost *= norm_values(codes[c], params[c], e);
-        for (int l = 0; l < LANES && k0 + l < K; l++) {
-            const int64_t k = k0 + l;
+        for (int c = 0; c < norms; c++)
+            if (codes[c] == 2) gram3(e, w->grams + (c * groups + group) * 6);
+            else w->values[c * groups + group] = norm_values(codes[c], params[c], e);
+    }
+    for (int c = 0; c < norms; c++)
+        if (codes[c] == 2)
+            for (int64_t group = 0; group < groups; group++)
+                w->values[c * groups + group] = spectral3(w->grams + (c * groups + group) * 6);
+    for (int64_t group = 0; group < groups; group++) {
+        Lanes cost = w->values[group]; /* the norms' product, in their order (as the eager engine) */
+        for (int c = 1; c < norms; c++) cost *= w->values[c * groups + group];
+        for (int l = 0; l < LANES && group * LANES + l < K; l++) {
+            const int64_t k = group * LANES + l;
             if (cost[l] < pcost[k]) { /* strictly better; NaN never is */
                 pcost[k] = cost[l];
                 for (int p = 0; p < NP; p++) pbest[k * NP + p] = x[k * NP + p];
@@ -343,13 +412,17 @@ static int64_t run_trials(const Batch *b, int64_t t0, int64_t t1, double *histor
                           const double *weights, int64_t last) {
     const int64_t K = b->K, per = b->S / b->T, width = b->per_particle ? 1 : NP;
     const int64_t draws = draws_of(b), block = per * K * width;
+    const int64_t groups = (K + LANES - 1) / LANES;
     double *memory = malloc(sizeof(double) * (size_t)(9 * K * NP));
     float *random = malloc(sizeof(float) * (size_t)(draws * block));
-    if (!memory || !random) {
+    Lanes *lanes = aligned_alloc(sizeof(Lanes), sizeof(Lanes) * (size_t)(7 * MAX_NORMS * groups));
+    if (!memory || !random || !lanes) {
         free(memory);
         free(random);
+        free(lanes);
         return -1;
     }
+    const Norms norms = {lanes, lanes + MAX_NORMS * groups};
     double *arrays[9];
     for (int a = 0; a < 9; a++) arrays[a] = memory + a * K * NP;
     const Coordinates c = {arrays[0], arrays[1], arrays[2], arrays[3], arrays[4], arrays[5], arrays[6], arrays[7],
@@ -367,7 +440,7 @@ static int64_t run_trials(const Batch *b, int64_t t0, int64_t t1, double *histor
             const int moving = m < moves;
             if (moving) idkit_uniform(b->streams + t, draws * block, random);
             for (int64_t s = t * per; s < (t + 1) * per; s++) {
-                evaluate(b, s, history + m * b->S + s);
+                evaluate(b, s, &norms, history + m * b->S + s);
                 if (!moving) continue;
                 const float *r = random + (s - t * per) * K * width;
                 move(b, s, weights[m], r, r + block, draws > 2 ? r + 2 * block : NULL, &c);
@@ -376,6 +449,7 @@ static int64_t run_trials(const Batch *b, int64_t t0, int64_t t1, double *histor
     }
     free(memory);
     free(random);
+    free(lanes);
     return 0;
 }
 
