@@ -47,20 +47,27 @@ static inline float float_of(uint32_t bits) { return (float)(bits >> 8) * (1.0f 
 /* `count` numbers of Generator.random(count, dtype=float32): one 32-bit draw each, the lower half
    of a 64-bit draw first, its upper half kept for the next number. numpy stores every upper half
    in uinteger, used or not: so does this, and the whole state matches numpy's. */
-void idkit_uniform(Stream *stream, int64_t count, float *out) {
+void idkit_uniform(Stream *stream, int64_t count, float *restrict out) {
+    uint64_t s[4] = {stream->s[0], stream->s[1], stream->s[2], stream->s[3]}, upper = stream->uinteger;
     int64_t i = 0;
     if (count > 0 && stream->has_uint32) {
-        out[i++] = float_of((uint32_t)stream->uinteger);
+        out[i++] = float_of((uint32_t)upper);
         stream->has_uint32 = 0;
     }
-    uint64_t bits = 0;
-    for (; i < count; i += 2) {
-        bits = sfc64_next(stream->s);
+    for (; i + 2 <= count; i += 2) {
+        const uint64_t bits = sfc64_next(s);
         out[i] = float_of((uint32_t)bits);
-        if (i + 1 < count) out[i + 1] = float_of((uint32_t)(bits >> 32));
-        else stream->has_uint32 = 1; /* an odd count: the upper half waits */
-        stream->uinteger = bits >> 32;
+        out[i + 1] = float_of((uint32_t)(bits >> 32));
+        upper = bits >> 32;
     }
+    if (i < count) { /* an odd count: the upper half waits for the next number */
+        const uint64_t bits = sfc64_next(s);
+        out[i] = float_of((uint32_t)bits);
+        upper = bits >> 32;
+        stream->has_uint32 = 1;
+    }
+    memcpy(stream->s, s, sizeof s);
+    stream->uinteger = upper;
 }
 
 /* ---- The batch ---- */
@@ -293,10 +300,9 @@ static void evaluate(const Batch *b, int64_t s, const Norms *w, double *best) {
         for (int c = 1; c < norms; c++) cost *= w->values[c * groups + group];
         for (int l = 0; l < LANES && group * LANES + l < K; l++) {
             const int64_t k = group * LANES + l;
-            if (cost[l] < pcost[k]) { /* strictly better; NaN never is */
-                pcost[k] = cost[l];
-                for (int p = 0; p < NP; p++) pbest[k * NP + p] = x[k * NP + p];
-            }
+            const int better = cost[l] < pcost[k]; /* strictly; NaN never is. No branch: unpredictable */
+            pcost[k] = better ? cost[l] : pcost[k];
+            for (int p = 0; p < NP; p++) pbest[k * NP + p] = better ? x[k * NP + p] : pbest[k * NP + p];
         }
     }
     /* the first particle with the smallest personal best (NaN propagates, as torch.min) */

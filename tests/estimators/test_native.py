@@ -253,9 +253,17 @@ def test_kernel_norms_match_their_definitions(seed):
     """Every norm code, with its parameter, against a direct torch formula of the same definition."""
     generator = torch.Generator().manual_seed(seed)
     slots, particles = len(NORM_CASES) + 1, 7  # 7: the last group of four lanes is partial
-    offset = torch.randn(slots, 30, generator=generator, dtype=torch.float64)
-    linear = torch.randn(slots, 4, 30, generator=generator, dtype=torch.float64) / 4
-    x = torch.rand(particles, 4, generator=generator, dtype=torch.float64)
+
+    # Dyadic numbers of few bits: E = offset + x · linear is exact in any order of summation, so
+    # only the norms' own rounding remains (an entry near 0 would otherwise carry E's rounding).
+    def dyadic(*shape: int, bits: int) -> torch.Tensor:
+        return torch.randint(-(2**bits), 2**bits, shape, generator=generator).double() / 2 ** (bits - 2)
+
+    offset, linear, x = (
+        dyadic(slots, 30, bits=10),
+        dyadic(slots, 4, 30, bits=6) / 4,
+        dyadic(particles, 4, bits=4),
+    )
     structures = [_Structure((name,), (value,)) for name, value in NORM_CASES]
     structures.append(_Structure(("huber", "2", "trimmed"), (0.7, 0.0, 0.1)))  # a product
     costs = _kernel_costs(structures, offset, linear, x)
