@@ -28,10 +28,10 @@ of each coordinate, so searching a box normalised to [0, 1]^P would change nothi
 the search runs in the robot's own units.
 
 Engines. ``"eager"`` is the functional torch swarm (``idkit.estimators.swarm``): any cost, any
-robot, any device. ``"native"`` runs each move as one compiled C call (``idkit.estimators.native``)
+robot, any device. ``"native"`` runs whole runs as one compiled C call (``idkit.estimators.native``)
 for costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 16) on a robot
-with a regressor, on the CPU in float64; its compile step (well under a second with gcc) happens
-once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"`` wherever it
+with a regressor, on the CPU in float64; its compile step (about a second with gcc, per problem
+size) happens once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"`` wherever it
 applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"`` elsewhere
 (in a call with several costs, per cost: third-party costs without a structure run eager beside
 the others);
