@@ -19,11 +19,15 @@ on every call and for any thread count (trials are split over threads: a trial's
 across its swarms).
 
 The source is compiled per problem size (``Sizes``: the error matrix ``n × N``, the base
-parameters, the search dimension, as ``#define``s, so loops unroll and vectorise; particles are
-evaluated together, particle index innermost) and per base map: the robot's map from search
-positions to base parameters is traced and written in C where it is an elementwise formula
-(``idkit.estimators.base_map``), and then a whole run is one call. Otherwise the map stays in
-torch and the kernel is called once per move with the base parameters.
+parameters, the search dimension, as ``#define``s, so loops unroll and vectorise) and per base
+map: the robot's map from search positions to base parameters is traced and written in C where it
+is an elementwise formula (``idkit.estimators.base_map``), and then a whole run is one call.
+Otherwise the map stays in torch and the kernel is called once per move with the base parameters.
+Particles are evaluated four at a time as the lanes of a vector (the error matrix, its norms, the
+spectral norm's closed form); what bounds an evaluation is measured in ``docs/speed.md``.
+
+Norms (``NORM_CODES``): the paper's six, and ``"huber"`` and ``"trimmed"`` with one parameter each
+(``NormStructure.parameters``, aligned with ``norms``, read only where the contract has it).
 
 When no compiler is available (or compiling fails) ``kernel()`` returns ``None`` with the reason,
 and the estimator takes the eager engine and says so in ``details["engine_build"]``.
@@ -265,7 +269,15 @@ class NativeStep:
         self.function = library.idkit_pso_run
         if any(not t.is_contiguous() for t in state):
             raise ValueError("native PSO kernel: state buffers must be contiguous")
+        tensors = (linear, offset, lower, upper, *state)
+        if any(t.dtype != torch.float64 or t.device.type != "cpu" for t in tensors):
+            raise ValueError("native PSO kernel: tensors must be float64 on the CPU")
         x = state[0]
+        if linear.shape[1:] != (sizes.base, sizes.joints * sizes.samples) or x.shape[-1] != sizes.dimension:
+            raise ValueError(
+                f"native PSO kernel compiled for {sizes}: linear {tuple(linear.shape)} and positions "
+                f"{tuple(x.shape)} do not fit"
+            )
         if streams.dtype != np.uint64 or streams.shape[1:] != (6,) or not streams.flags.c_contiguous:
             raise ValueError(f"native PSO kernel: streams must be uint64 [T, 6], got {streams.shape}")
         if x.shape[0] % streams.shape[0]:
