@@ -10,8 +10,8 @@
    The arithmetic is IEEE (no fast-math, no FMA contraction) and follows the eager engine's
    operations in order, so both engines agree to rounding.
 
-   Layout: a swarm's particles are evaluated together, particle index innermost
-   (alpha[NB][K], e[NM][K]), so the loops over particles vectorise. */
+   Layout: particles are evaluated LANES at a time, one per lane of a vector (below); a move is a
+   few flat loops over the swarm's K x NP coordinates. Both vectorise. */
 
 #include <math.h>
 #include <pthread.h>
@@ -112,10 +112,10 @@ static inline Lanes lanes_sqrt(Lanes a) {
 
 static inline Lanes splat(double value) { return (Lanes){0} + value; }
 
-/* acos and cos lane by lane, to a few ulp, for the spectral norm's closed form (libm's scalar
-   calls were half of an f14 evaluation). Polynomials fitted by mpmath.chebyfit: degree 12 for
-   (asin(s) - s) / s^3 in z = s^2 on [0, 1/4], degree 7 for cos(t) in u = t^2 on [0, (pi/3)^2];
-   highest degree first. The tests compare the spectral norm with numpy's SVD. */
+/* acos and cos lane by lane, to a few ulp, for the spectral norm's closed form (libm's are one
+   number at a time). Polynomials fitted by mpmath.chebyfit: degree 12 for (asin(s) - s) / s^3 in
+   z = s^2 on [0, 1/4], degree 7 for cos(t) in u = t^2 on [0, (pi/3)^2]; highest degree first.
+   The tests compare the spectral norm with an SVD (torch.linalg.matrix_norm). */
 static const double ASIN_FIT[13] = {
     0.028757851367421566, -0.014851887071247204, 0.01740087944269402,  0.005457506718640358, 0.01032281435018578,
     0.011479177415184906, 0.013971212973552933,  0.017352392720869973, 0.02237217294214989,  0.030381944138531247,
@@ -408,8 +408,6 @@ static void move(const Batch *b, int64_t s, double weight, const float *r1, cons
 
 /* ---- Runs: trials [t0, t1), `moves` moves each, then `last` final evaluation ---- */
 
-static int64_t draws_of(const Batch *b) { return b->boundary == RANDOM ? 3 : 2; }
-
 /* Evaluation m writes each swarm's best cost to history[m][S]; move m uses weights[m] and the
    trial's next draws x (S/T) x K x (NP, or 1 per particle) uniform numbers, drawn r1 first, then
    r2, then u3, each swarm-major, as the eager engine's blocks. Trials are independent, so any
@@ -417,9 +415,9 @@ static int64_t draws_of(const Batch *b) { return b->boundary == RANDOM ? 3 : 2; 
 static int64_t run_trials(const Batch *b, int64_t t0, int64_t t1, double *history, int64_t moves,
                           const double *weights, int64_t last) {
     const int64_t K = b->K, per = b->S / b->T, width = b->per_particle ? 1 : NP;
-    const int64_t draws = draws_of(b), block = per * K * width;
-    const int64_t groups = (K + LANES - 1) / LANES;
-    double *memory = malloc(sizeof(double) * (size_t)(9 * K * NP));
+    const int64_t draws = b->boundary == RANDOM ? 3 : 2, block = per * K * width;
+    const int64_t groups = (K + LANES - 1) / LANES, n = K * NP;
+    double *memory = malloc(sizeof(double) * (size_t)(9 * n));
     float *random = malloc(sizeof(float) * (size_t)(draws * block));
     Lanes *lanes = aligned_alloc(sizeof(Lanes), sizeof(Lanes) * (size_t)(7 * MAX_NORMS * groups));
     if (!memory || !random || !lanes) {
@@ -429,10 +427,8 @@ static int64_t run_trials(const Batch *b, int64_t t0, int64_t t1, double *histor
         return -1;
     }
     const Norms norms = {lanes, lanes + MAX_NORMS * groups};
-    double *arrays[9];
-    for (int a = 0; a < 9; a++) arrays[a] = memory + a * K * NP;
-    const Coordinates c = {arrays[0], arrays[1], arrays[2], arrays[3], arrays[4], arrays[5], arrays[6], arrays[7],
-                           arrays[8]};
+    const Coordinates c = {memory,         memory + n,     memory + 2 * n, memory + 3 * n, memory + 4 * n,
+                           memory + 5 * n, memory + 6 * n, memory + 7 * n, memory + 8 * n};
     for (int64_t k = 0; k < K; k++)
         for (int p = 0; p < NP; p++) {
             const int64_t i = k * NP + p;
