@@ -31,11 +31,10 @@ Engines. ``"eager"`` is the functional torch swarm (``idkit.estimators.swarm``):
 robot, any device. ``"native"`` runs whole runs as one compiled C call (``idkit.estimators.native``)
 for costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 16) on a robot
 with a regressor, on the CPU in float64; its compile step (about a second with gcc, per problem
-size) happens once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"`` wherever it
-applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"`` elsewhere
-(in a call with several costs, per cost: third-party costs without a structure run eager beside
-the others);
-``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record the choice. Both
+size) happens once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"``
+wherever it applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"``
+elsewhere (in a call with several costs, per cost: third-party costs without a structure run eager
+beside the others); ``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record the choice. Both
 engines use the same random numbers; their trajectories agree to rounding.
 """
 

@@ -224,19 +224,21 @@ class Uniform:
         number. A compiled consumer (``idkit.estimators.native``) continues the stream from here
         and hands it back with ``set_bit_state``, so the numbers do not depend on who draws them.
         """
-        if self.numpy is None:
-            raise ValueError(f"a stream on {self.device} has no numpy bit state (CPU streams only)")
-        state = self.numpy.bit_generator.state
+        state = self._bit_generator().state
         return np.array([*state["state"]["state"], state["has_uint32"], state["uinteger"]], dtype=np.uint64)
 
     def set_bit_state(self, bits: np.ndarray) -> None:
         """Continue the stream from ``bits`` (``bit_state``'s layout)."""
-        if self.numpy is None:
-            raise ValueError(f"a stream on {self.device} has no numpy bit state (CPU streams only)")
-        state = self.numpy.bit_generator.state
+        generator = self._bit_generator()
+        state = generator.state
         state["state"]["state"] = np.array(bits[:4], dtype=np.uint64)
         state["has_uint32"], state["uinteger"] = int(bits[4]), int(bits[5])
-        self.numpy.bit_generator.state = state
+        generator.state = state
+
+    def _bit_generator(self) -> np.random.BitGenerator:
+        if self.numpy is None:
+            raise ValueError(f"a stream on {self.device} has no numpy bit state (CPU streams only)")
+        return self.numpy.bit_generator
 
 
 def random_blocks(
