@@ -34,8 +34,8 @@ with a regressor, on the CPU in float64; its compile step (about a second with g
 size) happens once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"``
 wherever it applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"``
 elsewhere (in a call with several costs, per cost: third-party costs without a structure run eager
-beside the others); ``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record the choice. Both
-engines use the same random numbers; their trajectories agree to rounding.
+beside the others); ``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]``
+record the choice. Both engines use the same random numbers; their trajectories agree to rounding.
 """
 
 from __future__ import annotations
