@@ -95,6 +95,9 @@ typedef struct {
    extensions: one AVX2 register of doubles; plain SSE or scalar code elsewhere), so the error
    matrix and its norms are vector arithmetic with compile-time loop bounds. */
 #define LANES 4
+/* Error matrices up to this many entries live on the stack (32 kB of lanes): the compiler then
+   knows that nothing else points into them. Larger ones (long recordings) use the heap. */
+#define STACK_NM 1024
 typedef double Lanes __attribute__((vector_size(LANES * sizeof(double))));
 typedef int64_t LaneMask __attribute__((vector_size(LANES * sizeof(double))));
 
@@ -203,7 +206,7 @@ static void gram3(const Lanes *e, Lanes *g) {
 }
 
 /* Every norm but the spectral one (code 2: gram3, then spectral3). */
-static Lanes norm_values(int32_t code, double param, const Lanes *e) {
+static Lanes norm_values(int32_t code, double param, const Lanes *restrict e, Lanes *restrict squares) {
     Lanes acc = {0}, sums;
     switch (code) {
     case 1: /* Frobenius */
@@ -241,9 +244,12 @@ static Lanes norm_values(int32_t code, double param, const Lanes *e) {
         return acc / NM;
     case 8: { /* mean of the smallest squares, the fraction param of the largest left out */
         const int64_t keep = NM - (int64_t)floor(param * NM + 1e-9);
-        Lanes sq[NM];
-        for (int m = 0; m < NM; m++) sq[m] = e[m] * e[m];
-        return trimmed_sum(sq, keep) / (double)keep;
+#if NM <= STACK_NM
+        Lanes local[NM];
+        squares = local;
+#endif
+        for (int m = 0; m < NM; m++) squares[m] = e[m] * e[m];
+        return trimmed_sum(squares, keep) / (double)keep;
     }
     }
     return acc + NAN;
@@ -251,12 +257,14 @@ static Lanes norm_values(int32_t code, double param, const Lanes *e) {
 
 /* ---- One swarm: evaluate, update bests, move ---- */
 
-/* A thread's working memory for evaluations, per group of LANES particles of a swarm: each
-   norm's value [MAX_NORMS][groups] and the spectral norm's Gram matrices [MAX_NORMS][groups][6].
-   The spectral norm's closed forms of all groups then run back to back: their long dependency
-   chains (square roots, divisions, polynomials) overlap instead of following each other. */
+/* A thread's working memory for evaluations: a group of LANES particles' error matrix e[NM] and
+   its squares[NM] (the trimmed norm sorts them) when they are too large for the stack, and per group
+   of a swarm each norm's value [MAX_NORMS][groups] and the spectral norm's Gram matrices
+   [MAX_NORMS][groups][6]. The spectral norm's closed forms of all groups then run back to back:
+   their long dependency chains (square roots, divisions, polynomials) overlap instead of following
+   each other. */
 typedef struct {
-    Lanes *values, *grams;
+    Lanes *e, *squares, *values, *grams;
 } Norms;
 
 /* Cost of every particle of swarm s, then personal bests and the swarm's best (its cost into
@@ -271,7 +279,12 @@ static void evaluate(const Batch *b, int64_t s, const Norms *w, double *best) {
     int norms = 0;
     while (norms < MAX_NORMS && codes[norms]) norms++;
     for (int64_t group = 0; group < groups; group++) {
-        Lanes alpha[NB], e[NM];
+        Lanes alpha[NB];
+#if NM <= STACK_NM
+        Lanes e[NM];
+#else
+        Lanes *restrict e = w->e;
+#endif
         for (int l = 0; l < LANES; l++) {
             const int64_t k0 = group * LANES + l, k = k0 < K ? k0 : K - 1; /* a partial group repeats one */
             double a[NB];
@@ -289,7 +302,7 @@ static void evaluate(const Batch *b, int64_t s, const Norms *w, double *best) {
         }
         for (int c = 0; c < norms; c++)
             if (codes[c] == 2) gram3(e, w->grams + (c * groups + group) * 6);
-            else w->values[c * groups + group] = norm_values(codes[c], params[c], e);
+            else w->values[c * groups + group] = norm_values(codes[c], params[c], e, w->squares);
     }
     for (int c = 0; c < norms; c++)
         if (codes[c] == 2)
@@ -419,14 +432,14 @@ static int64_t run_trials(const Batch *b, int64_t t0, int64_t t1, double *histor
     const int64_t groups = (K + LANES - 1) / LANES, n = K * NP;
     double *memory = malloc(sizeof(double) * (size_t)(9 * n));
     float *random = malloc(sizeof(float) * (size_t)(draws * block));
-    Lanes *lanes = aligned_alloc(sizeof(Lanes), sizeof(Lanes) * (size_t)(7 * MAX_NORMS * groups));
+    Lanes *lanes = aligned_alloc(sizeof(Lanes), sizeof(Lanes) * (size_t)(2 * NM + 7 * MAX_NORMS * groups));
     if (!memory || !random || !lanes) {
         free(memory);
         free(random);
         free(lanes);
         return -1;
     }
-    const Norms norms = {lanes, lanes + MAX_NORMS * groups};
+    const Norms norms = {lanes, lanes + NM, lanes + 2 * NM, lanes + 2 * NM + MAX_NORMS * groups};
     const Coordinates c = {memory,         memory + n,     memory + 2 * n, memory + 3 * n, memory + 4 * n,
                            memory + 5 * n, memory + 6 * n, memory + 7 * n, memory + 8 * n};
     for (int64_t k = 0; k < K; k++)

@@ -205,7 +205,7 @@ def _kernel_costs(
         offset.unsqueeze(1),
         torch.arange(slots),
         structures,
-        native.Sizes(3, 10, 4, 4),
+        native.Sizes(3, offset.shape[1] // 3, 4, 4),
         -box,
         box,
         swarm.SwarmRules(),
@@ -246,13 +246,10 @@ NORM_CASES = [
 ]
 
 
-@needs_kernel
-@settings(max_examples=15, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1))
-def test_kernel_norms_match_their_definitions(seed):
+def _check_norms(seed: int, samples: int) -> None:
     """Every norm code, with its parameter, against a direct torch formula of the same definition."""
     generator = torch.Generator().manual_seed(seed)
-    slots, particles = len(NORM_CASES) + 1, 7  # 7: the last group of four lanes is partial
+    slots, particles, entries = len(NORM_CASES) + 1, 7, 3 * samples  # 7: the last group of lanes is partial
 
     # Dyadic numbers of few bits: E = offset + x · linear is exact in any order of summation, so
     # only the norms' own rounding remains (an entry near 0 would otherwise carry E's rounding).
@@ -260,19 +257,32 @@ def test_kernel_norms_match_their_definitions(seed):
         return torch.randint(-(2**bits), 2**bits, shape, generator=generator).double() / 2 ** (bits - 2)
 
     offset, linear, x = (
-        dyadic(slots, 30, bits=10),
-        dyadic(slots, 4, 30, bits=6) / 4,
+        dyadic(slots, entries, bits=10),
+        dyadic(slots, 4, entries, bits=6) / 4,
         dyadic(particles, 4, bits=4),
     )
     structures = [_Structure((name,), (value,)) for name, value in NORM_CASES]
     structures.append(_Structure(("huber", "2", "trimmed"), (0.7, 0.0, 0.1)))  # a product
     costs = _kernel_costs(structures, offset, linear, x)
-    e = (offset.unsqueeze(1) + x @ linear).view(slots, particles, 3, 10)
+    e = (offset.unsqueeze(1) + x @ linear).view(slots, particles, 3, samples)
     for slot, structure in enumerate(structures):
         expected = torch.ones(particles, dtype=torch.float64)
         for name, value in zip(structure.norms, structure.parameters, strict=True):
             expected = expected * _reference(name, value, e[slot])
         np.testing.assert_allclose(costs[slot], expected, rtol=1e-12, err_msg=str(structure))
+
+
+@needs_kernel
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_kernel_norms_match_their_definitions(seed):
+    _check_norms(seed, samples=10)
+
+
+@needs_kernel
+def test_kernel_norms_of_a_long_recording():
+    """3 × 400 entries: the error matrix is too large for the stack and lives on the heap."""
+    _check_norms(0, samples=400)
 
 
 @needs_kernel
