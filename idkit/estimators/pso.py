@@ -28,16 +28,15 @@ of each coordinate, so searching a box normalised to [0, 1]^P would change nothi
 the search runs in the robot's own units.
 
 Engines. ``"eager"`` is the functional torch swarm (``idkit.estimators.swarm``): any cost, any
-robot, any device. ``"native"`` runs each move as one compiled C call (``idkit.estimators.native``)
+robot, any device. ``"native"`` runs whole runs as one compiled C call (``idkit.estimators.native``)
 for costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 16) on a robot
-with a regressor, on the CPU in float64; its compile step (well under a second with gcc) happens
-once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"`` wherever it
-applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"`` elsewhere
-(in a call with several costs, per cost: costs without a structure run eager beside the others,
-called as they are, and so do costs declaring a factor the kernel has no code for, evaluated
-fused);
-``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record the choice. Both
-engines use the same random numbers; their trajectories agree to rounding.
+with a regressor, on the CPU in float64; its compile step (about a second with gcc, per problem
+size) happens once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"``
+wherever it applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"``
+elsewhere (in a call with several costs, per cost: costs without a structure run eager beside the
+others, called as they are, and so do costs declaring a factor the kernel has no code for,
+evaluated fused); ``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record
+the choice. Both engines use the same random numbers; their trajectories agree to rounding.
 """
 
 from __future__ import annotations
@@ -361,9 +360,9 @@ class ParticleSwarm(Estimator):
                     f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'"
                 )
             return [eager(everything, reason)]
-        base_map = native.robot_map(part)
-        _, how, seconds = native.kernel(base_map or native.NO_MAP)
-        how += "; base map in C" if base_map is not None else "; base map in torch (not translatable)"
+        _, how, seconds = native.build(part)
+        in_c = native.robot_map(part) is not None
+        how += "; base map in C" if in_c else "; base map in torch (not translatable)"
         seconds += native.map_seconds(part)
         groups = [
             (fast, part, {"engine": "native", "engine_build": how, "engine_compile_s": seconds}, _run_native)

@@ -217,6 +217,29 @@ class Uniform:
             return torch.from_numpy(self.numpy.random(shape, dtype=np.float32)).to(self.dtype)
         return torch.rand(shape, generator=self.generator, device=self.device, dtype=self.dtype)
 
+    def bit_state(self) -> np.ndarray:
+        """Where the CPU stream stands: ``[s0, s1, s2, s3, has_uint32, uinteger]`` (uint64).
+
+        The SFC64 state and the upper half of a 64-bit draw that numpy keeps for the next 32-bit
+        number. A compiled consumer (``idkit.estimators.native``) continues the stream from here
+        and hands it back with ``set_bit_state``, so the numbers do not depend on who draws them.
+        """
+        state = self._bit_generator().state
+        return np.array([*state["state"]["state"], state["has_uint32"], state["uinteger"]], dtype=np.uint64)
+
+    def set_bit_state(self, bits: np.ndarray) -> None:
+        """Continue the stream from ``bits`` (``bit_state``'s layout)."""
+        generator = self._bit_generator()
+        state = generator.state
+        state["state"]["state"] = np.array(bits[:4], dtype=np.uint64)
+        state["has_uint32"], state["uinteger"] = int(bits[4]), int(bits[5])
+        generator.state = state
+
+    def _bit_generator(self) -> np.random.BitGenerator:
+        if self.numpy is None:
+            raise ValueError(f"a stream on {self.device} has no numpy bit state (CPU streams only)")
+        return self.numpy.bit_generator
+
 
 def random_blocks(
     shape: tuple[int, ...], scale: Sequence[float], moves: int, uniform: Uniform
@@ -269,6 +292,15 @@ class Draws:
         own = self._per_trial(shape)
         for parts in zip(*(random_blocks(own, scale, moves, stream) for stream in self.streams), strict=True):
             yield parts[0] if len(parts) == 1 else torch.cat(parts, dim=2)
+
+    def bit_states(self) -> np.ndarray:
+        """Every trial's ``Uniform.bit_state``: ``[T, 6]`` uint64, contiguous."""
+        return np.stack([stream.bit_state() for stream in self.streams])
+
+    def set_bit_states(self, bits: np.ndarray) -> None:
+        """Continue every trial's stream from its row of ``bits[T, 6]``."""
+        for stream, row in zip(self.streams, bits, strict=True):
+            stream.set_bit_state(row)
 
     def moves(self, shape: tuple[int, ...], scale: Sequence[float], moves: int) -> Iterator[Sequence[Tensor]]:
         """Yield ``moves`` tuples of ``len(scale)`` tensors ``[*shape]``: uniform times ``scale``."""

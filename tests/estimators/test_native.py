@@ -2,16 +2,22 @@
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass, replace
+
 import numpy as np
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
 from idkit.estimators import native, swarm
+from idkit.estimators.base_map import identity_source
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
-from idkit.interfaces import Cost
+from idkit.interfaces import Cost, NormStructure
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 
@@ -49,15 +55,37 @@ def test_native_step_equals_the_eager_step_for_every_paper_cost(problem, name):
     rules = RULES[name]
     objective = Objective(problem, COSTS[name])
     shape = (objective.slots, 3)
+    eager_draws, native_draws = _draws(7, objective.lower), _draws(7, objective.lower)
     eager_state, eager_history = swarm.run(
-        objective, objective.lower, objective.upper, shape, 5, 12, rules, _draws(7, objective.lower)
+        objective, objective.lower, objective.upper, shape, 5, 12, rules, eager_draws
     )
-    state, history = native.run(objective, shape, 5, 12, rules, _draws(7, objective.lower))
+    state, history = native.run(objective, shape, 5, 12, rules, native_draws)
+    # the kernel drew the same numbers in C and left the stream where the eager engine leaves it
+    assert np.array_equal(native_draws.bit_states(), eager_draws.bit_states())
     np.testing.assert_allclose(history.numpy(), eager_history.numpy(), rtol=1e-9, atol=0)
     np.testing.assert_allclose(
         state.global_position.numpy(), eager_state.global_position.numpy(), rtol=1e-9, atol=1e-12
     )
     np.testing.assert_allclose(state.position.numpy(), eager_state.position.numpy(), rtol=1e-9, atol=1e-12)
+
+
+@needs_kernel
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**63 - 1), lengths=st.lists(st.integers(0, 41), min_size=1, max_size=6))
+def test_c_stream_continues_numpy_sfc64_bit_for_bit(seed, lengths):
+    """Odd lengths leave half of a 64-bit draw in numpy's buffer for the next call: C must too."""
+    library = native.kernel()[0]
+    like = torch.zeros(1, dtype=torch.float64)
+    by_numpy, by_c = (swarm.Uniform(torch.Generator().manual_seed(seed), like) for _ in range(2))
+    for length in lengths:
+        bits = by_c.bit_state()
+        numbers = np.empty(length, dtype=np.float32)
+        library.idkit_uniform(bits.ctypes.data, length, numbers.ctypes.data)
+        by_c.set_bit_state(bits)
+        np.testing.assert_array_equal(numbers, by_numpy.numpy.random(length, dtype=np.float32))
+        assert by_c.bit_state()[4] == by_numpy.bit_state()[4]  # the same half-used draw, or none
+    assert np.array_equal(by_c.bit_state(), by_numpy.bit_state())
+    assert torch.equal(by_c((3, 5)), by_numpy((3, 5)))  # and numpy goes on from the same place
 
 
 @needs_kernel
@@ -122,8 +150,6 @@ def test_kernel_is_built_once_and_cached_on_disk(tmp_path, monkeypatch):
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
 def test_cuda_runs_the_same_code(problem):
-    from dataclasses import replace
-
     cuda = replace(problem, device="cuda")
     estimate = ParticleSwarm(runs=3, particles=6, iterations=15).fit(cuda)
     assert estimate.details["device"].startswith("cuda") and estimate.details["engine"] == "eager"
@@ -132,10 +158,161 @@ def test_cuda_runs_the_same_code(problem):
 
 
 @needs_kernel
-def test_threads_split_swarms_without_changing_numbers(problem, monkeypatch):
-    monkeypatch.setattr(native, "PARTICLES_PER_THREAD", 1)  # split even this small batch
-    objective = Objective(problem, [paper.f13(), paper.f6()])
+def test_threads_split_trials_without_changing_numbers(problem, monkeypatch):
+    monkeypatch.setattr(native, "EVALUATIONS_PER_THREAD", 1)  # split even this small batch
+    trials = [problem, *(replace(problem, seed=seed) for seed in (6, 7))]
+    objective = Objective(trials, [paper.f13(), paper.f6()])
     rules = RULES["constriction (reflect)"]
-    one = native.run(objective, (objective.slots, 5), 4, 8, rules, _draws(3, objective.lower), threads=1)
-    three = native.run(objective, (objective.slots, 5), 4, 8, rules, _draws(3, objective.lower), threads=3)
-    assert torch.equal(one[1], three[1]) and torch.equal(one[0].position, three[0].position)
+
+    def fit(threads: int) -> tuple[swarm.SwarmState, torch.Tensor, np.ndarray]:
+        draws = swarm.Draws([swarm.Uniform(p.generator(), objective.lower) for p in trials])
+        state, history = native.run(objective, (objective.slots, 5), 4, 8, rules, draws, threads=threads)
+        return state, history, draws.bit_states()
+
+    one, two, three = fit(1), fit(2), fit(3)
+    for other in (two, three):
+        assert torch.equal(one[1], other[1]) and torch.equal(one[0].position, other[0].position)
+        assert np.array_equal(one[2], other[2])
+
+
+@dataclass(frozen=True)
+class _Structure:
+    """A norm structure with per-norm parameters, as ``NormStructure`` declares them once the cost
+    contract has them (``parameters`` aligned with ``norms``)."""
+
+    norms: tuple[str, ...]
+    parameters: tuple[float, ...] = ()
+
+
+def _kernel_costs(
+    structures: list, offset: torch.Tensor, linear: torch.Tensor, x: torch.Tensor
+) -> torch.Tensor:
+    """The kernel's costs ``[L, K]`` of ``x[K, 4]``, slot ``l`` on ``E = offset[l] + x · linear[l]``.
+
+    One evaluation, no move, base map the identity: the kernel's norms and nothing else.
+    """
+    slots, particles = len(structures), x.shape[0]
+    state = (
+        x.expand(slots, particles, 4).contiguous(),
+        torch.zeros(slots, particles, 4, dtype=torch.float64),
+        torch.zeros(slots, particles, 4, dtype=torch.float64),
+        torch.full((slots, particles), torch.inf, dtype=torch.float64),
+        torch.empty(slots, 4, dtype=torch.float64),
+    )
+    box = torch.full((4,), 10.0, dtype=torch.float64)
+    step = native.NativeStep(
+        linear,
+        offset.unsqueeze(1),
+        torch.arange(slots),
+        structures,
+        native.Sizes(3, offset.shape[1] // 3, 4, 4),
+        -box,
+        box,
+        swarm.SwarmRules(),
+        state,
+        np.zeros((1, 6), dtype=np.uint64),
+        base_map=identity_source(4),
+    )
+    step(torch.empty(1, slots, dtype=torch.float64), torch.empty(0), last=True)
+    return state[3]
+
+
+def _reference(name: str, parameter: float, e: torch.Tensor) -> torch.Tensor:
+    """Each norm of ``e[..., 3, 10]`` by its definition, in torch (SVD for the spectral norm)."""
+    a = e.abs()
+    if name == "huber":
+        return torch.where(a <= parameter, 0.5 * e.square(), parameter * (a - 0.5 * parameter)).mean(
+            dim=(-2, -1)
+        )
+    if name == "trimmed":
+        squares = e.square().flatten(-2).sort(dim=-1).values
+        keep = squares.shape[-1] - math.floor(parameter * squares.shape[-1] + 1e-9)
+        return squares[..., :keep].mean(dim=-1)
+    ords = {"fro": "fro", "2": 2, "1": 1, "inf": math.inf}
+    if name in ords:
+        return torch.linalg.matrix_norm(e, ord=ords[name])
+    return {"max_row_sq": e.square().sum(-1).amax(-1), "max_abs": a.amax(dim=(-2, -1))}[name]
+
+
+NORM_CASES = [
+    ("fro", 0.0),
+    ("2", 0.0),
+    ("1", 0.0),
+    ("inf", 0.0),
+    ("max_row_sq", 0.0),
+    ("max_abs", 0.0),
+    *(("huber", delta) for delta in (0.05, 0.7, 50.0)),  # all linear, mixed, all quadratic
+    *(("trimmed", trim) for trim in (0.0, 0.1, 0.29, 0.5, 0.6, 0.97)),  # drops 0, 3, 8, 15, 18, 29
+]
+
+
+def _check_norms(seed: int, samples: int) -> None:
+    """Every norm code, with its parameter, against a direct torch formula of the same definition."""
+    generator = torch.Generator().manual_seed(seed)
+    slots, particles, entries = len(NORM_CASES) + 1, 7, 3 * samples  # 7: the last group of lanes is partial
+
+    # Dyadic numbers of few bits: E = offset + x · linear is exact in any order of summation, so
+    # only the norms' own rounding remains (an entry near 0 would otherwise carry E's rounding).
+    def dyadic(*shape: int, bits: int) -> torch.Tensor:
+        return torch.randint(-(2**bits), 2**bits, shape, generator=generator).double() / 2 ** (bits - 2)
+
+    offset, linear, x = (
+        dyadic(slots, entries, bits=10),
+        dyadic(slots, 4, entries, bits=6) / 4,
+        dyadic(particles, 4, bits=4),
+    )
+    structures = [_Structure((name,), (value,)) for name, value in NORM_CASES]
+    structures.append(_Structure(("huber", "2", "trimmed"), (0.7, 0.0, 0.1)))  # a product
+    costs = _kernel_costs(structures, offset, linear, x)
+    e = (offset.unsqueeze(1) + x @ linear).view(slots, particles, 3, samples)
+    for slot, structure in enumerate(structures):
+        expected = torch.ones(particles, dtype=torch.float64)
+        for name, value in zip(structure.norms, structure.parameters, strict=True):
+            expected = expected * _reference(name, value, e[slot])
+        np.testing.assert_allclose(costs[slot], expected, rtol=1e-12, err_msg=str(structure))
+
+
+@needs_kernel
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_kernel_norms_match_their_definitions(seed):
+    _check_norms(seed, samples=10)
+
+
+@needs_kernel
+def test_kernel_norms_of_a_long_recording():
+    """3 × 400 entries: the error matrix is too large for the stack and lives on the heap."""
+    _check_norms(0, samples=400)
+
+
+@needs_kernel
+def test_kernel_spectral_norm_at_the_ends_of_its_closed_form():
+    """Rank one (r = 1: acos(1) = 0) and two equal top singular values (r = -1, where the closed form
+    is ill-conditioned: ~1e-8, as idkit.estimators.objective.spectral_norm_3)."""
+    generator = torch.Generator().manual_seed(0)
+    u, v = torch.randn(3, generator=generator, dtype=torch.float64), torch.randn(10, generator=generator)
+    rank_one = torch.outer(u, v.double())
+    q, _ = torch.linalg.qr(torch.randn(10, 3, generator=generator, dtype=torch.float64))
+    pair = (q * torch.tensor([2.0, 2.0, 0.5], dtype=torch.float64)).T  # singular values 2, 2, 0.5
+    offset = torch.stack([rank_one.flatten(), pair.flatten()])
+    no_linear = torch.zeros(2, 4, 30, dtype=torch.float64)
+    costs = _kernel_costs(
+        [NormStructure(("2",))] * 2, offset, no_linear, torch.zeros(1, 4, dtype=torch.float64)
+    )
+    np.testing.assert_allclose(costs[0, 0], torch.linalg.matrix_norm(rank_one, ord=2), rtol=1e-13)
+    np.testing.assert_allclose(costs[1, 0], 2.0, rtol=1e-8)
+
+
+def test_norm_parameters_are_checked_and_optional():
+    # the contract's structure without parameters (before they exist, or left empty) reads as zeros
+    codes, params = native.norm_codes([NormStructure(("1", "inf")), _Structure(("huber",), (0.5,))])
+    assert codes[:, :2].tolist() == [[3, 4], [7, 0]] and params[1, 0] == 0.5 and not params[0].any()
+    for bad, message in (
+        (_Structure(("huber",), (0.0,)), "delta > 0"),
+        (_Structure(("trimmed",), (1.0,)), "0 <= trim < 1"),
+        (_Structure(("nuclear",)), "does not know the norm 'nuclear'"),
+        (_Structure(("1",) * 5), "at most 4 norms"),
+        (_Structure(("1", "inf"), (0.1,)), "one parameter per norm"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            native.norm_codes([bad])
