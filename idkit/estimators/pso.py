@@ -41,6 +41,7 @@ the choice. Both engines use the same random numbers; their trajectories agree t
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
@@ -101,7 +102,9 @@ class ParticleSwarm(Estimator):
             fields as a dict, or its kind (``"relative"``, ``"mad"``, ``"best"``, ``"all"``).
         space: ``"physical"``/``"base"`` search space; ``None`` follows ``robot.search_space``.
         use_regressor: predict torques through the regressor (``None``: when the robot has one).
-        threads: torch intra-op threads; ``None`` picks by problem size (``idkit.runtime``).
+        threads: threads of the eager engine (torch intra-op) and most threads of the native
+            kernel; ``None``: by problem size (``idkit.runtime``) for torch, every core for the
+            kernel, which starts a thread only when a call has enough evaluations.
         history: keep each run's best cost per iteration in ``details["history"]``.
         label: estimator label; default ``"PSO-<cost>"`` (e.g. ``PSO-f13``).
         engine: ``"auto"`` (the native kernel where it applies, else eager torch), ``"eager"`` or
@@ -262,6 +265,9 @@ class ParticleSwarm(Estimator):
         threads = resolve_threads(
             self.threads, min(objective.slots * self.runs, run_chunk) * settings["particles"] * n * samples
         )
+        # torch's pool pays only for big tensors (resolve_threads); the kernel itself starts a
+        # thread only for enough evaluations (native.EVALUATIONS_PER_THREAD), so it may use all.
+        kernel_threads = self.threads if self.threads is not None else (os.cpu_count() or 1)
         count, trials = len(costs), len(problems)
         engines: list[dict[str, Any]] = [{} for _ in costs]
         with torch_threads(threads), torch.inference_mode():
@@ -270,6 +276,8 @@ class ParticleSwarm(Estimator):
             run_costs = objective.lower.new_empty((objective.slots, self.runs))
             history = objective.lower.new_empty((settings["iterations"], objective.slots, self.runs))
             for members, part, engine, runner in self._engines(problems, costs, objective):
+                if runner is _run_native:  # the kernel splits trials over threads when it pays
+                    engine = {**engine, "threads": kernel_threads}
                 chunks = [
                     runner(
                         part,
@@ -277,7 +285,7 @@ class ParticleSwarm(Estimator):
                         settings,
                         rules,
                         uniform,
-                        threads,
+                        engine.get("threads", threads),
                     )
                     for start in range(0, self.runs, run_chunk)
                 ]
