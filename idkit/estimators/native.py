@@ -86,6 +86,14 @@ FLAGS = (
 #: Cost evaluations per thread below which a call does not start another thread (a thread costs
 #: ~50 µs to start and join; an evaluation well under 0.1 µs).
 EVALUATIONS_PER_THREAD = 20_000
+
+
+def thread_count(most: int, trials: int, evaluations: int) -> int:
+    """Threads a kernel call uses: at most ``most``, one per trial at most (a trial's draws
+    interleave across its swarms), and one per ``EVALUATIONS_PER_THREAD`` evaluations."""
+    return max(1, min(most, trials, evaluations // EVALUATIONS_PER_THREAD))
+
+
 #: The kernel's C source (package data), compiled behind a generated prefix (``source``).
 KERNEL_FILE = "pso_kernel.c"
 
@@ -333,7 +341,7 @@ class NativeStep:
             alpha = alpha.contiguous()  # kept alive in this frame during the call
             self.batch.alpha = alpha.data_ptr()
         evaluations = self.batch.S * self.batch.K * (moves + last)
-        threads = max(1, min(self.threads, evaluations // EVALUATIONS_PER_THREAD))
+        threads = thread_count(self.threads, self.batch.T, evaluations)
         status = self.function(self.pointer, history.data_ptr(), moves, weights.data_ptr(), last, threads)
         if status != 0:
             raise MemoryError("native PSO kernel: out of memory for a thread's working buffers")

@@ -277,7 +277,8 @@ class ParticleSwarm(Estimator):
             history = objective.lower.new_empty((settings["iterations"], objective.slots, self.runs))
             for members, part, engine, runner in self._engines(problems, costs, objective):
                 if runner is _run_native:  # the kernel splits trials over threads when it pays
-                    engine = {**engine, "threads": kernel_threads}
+                    evaluations = part.slots * self.runs * settings["particles"] * settings["iterations"]
+                    engine = {**engine, "threads": native.thread_count(kernel_threads, trials, evaluations)}
                 chunks = [
                     runner(
                         part,
