@@ -19,13 +19,24 @@ def jsonable(value: Any) -> Any:
         if _all_finite(value):  # nested lists of finite floats are JSON already: no walk
             return value.tolist()
         value = value.tolist()
+    # Leaves that are JSON already are kept in place, not recursed into (estimates of a big study
+    # hold many short lists).
     if isinstance(value, dict):
-        return {str(k): jsonable(v) for k, v in value.items()}
+        return {str(k): v if _is_json_leaf(v) else jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
+        return [v if _is_json_leaf(v) else jsonable(v) for v in value]
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
+
+
+_JSON_ATOMS = frozenset((int, bool, str, type(None)))
+
+
+def _is_json_leaf(value: Any) -> bool:
+    """A value JSON takes as it is: ``int``, ``bool``, ``str``, ``None`` or a finite ``float``."""
+    kind = type(value)
+    return kind in _JSON_ATOMS or (kind is float and math.isfinite(value))
 
 
 def _all_finite(array: Any) -> bool:

@@ -453,9 +453,11 @@ def run(
             Problem(robot_obj, batches[scenario][t], None, seed=seed + t, device=device, dtype=dtype)
             for t in chosen
         ]
-        columns = [[e for (e,) in fit_trials(est, problems)] for est in est_objs]
+        # The study's chunk is the batch (it bounds memory already): one batched call per estimator.
+        columns = [[e for (e,) in fit_trials(est, problems, chunk=len(problems))] for est in est_objs]
         if search is not None:
-            columns += [list(c) for c in zip(*fit_trials(search, problems, cost_objs), strict=True)]
+            fitted = fit_trials(search, problems, cost_objs, chunk=len(problems))
+            columns += [list(c) for c in zip(*fitted, strict=True)]
         for label, column in zip(labels, columns, strict=True):
             found[scenario].setdefault(label, []).extend(list(e.params.values()) for e in column)
             fit_time[label] = fit_time.get(label, 0.0) + sum(e.wall_time_s for e in column)
