@@ -33,7 +33,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from scipy import signal
 
 from idkit.data.recording import Recording
 from idkit.problem import Samples
@@ -113,6 +112,8 @@ def preprocess_with_times(
 
     def resample(values: np.ndarray) -> np.ndarray:
         return np.stack([np.interp(grid, t, column) for column in values.T], axis=1)
+
+    from scipy import signal  # ~1 s of import: only for recordings, not for every command
 
     sos = signal.butter(options.order, options.cutoff, fs=rate, output="sos")
 
