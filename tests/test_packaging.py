@@ -47,3 +47,10 @@ def test_help_does_not_import_torch():
     code = "import sys, idkit.cli; print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", "importing the CLI must not import torch"
+
+
+def test_single_fit_path_does_not_import_scipy():
+    """scipy.signal (recordings only) cost ~1 s of every command's start-up when imported eagerly."""
+    code = "import sys, idkit.studies.single, idkit.cli.app; print('scipy' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False", "the single-fit path must import scipy lazily"
