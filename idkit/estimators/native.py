@@ -27,7 +27,7 @@ Particles are evaluated four at a time as the lanes of a vector (the error matri
 spectral norm's closed form); what bounds an evaluation is measured in ``docs/speed.md``.
 
 Norms (``NORM_CODES``): the paper's six, and ``"huber"`` and ``"trimmed"`` with one parameter each
-(``NormStructure.parameters``, aligned with ``norms``, read only where the contract has it).
+(``NormStructure.parameters``, aligned with ``norms``).
 
 When no compiler is available (or compiling fails) ``kernel()`` returns ``None`` with the reason,
 and the estimator takes the eager engine and says so in ``details["engine_build"]``.
@@ -60,7 +60,7 @@ from torch import Tensor
 
 from idkit.estimators import swarm
 from idkit.estimators.base_map import identity_source, map_source
-from idkit.estimators.objective import Objective
+from idkit.estimators.objective import Objective, factor_parameters
 from idkit.interfaces import NormStructure, Robot
 
 #: Norm name (``idkit.costs.norms.NORMS``) -> code in the C source.
@@ -212,29 +212,23 @@ class _Batch(ctypes.Structure):
 
 def norm_codes(structures: Sequence[NormStructure]) -> tuple[Tensor, Tensor]:
     """Per slot, the kernel's norm codes ``[L, MAX_NORMS]`` (int32, 0 = none) and their parameters
-    ``[L, MAX_NORMS]`` (``structure.parameters`` where the contract has them, else zeros).
+    ``[L, MAX_NORMS]`` (checked by ``objective.factor_parameters``: 0.0 for a matrix norm).
 
     Raises:
-        ValueError: a norm the kernel does not know, too many norms, or a parameter out of range.
+        ValueError: a factor the kernel does not know, too many factors, or a bad parameter.
     """
     codes = torch.zeros((len(structures), MAX_NORMS), dtype=torch.int32)
     params = torch.zeros((len(structures), MAX_NORMS), dtype=torch.float64)
     for slot, structure in enumerate(structures):
         names = tuple(structure.norms)
-        values = tuple(getattr(structure, "parameters", ())) or (0.0,) * len(names)
-        if len(names) > MAX_NORMS or len(values) != len(names):
-            raise ValueError(
-                f"norm structure {names} with parameters {values}: the kernel takes at most "
-                f"{MAX_NORMS} norms and one parameter per norm"
-            )
+        if len(names) > MAX_NORMS:
+            raise ValueError(f"norm structure {names}: the kernel takes at most {MAX_NORMS} factors")
+        unknown = [name for name in names if name not in NORM_CODES]
+        if unknown:
+            raise ValueError(f"the native kernel has no code for {', '.join(unknown)}")
+        values = factor_parameters(names, structure.parameters)
         for c, (name, value) in enumerate(zip(names, values, strict=True)):
-            if name not in NORM_CODES:
-                raise ValueError(f"the native kernel does not know the norm {name!r}")
-            if name == "huber" and not value > 0:
-                raise ValueError(f"huber needs a threshold delta > 0, got {value}")
-            if name == "trimmed" and not 0 <= value < 1:
-                raise ValueError(f"trimmed needs a fraction 0 <= trim < 1, got {value}")
-            codes[slot, c], params[slot, c] = NORM_CODES[name], float(value)
+            codes[slot, c], params[slot, c] = NORM_CODES[name], value
     return codes, params
 
 

@@ -391,9 +391,10 @@ def _kernel_refusal(objective: Objective, c: int) -> str | None:
     structure, name = objective.structures[c], type(objective.costs[c]).__name__
     if structure is None:
         return f"{name}: the cost declares no norm structure (Cost.structure)"
-    unknown = sorted(set(structure.norms) - set(native.NORM_CODES))
-    if unknown:
-        return f"{name}: the native kernel has no code for {', '.join(unknown)} (eager engine, fused)"
+    try:
+        native.norm_codes([structure])
+    except ValueError as error:
+        return f"{name}: {error} (eager engine, fused)"
     return None
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -175,15 +175,6 @@ def test_threads_split_trials_without_changing_numbers(problem, monkeypatch):
         assert np.array_equal(one[2], other[2])
 
 
-@dataclass(frozen=True)
-class _Structure:
-    """A norm structure with per-norm parameters, as ``NormStructure`` declares them once the cost
-    contract has them (``parameters`` aligned with ``norms``)."""
-
-    norms: tuple[str, ...]
-    parameters: tuple[float, ...] = ()
-
-
 def _kernel_costs(
     structures: list, offset: torch.Tensor, linear: torch.Tensor, x: torch.Tensor
 ) -> torch.Tensor:
@@ -261,8 +252,8 @@ def _check_norms(seed: int, samples: int) -> None:
         dyadic(slots, 4, entries, bits=6) / 4,
         dyadic(particles, 4, bits=4),
     )
-    structures = [_Structure((name,), (value,)) for name, value in NORM_CASES]
-    structures.append(_Structure(("huber", "2", "trimmed"), (0.7, 0.0, 0.1)))  # a product
+    structures = [NormStructure((name,), parameters=(value,)) for name, value in NORM_CASES]
+    structures.append(NormStructure(("huber", "2", "trimmed"), parameters=(0.7, 0.0, 0.1)))  # a product
     costs = _kernel_costs(structures, offset, linear, x)
     e = (offset.unsqueeze(1) + x @ linear).view(slots, particles, 3, samples)
     for slot, structure in enumerate(structures):
@@ -303,16 +294,17 @@ def test_kernel_spectral_norm_at_the_ends_of_its_closed_form():
     np.testing.assert_allclose(costs[1, 0], 2.0, rtol=1e-8)
 
 
-def test_norm_parameters_are_checked_and_optional():
-    # the contract's structure without parameters (before they exist, or left empty) reads as zeros
-    codes, params = native.norm_codes([NormStructure(("1", "inf")), _Structure(("huber",), (0.5,))])
+def test_norm_codes_and_their_checks():
+    codes, params = native.norm_codes(
+        [NormStructure(("1", "inf")), NormStructure(("huber",), parameters=(0.5,))]
+    )
     assert codes[:, :2].tolist() == [[3, 4], [7, 0]] and params[1, 0] == 0.5 and not params[0].any()
     for bad, message in (
-        (_Structure(("huber",), (0.0,)), "delta > 0"),
-        (_Structure(("trimmed",), (1.0,)), "0 <= trim < 1"),
-        (_Structure(("nuclear",)), "does not know the norm 'nuclear'"),
-        (_Structure(("1",) * 5), "at most 4 norms"),
-        (_Structure(("1", "inf"), (0.1,)), "one parameter per norm"),
+        (NormStructure(("huber",), parameters=(0.0,)), "delta must be > 0"),
+        (NormStructure(("trimmed",), parameters=(1.0,)), "trim must be"),
+        (NormStructure(("nuclear",)), "no code for nuclear"),
+        (NormStructure(("1",) * 5), "at most 4 factors"),
+        (NormStructure(("1", "inf"), parameters=(0.1, 0.0)), "takes no parameter"),
     ):
         with pytest.raises(ValueError, match=message):
             native.norm_codes([bad])
