@@ -60,14 +60,17 @@ def per_cost_estimates(
         common: ``common_details(...)`` plus estimator-specific settings.
     """
     wall = common["batch_wall_time_s"] / len(costs)
+    # Python lists for all costs at once: a study makes tens of thousands of estimates, and a
+    # tensor per field and estimate costs more in conversions than the fit itself.
+    all_costs, all_params, all_kept = (t.tolist() for t in (run_costs, objective.params(position), kept))
     estimates = []
     for c, cost in enumerate(costs):
         details = dict(common)
         details.update(
-            run_costs=run_costs[c],
-            run_params=objective.params(position[c]),
-            kept=kept[c],
-            n_kept=int(kept[c].sum()),
+            run_costs=all_costs[c],
+            run_params=all_params[c],
+            kept=all_kept[c],
+            n_kept=sum(all_kept[c]),
         )
         if history is not None:
             details["history"] = history[:, c].T  # [R, T]
