@@ -34,6 +34,13 @@ def resolve_threads(threads: int | None, work: int) -> int:
         return int(threads)
     if work < MULTITHREAD_WORK:
         return 1
+    return available_cores()
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the OS has one, else all)."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0)) or 1
     return os.cpu_count() or 1
 
 

@@ -88,10 +88,21 @@ FLAGS = (
 EVALUATIONS_PER_THREAD = 20_000
 
 
+#: The C source's ``MAX_THREADS``.
+MAX_THREADS = 64
+
+
 def thread_count(most: int, trials: int, evaluations: int) -> int:
     """Threads a kernel call uses: at most ``most``, one per trial at most (a trial's draws
     interleave across its swarms), and one per ``EVALUATIONS_PER_THREAD`` evaluations."""
-    return max(1, min(most, trials, evaluations // EVALUATIONS_PER_THREAD))
+    return max(1, min(most, MAX_THREADS, trials, evaluations // EVALUATIONS_PER_THREAD))
+
+
+def call_threads(objective: Objective, swarms: int, particles: int, iterations: int, most: int) -> int:
+    """Threads each kernel call of ``run`` uses on ``swarms`` swarms (for ``details["threads"]``):
+    a call runs whole runs where the base map is in C, one move where it stays in torch."""
+    moves_per_call = iterations if robot_map(objective) is not None else 1
+    return thread_count(most, len(objective.trials), swarms * particles * moves_per_call)
 
 
 #: The kernel's C source (package data), compiled behind a generated prefix (``source``).
@@ -221,6 +232,8 @@ def norm_codes(structures: Sequence[NormStructure]) -> tuple[Tensor, Tensor]:
     params = torch.zeros((len(structures), MAX_NORMS), dtype=torch.float64)
     for slot, structure in enumerate(structures):
         names = tuple(structure.norms)
+        if not names:
+            raise ValueError("norm structure without factors: the kernel needs at least one")
         if len(names) > MAX_NORMS:
             raise ValueError(f"norm structure {names}: the kernel takes at most {MAX_NORMS} factors")
         unknown = [name for name in names if name not in NORM_CODES]

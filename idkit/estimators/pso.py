@@ -41,7 +41,6 @@ the choice. Both engines use the same random numbers; their trajectories agree t
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
@@ -57,7 +56,7 @@ from idkit.estimators.search_result import common_details, per_cost_estimates
 from idkit.estimators.trials import CHUNK_ELEMENTS, criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
-from idkit.runtime import resolve_threads, torch_threads
+from idkit.runtime import available_cores, resolve_threads, torch_threads
 
 #: ``engine`` values: how the swarm's iterations are computed.
 ENGINES = ("auto", "eager", "native")
@@ -267,7 +266,7 @@ class ParticleSwarm(Estimator):
         )
         # torch's pool pays only for big tensors (resolve_threads); the kernel itself starts a
         # thread only for enough evaluations (native.EVALUATIONS_PER_THREAD), so it may use all.
-        kernel_threads = self.threads if self.threads is not None else (os.cpu_count() or 1)
+        kernel_threads = self.threads if self.threads is not None else available_cores()
         count, trials = len(costs), len(problems)
         engines: list[dict[str, Any]] = [{} for _ in costs]
         with torch_threads(threads), torch.inference_mode():
@@ -277,8 +276,11 @@ class ParticleSwarm(Estimator):
             history = objective.lower.new_empty((settings["iterations"], objective.slots, self.runs))
             for members, part, engine, runner in self._engines(problems, costs, objective):
                 if runner is _run_native:  # the kernel splits trials over threads when it pays
-                    evaluations = part.slots * self.runs * settings["particles"] * settings["iterations"]
-                    engine = {**engine, "threads": native.thread_count(kernel_threads, trials, evaluations)}
+                    swarms = part.slots * min(run_chunk, self.runs)
+                    used = native.call_threads(
+                        part, swarms, settings["particles"], settings["iterations"], kernel_threads
+                    )
+                    engine = {**engine, "threads": used}
                 chunks = [
                     runner(
                         part,
@@ -286,7 +288,7 @@ class ParticleSwarm(Estimator):
                         settings,
                         rules,
                         uniform,
-                        engine.get("threads", threads),
+                        kernel_threads if runner is _run_native else threads,
                     )
                     for start in range(0, self.runs, run_chunk)
                 ]
@@ -427,7 +429,7 @@ def _run_native(
     uniform: swarm.Draws,
     threads: int,
 ) -> tuple[swarm.SwarmState, Tensor]:
-    """The native engine: its C step splits the swarms over ``threads`` threads."""
+    """The native engine: whole runs per kernel call, trials split over up to ``threads`` threads."""
     return native.run(
         objective, batch, settings["particles"], settings["iterations"], rules, uniform, threads
     )

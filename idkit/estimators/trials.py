@@ -15,10 +15,10 @@ Every number depends only on each trial's problem (its samples and ``seed``) and
 options, never on ``chunk`` or on the other trials in the batch (tested with chunks of 1, 3 and all).
 The helpers below are what a batched estimator needs besides its arithmetic: cutting the trials
 into batches (``fit_in_batches``, ``fit_stacked_systems``), checking that they can share one
-(``check_same_setting``),
-keeping each trial's warnings apart (``TrialWarnings``) and naming the trial that fails
-(``in_trial``): a trial whose data cannot be fitted raises the error its own ``fit`` raises, its
-message prefixed with ``trial <index> (seed <seed>): `` — never a result computed from the others.
+(``check_same_setting``), keeping each trial's warnings apart (``TrialWarnings``) and naming the
+trial that fails (``in_trial``): a trial whose data cannot be fitted raises the error its own
+``fit`` raises, its message prefixed with ``trial <index> (seed <seed>): `` — never a result
+computed from the others.
 """
 
 from __future__ import annotations
@@ -55,14 +55,15 @@ def trial_chunk(chunk: int | None, per_trial: int) -> int:
 
 
 def batches(problems: Sequence[Problem], chunk: Callable[[Problem], int]) -> Iterator[list[int]]:
-    """Indices of trials that can share one batch: same sample shape, at most ``chunk(trial)``.
+    """Indices of trials that can share one batch: same robot and sample shape, at most ``chunk(trial)``.
 
-    Trials are grouped by their samples' shape (a stack needs equal sample counts), in order of
-    first appearance, then cut into chunks of the size ``chunk`` gives for that shape.
+    Trials are grouped by robot object (a stack uses one robot's regressor and parameter maps; two
+    objects of one class may differ in their constants) and samples' shape (a stack needs equal
+    sample counts), in order of first appearance, then cut into chunks of the size ``chunk`` gives.
     """
-    groups: dict[tuple[int, ...], list[int]] = {}
+    groups: dict[tuple[int, tuple[int, ...]], list[int]] = {}
     for index, problem in enumerate(problems):
-        groups.setdefault(tuple(problem.samples.q.shape), []).append(index)
+        groups.setdefault((id(problem.robot), tuple(problem.samples.q.shape)), []).append(index)
     for members in groups.values():
         size = chunk(problems[members[0]])
         for start in range(0, len(members), size):

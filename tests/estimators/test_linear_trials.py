@@ -228,6 +228,15 @@ def test_trials_of_another_robot_are_refused(problems):
         fit_trials(LeastSquares(), [problems[0], other])
 
 
+def test_trials_of_two_robot_objects_are_stacked_separately(problems):
+    # Same class, other constants: a stack with trial 0's regressor would fit the wrong model.
+    lunar = CylindricalRobot(g=1.62)
+    other = Problem(lunar, simulate(lunar, "torque_noise", seed=3), seed=3)
+    got = fit_trials(LeastSquares(), [problems[0], other, problems[1]])
+    for trial, problem in zip(got, [problems[0], other, problems[1]], strict=True):
+        assert_same_estimate(trial[0], LeastSquares().fit(problem))
+
+
 def test_trials_of_different_sample_counts_are_stacked_separately():
     robot = ROBOT
     trials = [

@@ -304,6 +304,7 @@ def test_norm_codes_and_their_checks():
         (NormStructure(("trimmed",), parameters=(1.0,)), "trim must be"),
         (NormStructure(("nuclear",)), "no code for nuclear"),
         (NormStructure(("1",) * 5), "at most 4 factors"),
+        (NormStructure(()), "at least one"),
         (NormStructure(("1", "inf"), parameters=(0.1, 0.0)), "takes no parameter"),
     ):
         with pytest.raises(ValueError, match=message):
