@@ -61,7 +61,7 @@ from torch import Tensor
 from idkit.estimators import swarm
 from idkit.estimators.base_map import identity_source, map_source
 from idkit.estimators.objective import Objective, factor_parameters
-from idkit.interfaces import NormStructure, Robot
+from idkit.interfaces import Cost, NormStructure, Robot
 
 #: Norm name (``idkit.costs.norms.NORMS``) -> code in the C source.
 NORM_CODES = {"fro": 1, "2": 2, "1": 3, "inf": 4, "max_row_sq": 5, "max_abs": 6, "huber": 7, "trimmed": 8}
@@ -479,6 +479,22 @@ def run(
     return final, history.view(iterations, slots, runs)
 
 
+def cost_refusal(cost: Cost, structure: NormStructure | None) -> str | None:
+    """Why the kernel cannot run ``cost`` (its ``fast_structure``) whatever the problem, or ``None``.
+
+    A cost without a structure runs eager, calling the cost; one whose factors the kernel has no
+    code for (``NORM_CODES``) runs eager fused (``Objective``'s ``NormProducts``).
+    """
+    name = type(cost).__name__
+    if structure is None:
+        return f"{name}: the cost declares no norm structure (Cost.structure)"
+    try:
+        norm_codes([structure])
+    except ValueError as error:
+        return f"{name}: {error} (eager engine, fused)"
+    return None
+
+
 def supports(objective: Objective) -> str | None:
     """``None`` if the kernel can run ``objective``, else the reason it cannot (for ``details``)."""
     if objective.lower.device.type != "cpu" or objective.lower.dtype != torch.float64:
@@ -486,12 +502,9 @@ def supports(objective: Objective) -> str | None:
     if not objective.use_regressor:
         return "the native kernel needs the regressor (use_regressor)"
     for cost, structure in zip(objective.costs, objective.structures, strict=True):
-        if structure is None:
-            return f"cost {type(cost).__name__} declares no norm structure the kernel knows"
-        try:
-            norm_codes([structure])
-        except ValueError as error:
-            return f"cost {type(cost).__name__}: {error}"
+        refusal = cost_refusal(cost, structure)
+        if refusal is not None:
+            return refusal
         if "2" in structure.norms and objective.shape[0] != 3:
             return "the native kernel's spectral norm is for 3 joints only"
     library, how, _ = build(objective)

@@ -53,7 +53,7 @@ from idkit.estimators import native, swarm
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
-from idkit.estimators.trials import CHUNK_ELEMENTS, criteria, fit_in_batches, trial_chunk
+from idkit.estimators.trials import CHUNK_ELEMENTS, check_chunk, criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.runtime import available_cores, resolve_threads, torch_threads
@@ -231,7 +231,7 @@ class ParticleSwarm(Estimator):
         problems, costs = list(problems), criteria(problems, costs)
         for problem in problems:
             problem.check_identifiable()
-        trial_chunk(chunk, 1)  # check it
+        check_chunk(chunk)
 
         def per_run(problem: Problem) -> int:
             """Error-tensor elements of one run of every cost on this trial."""
@@ -357,13 +357,13 @@ class ParticleSwarm(Estimator):
         everything = list(range(len(costs)))
         if self.engine == "eager":
             return [eager(everything, "engine='eager' was asked for")]
-        refusals = {c: _kernel_refusal(objective, c) for c in everything}
+        refusals = {c: native.cost_refusal(costs[c], objective.structures[c]) for c in everything}
         fast = [c for c in everything if refusals[c] is None] if self.engine == "auto" else everything
         part = subset(fast) if fast else None
         if part is None:
             why = "; ".join(sorted(set(refusals.values())))
             reason = f"no cost declares a structure the native kernel knows ({why})"
-        else:  # with engine="native", a cost the kernel refuses is the reason
+        else:  # with engine="native", every cost the kernel refuses is named
             reason = "; ".join(sorted({refusals[c] for c in fast} - {None})) or native.supports(part)
         if reason is not None:
             if self.engine == "native":
@@ -382,22 +382,6 @@ class ParticleSwarm(Estimator):
         if rest:
             groups.append(eager(rest, "; ".join(sorted({refusals[c] for c in rest}))))
         return groups
-
-
-def _kernel_refusal(objective: Objective, c: int) -> str | None:
-    """Why the native kernel cannot run cost ``c`` whatever the problem, or ``None``.
-
-    A cost without a structure runs eager, calling the cost; one whose factors the kernel has no
-    code for (``native.NORM_CODES``) runs eager fused (``Objective``'s ``NormProducts``).
-    """
-    structure, name = objective.structures[c], type(objective.costs[c]).__name__
-    if structure is None:
-        return f"{name}: the cost declares no norm structure (Cost.structure)"
-    try:
-        native.norm_codes([structure])
-    except ValueError as error:
-        return f"{name}: {error} (eager engine, fused)"
-    return None
 
 
 def _run_eager(

@@ -40,6 +40,14 @@ E = TypeVar("E", bound=BaseException)
 CHUNK_ELEMENTS = 1 << 18
 
 
+def check_chunk(chunk: int | None) -> int | None:
+    """``chunk`` (trials per batch) if it is ``None`` or an integer >= 1, else ``ValueError``:
+    called before any work, so a bad option fails at once."""
+    if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
+        raise ValueError(f"chunk (trials per batch) must be an integer >= 1 or None, got {chunk!r}")
+    return chunk
+
+
 def trial_chunk(chunk: int | None, per_trial: int) -> int:
     """Trials per batch: ``chunk`` if given (checked), else as many as fit ``CHUNK_ELEMENTS``.
 
@@ -47,9 +55,7 @@ def trial_chunk(chunk: int | None, per_trial: int) -> int:
         chunk: explicit trials per batch, or ``None``.
         per_trial: error-tensor elements one trial needs (costs × runs × particles × n × N).
     """
-    if chunk is not None:
-        if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
-            raise ValueError(f"chunk (trials per batch) must be an integer >= 1 or None, got {chunk!r}")
+    if check_chunk(chunk) is not None:
         return chunk
     return max(1, CHUNK_ELEMENTS // max(per_trial, 1))
 
@@ -122,7 +128,7 @@ def fit_stacked_systems(
     if not problems:
         return []
     check_same_setting(problems)
-    trial_chunk(chunk, 1)  # check it
+    check_chunk(chunk)
 
     def trials_per_stack(problem: Problem) -> int:
         return trial_chunk(chunk, problem.samples.tau.numel() * len(problem.robot.base_param_names))

@@ -392,12 +392,12 @@ def run(
     from tqdm import tqdm
 
     from idkit.data.scenarios import shared_fields, simulate_batch
-    from idkit.estimators.trials import fit_trials, trial_chunk
+    from idkit.estimators.trials import check_chunk, fit_trials
     from idkit.problem import Problem
 
     common = shared_fields(scenario, "robustness")
     started = time.perf_counter()
-    trial_chunk(chunk, 1)  # check it
+    check_chunk(chunk)
     mine = shard_trials(trials, shard, shards)
     skipped: list[str] = []
     robot_obj = build("robot", robot)
