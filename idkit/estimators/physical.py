@@ -62,6 +62,7 @@ from idkit.estimators.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
 from idkit.robots.model_checks import nonphysical_links
+from idkit.seeds import torch_generator
 
 #: Weight (χ² per squared relative deviation) of the pull to CAD when ``prior_weight = 0`` (module doc).
 TIE_BREAK = 1.0
@@ -400,7 +401,7 @@ def nearest_consistent(
                 f"{tuple(target.shape)}"
             )
     if samples is None:
-        generator = torch.Generator().manual_seed(int(getattr(robot, "seed", 0)))
+        generator = torch_generator(getattr(robot, "seed", 0))
         states = robot.random_states(int(getattr(robot, "n_states", 200)), generator)
     else:
         s = samples.to(dtype=torch.float64)
