@@ -19,10 +19,9 @@ from pathlib import Path
 
 import pytest
 import torch
-from hydra.core.global_hydra import GlobalHydra
 
 from idkit import interfaces, registry
-from idkit.cli import app, errors
+from idkit.cli import errors
 from idkit.testing import check_cost, check_estimator, check_robot, make_problem
 
 PACKAGE = Path(__file__).resolve().parent / "plugin_package"
@@ -124,26 +123,12 @@ def test_required_members_come_from_the_interfaces():
     )
 
 
-def run_cli(monkeypatch, capsys, *overrides: str) -> tuple[int, list[str]]:
-    monkeypatch.setattr(sys, "argv", ["idkit", *overrides])
-    monkeypatch.delenv(app.FULL_ERROR, raising=False)
-    GlobalHydra.instance().clear()
-    try:
-        app.main()
-        code = 0
-    except SystemExit as exit_:
-        code = exit_.code
-    finally:
-        GlobalHydra.instance().clear()
-    return code, capsys.readouterr().err.strip().splitlines()
-
-
 FIT = ("robot=demo_pendulum", "estimator=demo_search", "cost=demo_mae", "+scenario=outliers")
 
 
-def test_a_complete_plugin_fits_through_the_command_line(site, tmp_path, monkeypatch, capsys):
+def test_a_complete_plugin_fits_through_the_command_line(site, tmp_path, run_idkit):
     run = tmp_path / "run"
-    code, _ = run_cli(monkeypatch, capsys, *FIT, "scenario.excitation=demo_swing", f"hydra.run.dir={run}")
+    code, _ = run_idkit(*FIT, "scenario.excitation=demo_swing", f"hydra.run.dir={run}")
     assert code == 0
     result = json.loads((run / "result.json").read_text())
     assert set(result["payload"]["estimate"]["params"]) == {"J", "h", "fv"}
@@ -151,10 +136,8 @@ def test_a_complete_plugin_fits_through_the_command_line(site, tmp_path, monkeyp
     assert result["plugins"]["cost"]["distribution"] == "idkit-contract-demo"
 
 
-def test_an_incomplete_plugin_is_one_line_on_the_command_line(site, tmp_path, monkeypatch, capsys):
-    code, said = run_cli(
-        monkeypatch, capsys, "robot=demo_stiff", "estimator=demo_search", f"hydra.run.dir={tmp_path}"
-    )
+def test_an_incomplete_plugin_is_one_line_on_the_command_line(site, tmp_path, run_idkit):
+    code, said = run_idkit("robot=demo_stiff", "estimator=demo_search", f"hydra.run.dir={tmp_path}")
     assert code == errors.USAGE
     assert len(said) == 1 and said[0].startswith("idkit: robot plugin 'demo_stiff' (entry point")
     assert said[0].endswith(

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 import pytest
 import torch
-from hydra.core.global_hydra import GlobalHydra
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from idkit import registry
-from idkit.cli import app, errors
+from idkit.cli import errors
 from idkit.options import OptionError, check_setting
 from idkit.problem import Problem
 from idkit.seeds import SEED_BOUND, Seed, check_seed, torch_generator, trial_seed
@@ -118,15 +115,10 @@ def test_a_config_seed_out_of_range_is_one_line(value):
         check_setting("seed", value, Seed)
 
 
-def test_the_command_line_refuses_seed_2_to_the_64_in_one_line(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(sys, "argv", ["idkit", f"seed={2**64}", f"hydra.run.dir={tmp_path / 'run'}"])
-    monkeypatch.delenv(app.FULL_ERROR, raising=False)
-    GlobalHydra.instance().clear()
-    with pytest.raises(SystemExit) as exit_:
-        app.main()
-    GlobalHydra.instance().clear()
-    assert exit_.value.code == errors.USAGE
-    assert capsys.readouterr().err.strip().splitlines() == [
+def test_the_command_line_refuses_seed_2_to_the_64_in_one_line(tmp_path, run_idkit):
+    status, said = run_idkit(f"seed={2**64}", f"hydra.run.dir={tmp_path / 'run'}")
+    assert status == errors.USAGE
+    assert said == [
         "idkit: setting 'seed' must be an int, got 18446744073709551616 (int); "
         "seeds are the integers 0 to 2**64 - 1"
     ]

@@ -2,20 +2,18 @@
 
 from __future__ import annotations
 
-import sys
 import warnings
 from dataclasses import replace
 
 import numpy as np
 import pytest
 import torch
-from hydra.core.global_hydra import GlobalHydra
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_robots_urdf_inputs import chain
 
 from idkit import registry
-from idkit.cli import app, errors
+from idkit.cli import errors
 from idkit.data.scenarios import simulate
 from idkit.estimators.physical import pseudo_inertia
 from idkit.problem import Problem
@@ -180,16 +178,10 @@ def test_inertia_check_agrees_with_the_pseudo_inertia(moments, angles, mass, com
     assert (inertia_problem(inertia_c) is None) == (margin > 0) == (smallest > 0)
 
 
-def test_the_command_line_refuses_in_one_line(tmp_path, monkeypatch, capsys):
+def test_the_command_line_refuses_in_one_line(tmp_path, run_idkit):
     """The reported case: two joints named r2 with friction (6 friction parameters became 4)."""
     path = write(tmp_path, chain().replace('joint name="p3"', 'joint name="r2"'))
-    argv = ["idkit", "robot=urdf", f"robot.urdf={path}", "robot.friction=true", "estimator=ls"]
-    monkeypatch.setattr(sys, "argv", [*argv, f"hydra.run.dir={tmp_path / 'run'}"])
-    monkeypatch.delenv(app.FULL_ERROR, raising=False)
-    GlobalHydra.instance().clear()
-    with pytest.raises(SystemExit) as exit_:
-        app.main()
-    GlobalHydra.instance().clear()
-    assert exit_.value.code == errors.USAGE
-    said = capsys.readouterr().err.strip().splitlines()
+    argv = ["robot=urdf", f"robot.urdf={path}", "robot.friction=true", "estimator=ls"]
+    status, said = run_idkit(*argv, f"hydra.run.dir={tmp_path / 'run'}")
+    assert status == errors.USAGE
     assert said == [f"idkit: joint 'r2' ({path}) is defined 2 times; {UNIQUE}"]
