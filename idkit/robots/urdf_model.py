@@ -162,7 +162,7 @@ def _link_inertial(link: ET.Element) -> tuple[float, np.ndarray, np.ndarray]:
     return float(mass), com, rotation @ inertia @ rotation.T
 
 
-def _standard(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray:
+def standard_inertial(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray:
     """Standard parameters ``[10]`` from mass, centre of mass and inertia about it (same frame)."""
     inertia_o = inertia_c + mass * (com @ com * np.eye(3) - np.outer(com, com))  # parallel axis
     (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia_o
@@ -268,7 +268,7 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
             welded[owner].append(link)
         mass, com, inertia = _link_inertial(links[link])
         if owner >= 0:
-            inertials[owner] += _standard(mass, rot @ com + pos, rot @ inertia @ rot.T)
+            inertials[owner] += standard_inertial(mass, rot @ com + pos, rot @ inertia @ rot.T)
         pending = []
         for joint in children[link]:
             name = joint.get("name")
