@@ -186,7 +186,8 @@ def _refuse_unmodelled(mujoco: Any, model: Any, label: str) -> None:
         dof = int(model.jnt_dofadr[j])
         if model.jnt_stiffness[j] != 0:
             raise ValueError(
-                f"mjcf: {label}: {where} has stiffness={model.jnt_stiffness[j]:g}: joint springs are not supported"
+                f"mjcf: {label}: {where} has stiffness={model.jnt_stiffness[j]:g}: joint springs are not "
+                "supported"
             )
         if model.dof_armature[dof] != 0:
             raise ValueError(
@@ -196,7 +197,8 @@ def _refuse_unmodelled(mujoco: Any, model: Any, label: str) -> None:
     gravity = np.asarray(model.opt.gravity, dtype=np.float64)
     if gravity[0] != 0 or gravity[1] != 0 or gravity[2] > 0:
         raise ValueError(
-            f"mjcf: {label}: option gravity={' '.join(f'{g:g}' for g in gravity)}: only gravity along -z is supported"
+            f"mjcf: {label}: option gravity={' '.join(f'{g:g}' for g in gravity)}: only gravity along -z "
+            "is supported"
         )
 
 

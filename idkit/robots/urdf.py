@@ -147,8 +147,9 @@ class URDFRobot(Robot):
     def _find_base(self) -> BaseParameters:
         if self.n_states * self.n_joints <= self.n_params:
             raise ValueError(
-                f"{self.source_format}: n_states={self.n_states} gives {self.n_states * self.n_joints} regressor rows for "
-                f"{self.n_params} parameters; use n_states > {self.n_params // self.n_joints} (default 200)"
+                f"{self.source_format}: n_states={self.n_states} gives {self.n_states * self.n_joints} "
+                f"regressor rows for {self.n_params} parameters; use n_states > "
+                f"{self.n_params // self.n_joints} (default 200)"
             )
         generator = torch.Generator().manual_seed(int(self.seed))
         states = self.random_states(self.n_states, generator)
@@ -232,8 +233,8 @@ class URDFRobot(Robot):
         """
         if alpha.shape[-1] != len(self.base_param_names):
             raise ValueError(
-                f"{self.source_format}: base parameters need {len(self.base_param_names)} values in the last dimension, "
-                f"got shape {tuple(alpha.shape)}"
+                f"{self.source_format}: base parameters need {len(self.base_param_names)} values in the "
+                f"last dimension, got shape {tuple(alpha.shape)}"
             )
         base_map, pinv = self.base_map.to(alpha), self._pinv.to(alpha)
         nominal = self.nominal_params().to(alpha)
@@ -251,8 +252,8 @@ class URDFRobot(Robot):
         for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
             if value.ndim != 2 or value.shape[1] != self.n_joints or value.shape != q.shape:
                 raise ValueError(
-                    f"{self.source_format}: {name} must be [N, {self.n_joints}] like q, got {tuple(value.shape)} "
-                    f"(joints: {', '.join(self.joint_names)})"
+                    f"{self.source_format}: {name} must be [N, {self.n_joints}] like q, got "
+                    f"{tuple(value.shape)} (joints: {', '.join(self.joint_names)})"
                 )
 
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
@@ -322,8 +323,8 @@ class URDFRobot(Robot):
             scales = np.full(self.n_joints, scales[0])
         if not self.friction or scales.shape != (self.n_joints,) or not (scales > 0).all():
             raise ValueError(
-                f"{self.source_format}: stribeck_velocity={value!r} needs friction=true and one value > 0 (rad/s) or "
-                f"{self.n_joints} of them (joints: {', '.join(self.joint_names)})"
+                f"{self.source_format}: stribeck_velocity={value!r} needs friction=true and one value > 0 "
+                f"(rad/s) or {self.n_joints} of them (joints: {', '.join(self.joint_names)})"
             )
         return scales
 
