@@ -11,8 +11,8 @@ Mapping (MuJoCo → tree): a body with one ``hinge`` or ``slide`` joint is a tre
 the MuJoCo body (``<body>.m`` …) and its joint; a body without a joint is welded to its parent
 (merged into the moving body it hangs on, dropped when it hangs on the world). idkit's body frame
 is the MuJoCo body frame moved to the joint's ``pos`` (a hinge's axis passes through it; a slide
-joint's ``pos`` plays no role), and a joint's ``ref`` is folded into the constant placement, so
-idkit's ``q`` is MuJoCo's ``qpos`` minus ``qpos0``... which is 0 unless ``ref`` is set: ``q = qpos - ref``.
+joint's ``pos`` plays no role), and a joint's ``ref`` (the ``qpos`` at which the body is in its
+modelled pose) is folded into the constant placement, so idkit's ``q`` is MuJoCo's ``qpos``.
 Gravity is the model's ``<option gravity>`` (along −z). ``range`` gives the position limits,
 ``actuatorfrcrange`` the effort limit (the smaller bound's magnitude); MJCF has no velocity limit.
 
