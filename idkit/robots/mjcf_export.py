@@ -182,12 +182,18 @@ def _anchors(robot: URDFRobot) -> np.ndarray:
 
 
 def _set_inertial(body: ET.Element, mass: float, com: np.ndarray, inertia: np.ndarray) -> None:
+    """Replace the body's ``<inertial>`` (``diaginertia="0 0 0"`` for none: MuJoCo refuses a zero
+    ``fullinertia``)."""
     for old in body.findall("inertial"):
+        if old is body[-1] and len(body) > 1:
+            body[-2].tail = old.tail  # keep the closing tag's indentation
         body.remove(old)
     (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia
-    inertial = ET.Element(
-        "inertial", pos=_numbers(com), mass=_number(mass), fullinertia=_numbers([xx, yy, zz, xy, xz, yz])
-    )
+    if np.any(inertia):
+        moments = {"fullinertia": _numbers([xx, yy, zz, xy, xz, yz])}
+    else:
+        moments = {"diaginertia": "0 0 0"}
+    inertial = ET.Element("inertial", pos=_numbers(com), mass=_number(mass), **moments)
     inertial.tail = body.text if (body.text or "").strip() == "" and body.text else "\n"
     body.insert(0, inertial)
 
@@ -216,6 +222,7 @@ def _set_numerics(root: ET.Element, values: Mapping[str, float]) -> None:
         for old in custom.findall(f"numeric[@name='{NUMERIC_PREFIX}{name}']"):
             custom.remove(old)
         ET.SubElement(custom, "numeric", name=f"{NUMERIC_PREFIX}{name}", data=_number(value))
+    ET.indent(custom, level=1)
 
 
 def identified_mjcf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> str:
