@@ -10,8 +10,10 @@ directories made absolute so that the file loads from any folder); only these ch
   frame (idkit's body frame is that frame moved to the joint's ``pos``);
 * bodies welded to a moving body (no joint) get a zero ``<inertial>``: the tree merged them into
   the moving body, and the identification cannot separate them again;
-* with friction, each joint's ``damping`` = ``fv`` and ``frictionloss`` = ``fc``; ``armature`` when
-  the robot has ``<joint>.armature`` parameters (rotor inertia; the hook for drive models);
+* each joint's ``damping`` = ``fv`` and ``frictionloss`` = ``fc``: 0 without ``friction=true`` (the
+  fit assumed none; the identified inertials absorbed what friction there was, and MuJoCo would
+  otherwise add the source's values on top); ``armature`` when the robot has ``<joint>.armature``
+  parameters (rotor inertia; the hook for drive models);
 * terms MJCF has no field for (Stribeck ``fs`` and its velocity scale, the torque ``offset`` of a
   biased sensor) go into MuJoCo's user data, ``<custom><numeric name="idkit:<parameter>" data>``
   (``model.numeric("idkit:lwr_0_joint.offset").data``): ``mj_inverse`` does not add them, so a
@@ -264,6 +266,8 @@ def identified_mjcf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
         for attribute, key in terms.items():
             if f"{body.joint}.{key}" in index:
                 joint.set(attribute, _number(values[index[f"{body.joint}.{key}"]]))
+            elif key in ("fv", "fc"):  # the fit assumed none: MuJoCo must not add the source's on top
+                joint.set(attribute, "0")
     extra = {name: values[k] for k, name in enumerate(robot.param_names) if name.endswith((".fs", ".offset"))}
     if robot.stribeck_scales is not None:
         scales = zip(robot.joint_names, robot.stribeck_scales, strict=True)

@@ -84,8 +84,8 @@ def test_round_trip_urdf_idkit_mjcf_idkit(urdf_source):
 
 
 def test_welded_bodies_and_inertia_compiler_options():
-    """A welded body's inertial is merged into its moving body (so written as zero), and compiler
-    options that would rescale the written inertials are dropped."""
+    """A welded body's inertial is merged into its moving body (so written as zero), compiler options
+    that would rescale the written inertials are dropped, and a fit without friction writes none."""
     source = ARM.replace(
         '<option gravity="0 0 -9.7"/>', '<option gravity="0 0 -9.7"/><compiler boundmass="0.01"/>'
     )
@@ -96,6 +96,8 @@ def test_welded_bodies_and_inertia_compiler_options():
     assert '<body name="tool" pos="0 0.05 0.2" quat="0.9 0.1 0.2 0.3">' in text
     model = mujoco.MjModel.from_xml_string(text)
     assert model.body("tool").mass[0] == 0.0
+    # Fitted without friction: MuJoCo must not add the source's damping and frictionloss on top.
+    assert not model.dof_damping.any() and not model.dof_frictionloss.any()
     np.testing.assert_allclose(MJCFRobot(text).nominal_params().numpy(), params.numpy(), atol=1e-12)
 
 
