@@ -17,7 +17,8 @@ mujoco = pytest.importorskip("mujoco")
 def mj_inverse_error(path: str, recording) -> tuple[float, float]:
     """‖E‖/‖T‖ of ``mj_inverse`` on the file's model over a recording, without and with the torque
     offsets the file carries as ``<numeric name="idkit:<joint>.offset">`` (a sensor bias, which
-    ``mj_inverse`` cannot add; 0 when absent). Contacts are off: the converted arm's collision geoms overlap."""
+    ``mj_inverse`` cannot add; 0 when absent). Contacts are off: the converted arm's collision
+    geoms overlap."""
     model = mujoco.MjModel.from_xml_path(path)
     model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     data = mujoco.MjData(model)
