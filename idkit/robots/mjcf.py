@@ -38,7 +38,7 @@ import numpy as np
 
 from idkit.registry import PluginLoadError
 from idkit.robots.urdf import URDFRobot
-from idkit.robots.urdf_model import Body, KinematicTree, standard_inertial
+from idkit.robots.urdf_model import ASSETS, Body, KinematicTree, standard_inertial
 
 #: What to install when ``mujoco`` is missing.
 INSTALL = "pip install robot-idkit[mjcf]"
@@ -77,7 +77,7 @@ class MJCFModel:
 
 
 def read_mjcf_text(mjcf: str | os.PathLike) -> tuple[str, Path | None, str]:
-    """``(text, path or None, label)`` of MJCF text (starts with ``<``) or a file path.
+    """``(text, path or None, label)`` of MJCF text (starts with ``<``), a file path or a shipped asset.
 
     Raises:
         FileNotFoundError: no such file.
@@ -87,8 +87,14 @@ def read_mjcf_text(mjcf: str | os.PathLike) -> tuple[str, Path | None, str]:
         text, path, label = mjcf, None, "<MJCF text>"
     else:
         path = Path(mjcf)
+        if not path.is_file() and (ASSETS / f"{mjcf}.xml").is_file():
+            path = ASSETS / f"{mjcf}.xml"
         if not path.is_file():
-            raise FileNotFoundError(f"mjcf: {str(mjcf)!r} is neither MJCF text nor an existing file")
+            shipped = ", ".join(sorted(p.stem for p in ASSETS.glob("*.xml")))
+            raise FileNotFoundError(
+                f"mjcf: {str(mjcf)!r} is neither MJCF text, an existing file, nor a shipped asset "
+                f"(shipped: {shipped})"
+            )
         text, label = path.read_text(encoding="utf-8"), str(path)
     try:
         tag = ET.fromstring(text.encode("utf-8")).tag
@@ -330,13 +336,15 @@ class MJCFRobot(URDFRobot):
     """A MuJoCo model (MJCF) identified like a URDF: the same tree, parameters and options.
 
     Args:
-        mjcf: an MJCF file path or MJCF text (read with ``mujoco``: ``pip install robot-idkit[mjcf]``).
+        mjcf: an MJCF file path, MJCF text, or the name of an MJCF shipped in ``idkit/robots/assets``
+            (default ``arm``: two hinges and a slide). Read with ``mujoco``: ``pip install
+            robot-idkit[mjcf]``.
         friction, stribeck_velocity, offset, n_states, tolerance, seed, max_coulomb, max_viscous,
             max_offset: as for :class:`~idkit.robots.urdf.URDFRobot` (``fc`` is MuJoCo's
             ``frictionloss``, ``fv`` its ``damping``).
-        gravity: gravitational acceleration (m/s²) along −z; ``None`` = the model's ``<option gravity>``.
 
-    Parameters are named after the MuJoCo bodies and joints: ``<body>.m … <body>.Izz``,
+    Gravity is the model's ``<option gravity>`` (``self.gravity``, m/s² along −z). Parameters are
+    named after the MuJoCo bodies and joints: ``<body>.m … <body>.Izz``,
     ``<joint>.fc``, ``<joint>.fv``; the inertia is about idkit's body frame (the MuJoCo body frame
     moved to the joint's ``pos``). ``mujoco_model`` keeps what the writer needs
     (:mod:`idkit.robots.mjcf_export`).
@@ -346,10 +354,9 @@ class MJCFRobot(URDFRobot):
 
     def __init__(
         self,
-        mjcf: str,
+        mjcf: str = "arm",
         friction: bool = False,
         offset: bool = False,
-        gravity: float | None = None,
         n_states: int = 200,
         tolerance: float = 1e-8,
         seed: int = 0,
@@ -364,7 +371,7 @@ class MJCFRobot(URDFRobot):
             mjcf,
             friction=friction,
             offset=offset,
-            gravity=self.mujoco_model.gravity if gravity is None else gravity,
+            gravity=self.mujoco_model.gravity,
             n_states=n_states,
             tolerance=tolerance,
             seed=seed,

@@ -272,3 +272,14 @@ def test_errors_name_the_format():
     robot = MJCFRobot(ARM)
     with pytest.raises(ValueError, match="^mjcf: params need 40 values"):
         robot.inverse_dynamics(torch.zeros(3), *random_states(robot, 2, seed=0))
+
+
+def test_the_shipped_arm_is_the_default_and_equals_mj_inverse():
+    robot = MJCFRobot(friction=True)
+    assert robot.joint_names == ("j1", "j2", "j3") and robot.gravity == pytest.approx(9.81)
+    model = mujoco.MjModel.from_xml_path(str(ASSETS / "arm.xml"))
+    q, qd, qdd = moving_states(robot, 30, seed=6)
+    tau = robot.inverse_dynamics(with_mujoco_friction(robot), q, qd, qdd).numpy()
+    np.testing.assert_allclose(tau, mj_torques(model, q, qd, qdd, robot.joint_names), rtol=0, atol=1e-8)
+    with pytest.raises(FileNotFoundError, match=r"shipped: arm\)"):
+        MJCFRobot("no_such_robot")
