@@ -339,9 +339,10 @@ class MJCFRobot(URDFRobot):
         mjcf: an MJCF file path, MJCF text, or the name of an MJCF shipped in ``idkit/robots/assets``
             (default ``arm``: two hinges and a slide). Read with ``mujoco``: ``pip install
             robot-idkit[mjcf]``.
-        friction, stribeck_velocity, offset, n_states, tolerance, seed, max_coulomb, max_viscous,
-            max_offset: as for :class:`~idkit.robots.urdf.URDFRobot` (``fc`` is MuJoCo's
-            ``frictionloss``, ``fv`` its ``damping``).
+        friction, offset, stribeck_velocity: as for :class:`~idkit.robots.urdf.URDFRobot` (``fc`` is
+            MuJoCo's ``frictionloss``, ``fv`` its ``damping``).
+        n_states, tolerance, seed: as for :class:`~idkit.robots.urdf.URDFRobot`.
+        max_coulomb, max_viscous, max_offset: as for :class:`~idkit.robots.urdf.URDFRobot`.
 
     Gravity is the model's ``<option gravity>`` (``self.gravity``, m/s² along −z). Parameters are
     named after the MuJoCo bodies and joints: ``<body>.m … <body>.Izz``,
