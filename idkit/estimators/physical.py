@@ -56,7 +56,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.estimate import Estimate, jsonable
+from idkit.estimate import Estimate, to_python
 from idkit.estimators.observation import IdentificationError
 from idkit.estimators.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
@@ -473,5 +473,5 @@ class PhysicallyConsistentLS(Estimator):
             cost=cost,
             wall_time_s=time.perf_counter() - start,
             base_params=dict(zip(robot.base_param_names, alpha.tolist(), strict=True)),
-            details=jsonable(details),
+            details=to_python(details),
         )
