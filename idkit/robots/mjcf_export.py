@@ -5,9 +5,10 @@ The source is the robot's own MJCF (an ``mjcf`` robot), or MuJoCo's conversion o
 defaults, comments and number formatting stay as written; ``<include>`` files are inlined and asset
 directories made absolute so that the file loads from any folder); only these change:
 
-* each moving body gets a new ``<inertial pos mass fullinertia>``: its standard parameters
-  ``(m, h, I_O)`` as the centre of mass ``c = h/m`` and the inertia about it, in the MuJoCo body
-  frame (idkit's body frame is that frame moved to the joint's ``pos``);
+* each moving body gets a new ``<inertial pos quat mass diaginertia>``: its standard parameters
+  ``(m, h, I_O)`` as the centre of mass ``c = h/m`` and the principal moments and axes of the
+  inertia about it, in the MuJoCo body frame (idkit's body frame is that frame moved to the joint's
+  ``pos``);
 * bodies welded to a moving body (no joint) get a zero ``<inertial>``: the tree merged them into
   the moving body, and the identification cannot separate them again;
 * each joint's ``damping`` = ``fv`` and ``frictionloss`` = ``fc``: 0 without ``friction=true`` (the
@@ -31,6 +32,7 @@ physical); the written text is loaded by MuJoCo before it is returned.
 from __future__ import annotations
 
 import os
+import tempfile
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
@@ -108,11 +110,13 @@ def urdf_to_mjcf(urdf: str | os.PathLike) -> str:
     compiler.set("discardvisual", "true")
     compiler.set("strippath", "false")
     try:
-        spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
-        spec.compile()
+        model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
     except ValueError as error:
         raise ValueError(f"mjcf: MuJoCo cannot convert {label}: {' '.join(str(error).split())}") from None
-    return spec.to_xml()
+    with tempfile.TemporaryDirectory() as folder:  # mj_saveLastXML writes only to a file
+        path = Path(folder) / "converted.xml"
+        mujoco.mj_saveLastXML(str(path), model)
+        return path.read_text(encoding="utf-8")
 
 
 def physical_problems(robot: URDFRobot, values: np.ndarray) -> list[str]:
@@ -184,18 +188,25 @@ def _anchors(robot: URDFRobot) -> np.ndarray:
 
 
 def _set_inertial(body: ET.Element, mass: float, com: np.ndarray, inertia: np.ndarray) -> None:
-    """Replace the body's ``<inertial>`` (``diaginertia="0 0 0"`` for none: MuJoCo refuses a zero
-    ``fullinertia``)."""
+    """Replace the body's ``<inertial>`` by ``pos mass diaginertia quat``: the principal moments and
+    axes computed here in float64 (MuJoCo diagonalises a ``fullinertia`` itself, 3.2–3.3 only to ~1e-6
+    relative)."""
     for old in body.findall("inertial"):
         if old is body[-1] and len(body) > 1:
             body[-2].tail = old.tail  # keep the closing tag's indentation
         body.remove(old)
-    (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia
-    if np.any(inertia):
-        moments = {"fullinertia": _numbers([xx, yy, zz, xy, xz, yz])}
-    else:
-        moments = {"diaginertia": "0 0 0"}
-    inertial = ET.Element("inertial", pos=_numbers(com), mass=_number(mass), **moments)
+    moments, axes = np.linalg.eigh(inertia)
+    if np.linalg.det(axes) < 0:
+        axes[:, 0] = -axes[:, 0]
+    quaternion = np.empty(4)
+    import_mujoco().mju_mat2Quat(quaternion, axes.flatten())
+    inertial = ET.Element(
+        "inertial",
+        pos=_numbers(com),
+        quat=_numbers(quaternion),
+        mass=_number(mass),
+        diaginertia=_numbers(np.maximum(moments, 0.0)),
+    )
     inertial.tail = body.text if (body.text or "").strip() == "" and body.text else "\n"
     body.insert(0, inertial)
 
