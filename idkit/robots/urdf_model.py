@@ -199,7 +199,7 @@ def _link_inertial(link: ET.Element) -> LinkInertial:
     return LinkInertial(name, float(mass), com, rotation @ inertia @ rotation.T)
 
 
-def _standard(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray:
+def standard_inertial(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray:
     """Standard parameters ``[10]`` from mass, centre of mass and inertia about it (same frame)."""
     inertia_o = inertia_c + mass * (com @ com * np.eye(3) - np.outer(com, com))  # parallel axis
     (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia_o
@@ -320,7 +320,7 @@ def _tree(robot: ET.Element, label: str) -> KinematicTree:
         inertial = inertial_of[link]
         if owner >= 0:
             com, inertia = rot @ inertial.com + pos, rot @ inertial.inertia @ rot.T
-            inertials[owner] += _standard(inertial.mass, com, inertia)
+            inertials[owner] += standard_inertial(inertial.mass, com, inertia)
         pending = []
         for joint in children[link]:
             name = joint.get("name")
