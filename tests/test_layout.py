@@ -44,3 +44,9 @@ def test_a_study_never_imports_a_report_at_module_level(path):
 def test_a_report_never_runs_a_study(path):
     """Reports import the result types of ``idkit.studies`` but never a study's ``run``."""
     assert not {name for name in _imports(path) if name.startswith("idkit.studies") and name.endswith(".run")}
+
+
+@pytest.mark.parametrize("path", _modules("robots"))
+def test_a_robot_imports_no_estimator(path):
+    """Robots, and the URDF reader and writer, take rigid-body physics from ``idkit.robots.inertia``."""
+    assert not {name for name in _imports(path) if name.startswith("idkit.estimators")}

@@ -2,7 +2,8 @@
 
 A rigid body's 10 standard parameters ``pi = (m, h = m c, I_O)`` (inertia about the link-frame
 origin, the order of :mod:`idkit.robots.urdf_model`) describe a real mass distribution iff its
-4×4 *pseudo-inertia* is positive semidefinite (Wensing, Kim & Slotine 2017)::
+4×4 *pseudo-inertia* is positive semidefinite (Wensing, Kim & Slotine 2017; the rigid-body side,
+shared with the URDF reader and writer, is :mod:`idkit.robots.inertia`)::
 
     J(pi) = [[Sigma, h], [h^T, m]],    Sigma = tr(I_O)/2 * 1 - I_O   (the second moment of mass).
 
@@ -61,6 +62,7 @@ from idkit.estimators.observation import IdentificationError
 from idkit.estimators.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
+from idkit.robots.inertia import link_count, pseudo_inertia, pseudo_inertia_rows
 from idkit.robots.model_checks import nonphysical_links
 from idkit.seeds import torch_generator
 
@@ -89,40 +91,6 @@ PSD_TOLERANCE = 1e-6
 PRIOR_REGULARISATION = 1e-6
 
 
-def pseudo_inertia(inertial: Tensor) -> Tensor:
-    """Pseudo-inertia ``J[..., 4, 4]`` of standard parameters ``inertial[..., 10]`` (module doc)."""
-    m, hx, hy, hz, xx, xy, xz, yy, yz, zz = inertial.unbind(-1)
-    half_trace = (xx + yy + zz) / 2
-    rows = [
-        [half_trace - xx, -xy, -xz, hx],
-        [-xy, half_trace - yy, -yz, hy],
-        [-xz, -yz, half_trace - zz, hz],
-        [hx, hy, hz, m],
-    ]
-    return torch.stack([torch.stack(row, -1) for row in rows], -2)
-
-
-def min_pseudo_inertia_eigenvalues(robot: Robot, params: Tensor) -> Tensor:
-    """Smallest eigenvalue ``[..., nb]`` of each link's pseudo-inertia for ``params[..., P]``.
-
-    ``≥ 0`` for every link iff the parameters are physically consistent (units mix kg, kg·m, kg·m²:
-    compare signs, not sizes, across links).
-    """
-    nb = _n_links(robot)
-    inertials = params[..., : 10 * nb].unflatten(-1, (nb, 10))
-    return torch.linalg.eigvalsh(pseudo_inertia(inertials.double()))[..., 0]
-
-
-def _n_links(robot: Robot) -> int:
-    tree = getattr(robot, "tree", None)
-    if tree is None or not hasattr(robot, "base_map"):
-        raise ValueError(
-            f"physical consistency needs a 'urdf' robot (10 standard parameters per link and a base "
-            f"map), got {type(robot).__name__}"
-        )
-    return len(tree.bodies)
-
-
 def cad_pseudo_inertias(robot: Robot) -> np.ndarray:
     """The CAD pseudo-inertias ``[nb, 4, 4]``, lifted where singular (``PRIOR_REGULARISATION``).
 
@@ -131,7 +99,7 @@ def cad_pseudo_inertias(robot: Robot) -> np.ndarray:
             body has (``idkit.robots.model_checks.nonphysical_links``): pcls needs physical
             a-priori inertials to resolve the unidentifiable directions and for the prior.
     """
-    nb = _n_links(robot)
+    nb = link_count(robot)
     nonphysical = nonphysical_links(robot.tree)
     if nonphysical:
         more = f" (and {len(nonphysical) - 1} more links)" if len(nonphysical) > 1 else ""
@@ -215,7 +183,7 @@ def solve_consistent(
     if prior_weight < 0:
         raise ValueError(f"{who}: prior_weight must be >= 0, got {prior_weight}")
     solvers = _solvers(solver, who)
-    nb = _n_links(robot)
+    nb = link_count(robot)
     j0 = cad_pseudo_inertias(robot)
     cad_masses = robot.nominal_params()[0 : 10 * nb : 10].numpy()
     floor = 0.01 * float(cad_masses.min()) if min_mass is None else float(min_mass)
@@ -333,16 +301,7 @@ def _parameter_units(robot: Robot, cad_masses: np.ndarray) -> np.ndarray:
 
 def _pseudo_inertia_expression(pi: Any, cp: Any) -> Any:
     """``J(pi)`` as a symmetric 4×4 cvxpy expression."""
-    m, hx, hy, hz, xx, xy, xz, yy, yz, zz = (pi[k] for k in range(10))
-    half = (xx + yy + zz) / 2
-    return cp.bmat(
-        [
-            [half - xx, -xy, -xz, hx],
-            [-xy, half - yy, -yz, hy],
-            [-xz, -yz, half - zz, hz],
-            [hx, hy, hz, m],
-        ]
-    )
+    return cp.bmat(pseudo_inertia_rows([pi[k] for k in range(10)]))
 
 
 def compress(W: Tensor, tau: Tensor | None = None) -> tuple[np.ndarray, np.ndarray, float]:
@@ -385,7 +344,7 @@ def nearest_consistent(
     """
     if (params is None) == (base_params is None):
         raise ValueError("nearest_consistent: give exactly one of params [P] or base_params [B]")
-    _n_links(robot)
+    link_count(robot)
     if params is not None:
         params = torch.as_tensor(params, dtype=torch.float64)
         if params.shape != (robot.n_params,):
@@ -449,7 +408,7 @@ class PhysicallyConsistentLS(Estimator):
         start = time.perf_counter()
         problem.check_identifiable()
         robot = problem.robot
-        _n_links(robot)
+        link_count(robot)
         s = problem.tensors()
         W = robot.regressor(s.q, s.qd, s.qdd).reshape(-1, len(robot.base_param_names))
         tau = s.tau.reshape(-1)

@@ -48,8 +48,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.estimators.physical import min_pseudo_inertia_eigenvalues
 from idkit.problem import Problem, Samples
+from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
