@@ -43,7 +43,7 @@ a weight pushes an eigenvalue to ~1e-6 of its scale, and Clarabel then failed (t
 that is what ``prior_weight`` is for.
 
 Solved by cvxpy with Clarabel (interior point, accurate), falling back to SCS; an infeasible program
-or a failed solver raises :class:`~idkit.estimators.observation.IdentificationError` in one line.
+or a failed solver raises :class:`~idkit.estimators.linear.observation.IdentificationError` in one line.
 """
 
 from __future__ import annotations
@@ -58,8 +58,8 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
-from idkit.estimators.observation import IdentificationError
-from idkit.estimators.uncertainty import base_uncertainty
+from idkit.estimators.linear.observation import IdentificationError
+from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
 from idkit.robots.inertia import link_count, pseudo_inertia, pseudo_inertia_rows
@@ -383,7 +383,7 @@ class PhysicallyConsistentLS(Estimator):
 
     ``details``: ``min_eigenvalue`` per link, ``divergence`` per link, solver, status, times,
     ``rel_error_train`` (‖E‖/‖T‖ on the training samples) and the base-parameter uncertainty of
-    :func:`idkit.estimators.uncertainty.base_uncertainty` (the LS formula at the pcls estimate; the
+    :func:`idkit.estimators.linear.uncertainty.base_uncertainty` (the LS formula at the pcls estimate; the
     constraints make it conservative where they are active).
     """
 

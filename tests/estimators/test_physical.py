@@ -10,7 +10,7 @@ import torch
 from urdf_cases import TREE_URDF
 
 from idkit import registry
-from idkit.estimators.observation import IdentificationError
+from idkit.estimators.linear.observation import IdentificationError
 from idkit.estimators.physical import PhysicallyConsistentLS, nearest_consistent
 from idkit.problem import Problem, Samples
 from idkit.robots.inertia import min_pseudo_inertia_eigenvalues

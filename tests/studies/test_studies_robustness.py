@@ -87,7 +87,7 @@ def test_robustness_study_end_to_end(tmp_path):
 
 def test_interrupted_study_keeps_whole_trials_and_says_partial(tmp_path, monkeypatch):
     """Ctrl-C in trial 3 of 5: the partial result has 2 trials everywhere and is marked partial."""
-    from idkit.estimators.least_squares import LeastSquares
+    from idkit.estimators.linear.least_squares import LeastSquares
 
     calls = {"n": 0}
     fit_trials = LeastSquares.fit_trials

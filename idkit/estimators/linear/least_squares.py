@@ -26,7 +26,7 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
-from idkit.estimators.observation import (
+from idkit.estimators.linear.observation import (
     Conditioning,
     IdentificationError,
     IdentificationWarning,
@@ -35,8 +35,8 @@ from idkit.estimators.observation import (
     default_max_cond,
     stacked_system,
 )
+from idkit.estimators.linear.uncertainty import base_uncertainties
 from idkit.estimators.trials import TrialWarnings, fit_stacked_systems, in_trial
-from idkit.estimators.uncertainty import base_uncertainties
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.relative import DEFAULT_FLOOR
@@ -66,7 +66,7 @@ class LinearEstimator(Estimator):
         relative: solve the relative system of eqs. (36)–(37) (labels "LS-rel", ...).
         floor: near-zero torque floor of the relative system (see ``idkit.relative``).
         max_cond: warn above this column-equilibrated condition number of ``W``; ``None`` =
-            ``1/√eps`` of the problem's dtype (see ``idkit.estimators.observation``).
+            ``1/√eps`` of the problem's dtype (see ``idkit.estimators.linear.observation``).
         threads: torch intra-op threads during the fit; ``None`` = ``idkit.runtime``'s size rule
             (one thread for the paper's problems: with the default pool an SVD of a 60 × 4 ``W``
             took ~0.3 s instead of ~30 µs on the loaded 2-core development machine).

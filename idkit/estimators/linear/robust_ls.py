@@ -58,8 +58,13 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.estimators.least_squares import LinearEstimator, Solution, residual_norms, smallest_singular_values
-from idkit.estimators.observation import (
+from idkit.estimators.linear.least_squares import (
+    LinearEstimator,
+    Solution,
+    residual_norms,
+    smallest_singular_values,
+)
+from idkit.estimators.linear.observation import (
     Conditioning,
     IdentificationError,
     IdentificationWarning,
