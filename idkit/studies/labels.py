@@ -26,7 +26,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from idkit import registry
-from idkit.studies.build import Spec, constructor_options, name_and_options
+from idkit.studies.build import Spec, constructor_options, name_and_options, stored_options
 
 #: Estimator options shown in the label itself (``-rel``), never in brackets.
 _IN_NAME = ("relative",)
@@ -45,11 +45,9 @@ def _read(kind: registry.Kind, spec: Spec) -> tuple[str | None, str, dict[str, A
     name, options = name_and_options(kind, spec)
     if name is not None:
         return name, name, options, registry.load(kind, name)
-    cls, absent = type(spec), object()
-    stored = {key: getattr(spec, key, absent) for key in constructor_options(cls)}
-    options = {key: value for key, value in stored.items() if value is not absent}
+    cls = type(spec)
     registered = registered_name(kind, cls)
-    return registered, registered or cls.__name__, options, cls
+    return registered, registered or cls.__name__, stored_options(spec), cls
 
 
 def _changed(kind: registry.Kind, spec: Spec) -> tuple[str | None, str, dict[str, Any]]:
