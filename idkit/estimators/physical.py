@@ -48,10 +48,11 @@ or a failed solver raises :class:`~idkit.estimators.linear.observation.Identific
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal, get_args
 
 import numpy as np
 import torch
@@ -89,6 +90,44 @@ PSD_TOLERANCE = 1e-6
 #: A CAD pseudo-inertia is lifted to ``J0 + eps λ_max(J0) 1`` when it is (nearly) singular, e.g. a
 #: thin rod or a point mass, so that the divergence to it is finite.
 PRIOR_REGULARISATION = 1e-6
+
+
+#: The conic solver choice: ``"auto"`` tries ``AUTO_SOLVERS`` in order.
+Solver = Literal["auto", "clarabel", "scs"]
+
+
+@dataclass(frozen=True)
+class ConsistentSettings:
+    """The options of the consistent program (``pcls``, ``nearest_consistent``), checked once.
+
+    Attributes:
+        prior_weight: ``w >= 0`` of the entropic divergence to the CAD model (``TIE_BREAK`` if 0).
+        min_mass: lower bound ``>= 0`` on every link mass (kg); ``None`` = 1 % of the smallest CAD
+            mass (the robot's, known at the fit).
+        solver: the choice as given.
+        conic_solvers: the cvxpy solvers ``solver`` stands for, tried in order.
+    """
+
+    prior_weight: float
+    min_mass: float | None
+    solver: Solver
+    conic_solvers: tuple[str, ...]
+
+    @classmethod
+    def checked(
+        cls, who: str, prior_weight: float = 0.0, min_mass: float | None = None, solver: Solver = "auto"
+    ) -> ConsistentSettings:
+        """The settings, or ``ValueError`` naming ``who`` and the option."""
+        if not (math.isfinite(prior_weight) and prior_weight >= 0):
+            raise ValueError(f"{who}: prior_weight must be a finite number >= 0, got {prior_weight!r}")
+        if min_mass is not None and not (math.isfinite(min_mass) and min_mass >= 0):
+            raise ValueError(f"{who}: min_mass must be None or a finite number >= 0 (kg), got {min_mass!r}")
+        choices = get_args(Solver)
+        if solver not in choices:
+            listed = ", ".join(map(repr, choices))
+            raise ValueError(f"{who}: solver must be one of {listed}, got {solver!r}")
+        conic = AUTO_SOLVERS if solver == "auto" else (solver.upper(),)
+        return cls(float(prior_weight), min_mass, solver, conic)
 
 
 def cad_pseudo_inertias(robot: Robot) -> np.ndarray:
@@ -157,9 +196,7 @@ def solve_consistent(
     R: np.ndarray,
     b: np.ndarray,
     scale2: float,
-    prior_weight: float = 0.0,
-    min_mass: float | None = None,
-    solver: str = "auto",
+    settings: ConsistentSettings,
     who: str = "pcls",
 ) -> ConsistentSolution:
     """Solve the program of the module doc for a ``urdf`` robot.
@@ -169,20 +206,16 @@ def solve_consistent(
         R: ``[B, B]`` (or any ``[r, B]``) compressed regressor acting on the base parameters.
         b: ``[r]`` compressed target.
         scale2: ``s² > 0`` dividing the data term.
-        prior_weight: ``w ≥ 0`` of the entropic divergence to the CAD model (``TIE_BREAK`` if 0).
-        min_mass: lower bound on every link mass (kg); ``None`` = 1 % of the smallest CAD mass.
-        solver: ``"auto"`` (Clarabel, then SCS), ``"clarabel"`` or ``"scs"``.
+        settings: prior weight, mass floor and conic solvers (:class:`ConsistentSettings`).
         who: name used in error messages.
 
     Raises:
         IdentificationError: infeasible constraints or a failed solver (one line, with the cause).
-        ValueError: bad options, a robot that is not ``urdf``, a link without CAD inertial.
+        ValueError: a robot that is not ``urdf``, a link without CAD inertial.
     """
     import cvxpy as cp
 
-    if prior_weight < 0:
-        raise ValueError(f"{who}: prior_weight must be >= 0, got {prior_weight}")
-    solvers = _solvers(solver, who)
+    prior_weight, min_mass = settings.prior_weight, settings.min_mass
     nb = link_count(robot)
     j0 = cad_pseudo_inertias(robot)
     cad_masses = robot.nominal_params()[0 : 10 * nb : 10].numpy()
@@ -212,7 +245,7 @@ def solve_consistent(
         objective = data + prior_weight * prior
     else:  # a barrier-free tie-break: the log-det barrier is ill-conditioned where the LMIs are active
         objective = data + TIE_BREAK * cp.sum_squares(z[: 10 * nb] - nominal[: 10 * nb] / unit[: 10 * nb])
-    used, status = _solve(cp.Problem(cp.Minimize(objective), constraints), solvers, floor, who)
+    used, status = _solve(cp.Problem(cp.Minimize(objective), constraints), settings.conic_solvers, floor, who)
     elapsed = time.perf_counter() - started
     params = torch.as_tensor(unit * z.value, dtype=torch.float64)
     inertials = params[: 10 * nb].reshape(nb, 10)
@@ -276,15 +309,6 @@ def _solve(program: Any, solvers: tuple[str, ...], floor: float, who: str) -> tu
     raise IdentificationError(f"{who}: the conic solver failed ({'; '.join(failures)})")
 
 
-def _solvers(solver: str, who: str) -> tuple[str, ...]:
-    choice = solver.lower()
-    if choice == "auto":
-        return AUTO_SOLVERS
-    if choice.upper() in AUTO_SOLVERS:
-        return (choice.upper(),)
-    raise ValueError(f"{who}: solver must be 'auto', 'clarabel' or 'scs', got {solver!r}")
-
-
 def _parameter_units(robot: Robot, cad_masses: np.ndarray) -> np.ndarray:
     """Typical magnitude ``[P]`` of each parameter: ``m0``, ``m0 L``, ``m0 L²`` per link (``L`` the
     CAD radius of gyration about the origin, at least 0.05 m); 1 for friction and offset."""
@@ -325,7 +349,7 @@ def nearest_consistent(
     samples: Samples | None = None,
     prior_weight: float = 0.0,
     min_mass: float | None = None,
-    solver: str = "auto",
+    solver: Solver = "auto",
 ) -> ConsistentSolution:
     """The physically consistent standard parameters that predict torques closest to an estimate's.
 
@@ -344,6 +368,7 @@ def nearest_consistent(
     """
     if (params is None) == (base_params is None):
         raise ValueError("nearest_consistent: give exactly one of params [P] or base_params [B]")
+    settings = ConsistentSettings.checked("nearest_consistent", prior_weight, min_mass, solver)
     link_count(robot)
     if params is not None:
         params = torch.as_tensor(params, dtype=torch.float64)
@@ -369,7 +394,7 @@ def nearest_consistent(
     R, _, _ = compress(W)
     b = R @ target.numpy()
     scale2 = PROJECTION_UNIT**2 * float(b @ b) if float(b @ b) > 0 else 1.0
-    return solve_consistent(robot, R, b, scale2, prior_weight, min_mass, solver, who="nearest_consistent")
+    return solve_consistent(robot, R, b, scale2, settings, who="nearest_consistent")
 
 
 class PhysicallyConsistentLS(Estimator):
@@ -394,15 +419,17 @@ class PhysicallyConsistentLS(Estimator):
     )
 
     def __init__(
-        self, prior_weight: float = 0.0, min_mass: float | None = None, solver: str = "auto"
+        self, prior_weight: float = 0.0, min_mass: float | None = None, solver: Solver = "auto"
     ) -> None:
         self.prior_weight = prior_weight
         self.min_mass = min_mass
         self.solver = solver
+        self.settings = ConsistentSettings.checked("pcls", prior_weight, min_mass, solver)
 
     @property
     def name(self) -> str:
-        return "PCLS" + (f"-prior{self.prior_weight:g}" if self.prior_weight > 0 else "")
+        weight = self.settings.prior_weight
+        return "PCLS" + (f"-prior{weight:g}" if weight > 0 else "")
 
     def fit(self, problem: Problem) -> Estimate:
         start = time.perf_counter()
@@ -417,7 +444,7 @@ class PhysicallyConsistentLS(Estimator):
         if norm2 == 0.0:
             raise IdentificationError("pcls: the measured torques are all zero; nothing to fit")
         scale2 = max(rest, NOISE_FLOOR * norm2) / max(W.shape[0] - W.shape[1], 1)
-        solution = solve_consistent(robot, R, b, scale2, self.prior_weight, self.min_mass, self.solver)
+        solution = solve_consistent(robot, R, b, scale2, self.settings)
         params = solution.params.to(device=s.q.device, dtype=s.q.dtype)
         alpha = robot.base_params(params)
         residual = float(np.sqrt(max(solution.data_term * scale2 + rest, 0.0)))
@@ -427,7 +454,7 @@ class PhysicallyConsistentLS(Estimator):
             "criterion": "||tau_s - W alpha||_2 s.t. pseudo-inertias PSD",
             "criterion_value": residual,
             "rel_error_train": residual / np.sqrt(norm2),
-            "prior_weight": self.prior_weight,
+            "prior_weight": self.settings.prior_weight,
             "min_eigenvalue": dict(zip(names, solution.min_eigenvalues.tolist(), strict=True)),
             "divergence": dict(zip(names, solution.divergence.tolist(), strict=True)),
             "solver": solution.solver,
