@@ -184,7 +184,7 @@ class Problem:
         with an arbitrary estimate (the least-squares family would meet a rank-deficient system;
         PSO and Adam would return a random point of the solution set), so every estimator calls this
         at the top of ``fit``. It checks counts only: whether the trajectory excites every base
-        parameter is the rank test of ``idkit.estimators.observation``.
+        parameter is the rank test of ``idkit.estimators.linear.observation``.
         """
         n_samples, n_joints = self.samples.n_samples, self.samples.n_joints
         equations, needed = n_samples * n_joints, self.n_identifiable

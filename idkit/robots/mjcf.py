@@ -37,9 +37,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from idkit.registry import PluginLoadError
+from idkit.robots.inertia import standard_parameters
 from idkit.robots.model_checks import check_model
 from idkit.robots.urdf import URDFRobot
-from idkit.robots.urdf_model import ASSETS, Body, KinematicTree, LinkInertial, standard_inertial
+from idkit.robots.urdf_model import ASSETS, Body, KinematicTree, LinkInertial
 
 #: What to install when ``mujoco`` is missing.
 INSTALL = "pip install robot-idkit[mjcf]"
@@ -276,7 +277,7 @@ def model_from_mujoco(model: Any, label: str, text: str, source: Path | None) ->
         frames[b] = (owner, rot, pos)
         if owner >= 0 and model.body_mass[b] > 0:
             inertia = rot @ own_inertia @ rot.T
-            inertials[owner] += standard_inertial(
+            inertials[owner] += standard_parameters(
                 float(model.body_mass[b]), rot @ model.body_ipos[b] + pos, inertia
             )
     if not bodies:

@@ -41,9 +41,10 @@ from pathlib import Path
 import numpy as np
 from torch import Tensor
 
+from idkit.robots.inertia import centroidal
 from idkit.robots.mjcf import compile_mjcf, import_mujoco
 from idkit.robots.urdf import URDFRobot
-from idkit.robots.urdf_export import centroidal, parameter_vector
+from idkit.robots.urdf_export import parameter_vector
 from idkit.robots.urdf_model import read_urdf_text
 
 #: Prefix of the ``<custom><numeric>`` names holding terms MJCF has no field for.

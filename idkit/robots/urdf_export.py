@@ -28,6 +28,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from idkit.robots.inertia import centroidal, min_pseudo_inertia_eigenvalues, pseudo_inertia
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_model import read_urdf_text
 
@@ -47,15 +48,6 @@ def parameter_vector(
     return values
 
 
-def centroidal(standard: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """``(m, c[3], I_c[3, 3])`` of standard parameters ``[10]`` (inertia about the origin)."""
-    m, h = float(standard[0]), standard[1:4]
-    xx, xy, xz, yy, yz, zz = standard[4:]
-    inertia_o = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-    c = h / m
-    return m, c, inertia_o - m * (c @ c * np.eye(3) - np.outer(c, c))
-
-
 def _number(x: float) -> str:
     return repr(float(x))
 
@@ -66,8 +58,6 @@ def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
     Raises:
         ValueError: wrong parameter shape or names, or a link mass ``≤ 0`` (naming the link).
     """
-    from idkit.estimators.physical import min_pseudo_inertia_eigenvalues, pseudo_inertia
-
     values = parameter_vector(robot, params)
     data, _ = read_urdf_text(robot.urdf)
     root = ET.fromstring(data, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from idkit.robots.inertia import standard_parameters
 from idkit.robots.model_checks import check_model
 
 ASSETS = Path(__file__).resolve().parent / "assets"
@@ -199,13 +200,6 @@ def _link_inertial(link: ET.Element) -> LinkInertial:
     return LinkInertial(name, float(mass), com, rotation @ inertia @ rotation.T)
 
 
-def standard_inertial(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray:
-    """Standard parameters ``[10]`` from mass, centre of mass and inertia about it (same frame)."""
-    inertia_o = inertia_c + mass * (com @ com * np.eye(3) - np.outer(com, com))  # parallel axis
-    (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia_o
-    return np.array([mass, *(mass * com), xx, xy, xz, yy, yz, zz])
-
-
 def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translation: np.ndarray) -> Body:
     """The :class:`Body` a moving joint starts (inertial filled in later)."""
     name, kind = joint.get("name"), joint.get("type")
@@ -320,7 +314,7 @@ def _tree(robot: ET.Element, label: str) -> KinematicTree:
         inertial = inertial_of[link]
         if owner >= 0:
             com, inertia = rot @ inertial.com + pos, rot @ inertial.inertia @ rot.T
-            inertials[owner] += standard_inertial(inertial.mass, com, inertia)
+            inertials[owner] += standard_parameters(inertial.mass, com, inertia)
         pending = []
         for joint in children[link]:
             name = joint.get("name")

@@ -27,9 +27,10 @@ from typing import Any
 import numpy as np
 
 from idkit.estimate import Estimate
+from idkit.interfaces import CostSearcher
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
-from idkit.studies.labels import cost_label, estimator_label, searches_cost
+from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
 from idkit.studies.recordings import DataFile, as_paths, load_files, preprocess_options
 from idkit.studies.result import Provenance
@@ -270,7 +271,7 @@ def run(
     problem = Problem(robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype)
     problem.check_identifiable()  # for every estimator, a third party's included, before its fit
     fitted = estimator_obj.fit(problem)
-    label = estimator_label(estimator, cost, with_cost=searches_cost(estimator_obj))
+    label = estimator_label(estimator, cost, with_cost=isinstance(estimator_obj, CostSearcher))
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
     provenance = Provenance(
         task="single",

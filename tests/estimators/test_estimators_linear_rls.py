@@ -18,10 +18,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from idkit.data.scenarios import simulate
-from idkit.estimators import robust_ls
-from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares
-from idkit.estimators.observation import IdentificationError, IdentificationWarning, linear_system
-from idkit.estimators.robust_ls import (
+from idkit.estimators.linear import robust_ls
+from idkit.estimators.linear.least_squares import LeastSquares, TotalLeastSquares
+from idkit.estimators.linear.observation import IdentificationError, IdentificationWarning, linear_system
+from idkit.estimators.linear.robust_ls import (
     RobustLeastSquares,
     newton_polish,
     rls_closed_form,

@@ -15,8 +15,8 @@ from test_robots_urdf_inputs import chain
 from idkit import registry
 from idkit.cli import errors
 from idkit.data.scenarios import simulate
-from idkit.estimators.physical import pseudo_inertia
 from idkit.problem import Problem
+from idkit.robots.inertia import pseudo_inertia
 from idkit.robots.model_checks import ModelError, ModelWarning, check_model, inertia_problem
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_model import ASSETS, parse_urdf
