@@ -4,34 +4,24 @@ One or several files (``data=a.npz`` or ``data=[a.npz, b.csv]``) are each read b
 :func:`idkit.data.load.load_data_file` (samples as they are, raw recordings through the
 ``preprocess`` options), checked to have the robot's number of joints, and — for training — stacked
 into one ``Samples`` (:func:`idkit.data.recording.stack_samples`; each file is filtered on its own, so
-no filter runs across a seam).
+no filter runs across a seam). A ``validate=`` file that is a training file — the same path, the
+same bytes, or the same samples — is refused: its score would not be held-out validation.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import fields
+from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from idkit.data.load import load_data_file
+from idkit.data.load import DataFile, load_data_file
 from idkit.data.preprocess import PreprocessOptions
 from idkit.interfaces import Robot
-from idkit.problem import Samples
+from idkit.problem import SAMPLE_ARRAYS, Samples
 from idkit.studies.build import plain
-
-
-@dataclass(frozen=True)
-class DataFile:
-    """One loaded file: its ``samples`` ``[N, n]``, ``times[N]`` (s, or ``None``) and whether idkit
-    preprocessed it."""
-
-    path: str
-    samples: Samples
-    times: np.ndarray | None
-    preprocessed: bool
 
 
 def preprocess_options(spec: Any) -> tuple[PreprocessOptions, str]:
@@ -90,8 +80,7 @@ def load_files(
         if isinstance(path, Samples):
             loaded.append(DataFile("<Samples>", path, None, False))
             continue
-        samples, times, done = load_data_file(os.fspath(path), options, apply, stride)
-        loaded.append(DataFile(os.fspath(path), samples, times, done))
+        loaded.append(load_data_file(os.fspath(path), options, apply, stride, list(robot.joint_names)))
     for item in loaded:
         if item.samples.n_joints != robot.n_joints:
             source = getattr(robot, "urdf", None)
@@ -102,3 +91,91 @@ def load_files(
                 f"{robot.n_joints}: {', '.join(robot.joint_names)}"
             )
     return loaded
+
+
+def refuse_training_files(data: Any, validate: Any) -> None:
+    """Refuse a ``validate=`` file that is a ``data=`` file: the same path, the same bytes (a copy),
+    or the same ``Samples`` object.
+
+    A model scored on its own training data is not validated on held-out data, and the report would
+    call the score "held-out validation". (A copy in another format — a CSV exported from the same
+    log — is not recognised.)
+
+    Raises:
+        ValueError: naming both files and how they are the same.
+    """
+    training = as_paths(data)
+    for held in as_paths(validate):
+        for train in training:
+            same = _sameness(train, held)
+            if same:
+                raise ValueError(
+                    f"validate file {_shown(held)} is the training file {_shown(train)} ({same}): a score on "
+                    "the data the model was fitted to is not held-out validation; validate on a recording "
+                    "the fit does not see"
+                )
+
+
+def _shown(item: Any) -> str:
+    return "<Samples>" if isinstance(item, Samples) else os.fspath(item)
+
+
+def _sameness(a: Any, b: Any) -> str | None:
+    """How two ``data=`` items are the same (``"same file"``, ``"same content"``), or ``None``."""
+    if isinstance(a, Samples) or isinstance(b, Samples):
+        return "the same samples" if a is b else None
+    first, second = Path(a), Path(b)
+    if not (first.exists() and second.exists()):
+        return None  # the loader names a missing file
+    if first.resolve() == second.resolve():
+        return "same file"
+    fingerprints = [_fingerprint(p) for p in (first, second)]
+    sizes = [sorted((name, size) for name, size, _ in f) for f in fingerprints]
+    if sizes[0] != sizes[1]:
+        return None
+    return "same content" if _digest(first) == _digest(second) else None
+
+
+def _fingerprint(path: Path) -> list[tuple[str, int, Path]]:
+    """``(relative name, size, path)`` of a file, or of every file in a folder (a ROS 2 bag)."""
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    return [(str(p.relative_to(path)) if path.is_dir() else "", p.stat().st_size, p) for p in files]
+
+
+def _digest(path: Path) -> str:
+    """SHA-256 over a file's bytes, or over a folder's files (names and bytes)."""
+    digest = hashlib.sha256()
+    for name, _, file in _fingerprint(path):
+        digest.update(name.encode())
+        with file.open("rb") as handle:
+            for block in iter(lambda: handle.read(1 << 20), b""):
+                digest.update(block)
+    return digest.hexdigest()
+
+
+def refuse_seen_samples(training: Samples, held_out: list[DataFile]) -> None:
+    """Refuse a ``validate=`` file whose samples are a block of the training samples: the same
+    recording in other bytes (a copy saved with a byte-order mark, other column names or order,
+    another file format holding the same values), which :func:`refuse_training_files` cannot see.
+
+    Raises:
+        ValueError: naming the file and the training rows it repeats.
+    """
+    import torch
+
+    for held in held_out:
+        block = held.samples
+        if block.n_joints != training.n_joints or block.n_samples > training.n_samples:
+            continue
+        first = (training.q == block.q[0].to(training.q)).all(dim=1)
+        for start in first.nonzero().flatten().tolist():
+            rows = slice(start, start + block.n_samples)
+            if rows.stop <= training.n_samples and all(
+                torch.equal(getattr(training, k)[rows], getattr(block, k).to(getattr(training, k)))
+                for k in SAMPLE_ARRAYS
+            ):
+                raise ValueError(
+                    f"validate file {held.path} holds the same samples as the training data (its rows "
+                    f"{rows.start}–{rows.stop - 1}): a score on the data the model was fitted to is not "
+                    "held-out validation; validate on a recording the fit does not see"
+                )

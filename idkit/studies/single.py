@@ -29,7 +29,14 @@ from idkit.estimate import Estimate
 from idkit.studies.build import Spec, build, describe, plain
 from idkit.studies.labels import cost_label, estimator_label, searches_cost
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
-from idkit.studies.recordings import DataFile, as_paths, load_files, preprocess_options
+from idkit.studies.recordings import (
+    DataFile,
+    as_paths,
+    load_files,
+    preprocess_options,
+    refuse_seen_samples,
+    refuse_training_files,
+)
 from idkit.studies.result import Provenance
 from idkit.studies.validation import Validation, validate_files
 
@@ -132,11 +139,18 @@ def _describe_files(
         out: dict[str, Any] = {"file": paths[0]} if len(paths) == 1 else {"files": paths}
     else:
         out = {**source, "validate": paths}
-    processed = [*(out.get("preprocess") or {}).get("files", []), *(f.path for f in files if f.preprocessed)]
+    before = out.get("preprocess") or {}
+    processed = [*before.get("files", []), *(f.path for f in files if f.preprocessed)]
+    gaps = {**before.get("gaps", {}), **{f.path: f.preprocessing for f in files if _split(f)}}
     if processed:
         options, _ = preprocess_options(preprocess)
-        out["preprocess"] = {"files": processed, **vars(options)}
+        out["preprocess"] = {"files": processed, **vars(options), **({"gaps": gaps} if gaps else {})}
     return out
+
+
+def _split(file: DataFile) -> bool:
+    """Whether preprocessing split ``file`` at gaps in its timestamps."""
+    return bool(file.preprocessing and file.preprocessing.get("note"))
 
 
 def load_data(
@@ -223,7 +237,8 @@ def run(
             list of them (stacked for training; each must have the robot's joints).
         n_samples: the scenario's number of samples (``None``: the scenario's own).
         params: true parameters ``[P]`` to simulate with (default ``robot.nominal_params()``).
-        validate: held-out files (or ``Samples``) the identified model is scored on.
+        validate: held-out files (or ``Samples``) the identified model is scored on; a training file
+            (same path, same bytes, or the same samples in another file) is refused.
         preprocess: how raw recordings become samples: ``PreprocessOptions`` fields plus ``apply``
             (``auto``: raw recordings only; ``on``; ``off``), applied to every data and validate file.
         identified_urdf: for a ``urdf`` robot, also produce ``identified.urdf`` (the report writes it).
@@ -232,10 +247,14 @@ def run(
     from idkit.problem import Problem
 
     robot_obj = build("robot", robot)
+    if validate is not None and data is not None:
+        refuse_training_files(data, validate)
     samples, truth, source = load_data(
         robot_obj, scenario, seed=seed, data=data, n_samples=n_samples, params=params, preprocess=preprocess
     )
     held_out = [] if validate is None else load_files(robot_obj, validate, preprocess, role="validate")
+    if data is not None:
+        refuse_seen_samples(samples, held_out)
     if held_out:
         source = _describe_files(held_out, preprocess, source)
     cost_obj = build("cost", cost)

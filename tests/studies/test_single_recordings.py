@@ -18,7 +18,7 @@ from omegaconf import OmegaConf
 
 from idkit.cli.app import setup
 from idkit.cli.tasks import arguments
-from idkit.data.preprocess import PreprocessOptions
+from idkit.data.preprocess import GapWarning, PreprocessOptions
 from idkit.estimators.observation import IdentificationError
 from idkit.reports import single as report
 from idkit.robots.urdf import URDFRobot
@@ -315,3 +315,136 @@ def test_the_issue_command_as_a_subprocess(files, tmp_path):
     )
     assert bad.returncode == 1
     assert re.search(r"^idkit: preprocess \(.*train\.csv\): cutoff 150 Hz is not below", bad.stderr, re.M)
+
+
+# --- recordings that cannot lie: refused or said in one line, through the command ---------------
+
+
+def idkit_main(monkeypatch, capsys, *args: str, run_dir: Path) -> tuple[int, str, str]:
+    """``idkit <args>`` in process (``idkit.cli.main``): exit status, stdout, stderr."""
+    from idkit.cli import app
+
+    monkeypatch.setattr(sys, "argv", ["idkit", *args, f"hydra.run.dir={run_dir}"])
+    monkeypatch.delenv(app.FULL_ERROR, raising=False)
+    GlobalHydra.instance().clear()
+    code = 0
+    try:
+        app.main()
+    except SystemExit as exit_:
+        code = int(exit_.code or 0)
+    finally:
+        GlobalHydra.instance().clear()
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def ls_args(files: dict[str, Path], data: Path) -> list[str]:
+    return [
+        *robot_args(files),
+        f"data={data}",
+        "estimator=ls",
+        "~cost",
+        "plots=false",
+        "identified_urdf=false",
+    ]
+
+
+def test_a_duplicated_column_is_one_line_and_exit_1(files, tmp_path, monkeypatch, capsys):
+    lines = files["train"].read_text().splitlines()
+    header = lines[0].split(",")
+    duplicated = tmp_path / "dup.csv"  # tau1 twice: the last one used to win silently
+    duplicated.write_text(
+        "\n".join([",".join([*header, "tau1"])] + [f"{line},0" for line in lines[1:]]) + "\n"
+    )
+    code, out, err = idkit_main(monkeypatch, capsys, *ls_args(files, duplicated), run_dir=tmp_path / "run")
+    assert code == 1 and out == ""
+    assert err.splitlines() == [
+        f"idkit: {duplicated}: column 'tau1' appears twice (columns 5 and 8); which one is meant? "
+        "Name each column once"
+    ]
+    assert not (tmp_path / "run" / "result.json").exists()
+
+
+def test_a_two_second_gap_is_split_said_and_recorded(files, tmp_path, monkeypatch, capsys):
+    text = files["train"].read_text().splitlines()
+    gapped = tmp_path / "gap.csv"
+    rows = [line.split(",") for line in text[1:]]
+    for row in rows[1200:]:
+        row[0] = repr(float(row[0]) + 2.0)
+    gapped.write_text("\n".join([text[0], *(",".join(r) for r in rows)]) + "\n")
+    with pytest.warns(GapWarning) as said:
+        code, out, _ = idkit_main(monkeypatch, capsys, *ls_args(files, gapped), run_dir=tmp_path / "run")
+    gaps = [w for w in said if w.category is GapWarning]
+    assert code == 0 and len(gaps) == 1
+    note = str(gaps[0].message)
+    assert note.startswith(f"{gapped}: 1 gap(s) in the timestamps longer than 5 median steps (25 ms) at t = ")
+    assert "not interpolated across: 2 segments preprocessed separately and stacked" in note
+    data = json.loads((tmp_path / "run" / "result.json").read_text())
+    gaps = data["data"]["preprocess"]["gaps"][str(gapped)]
+    assert gaps["note"] == note and [s["raw"] for s in gaps["segments"]] == [1200, 1200]
+    trim = int(np.ceil(3.0 / PreprocessOptions().cutoff * RATE))
+    assert data["payload"]["estimate"]["details"]["uncertainty"]["dof"] == 3 * 2 * (1200 - 2 * trim) - 14
+
+
+def test_validating_on_the_training_file_is_refused(files, tmp_path, monkeypatch, capsys):
+    copy = tmp_path / "copy.csv"
+    copy.write_bytes(files["train"].read_bytes())
+    for held, how in ((files["train"], "same file"), (copy, "same content")):
+        args = [*ls_args(files, files["train"]), f"validate=[{files['test']},{held}]"]
+        code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / how.replace(" ", "_"))
+        assert code == 1 and out == ""
+        assert err.splitlines() == [
+            f"idkit: validate file {held} is the training file {files['train']} ({how}): a score on the "
+            "data the model was fitted to is not held-out validation; validate on a recording the fit "
+            "does not see"
+        ]
+    excel = tmp_path / "excel.csv"  # other bytes, same samples: a byte-order mark and upper-case names
+    excel.write_bytes(b"\xef\xbb\xbf" + files["train"].read_text().upper().encode())
+    args = [*ls_args(files, f"[{files['train2']},{files['train']}]"), f"validate=[{excel}]"]
+    code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / "excel")
+    assert code == 1 and out == ""
+    assert re.fullmatch(
+        rf"idkit: validate file {excel} holds the same samples as the training data \(its rows 1480–3759\): "
+        r"a score on the data the model was fitted to is not held-out validation; .*\n",
+        err,
+    )
+    train = single.load_data(URDFRobot(str(ASSET)), data=files["train"])[0]
+    with pytest.raises(
+        ValueError, match=r"validate file <Samples> is the training file <Samples> \(the same"
+    ):
+        single.run("cylindrical", "ls", None, data=train, validate=[train])
+
+
+@pytest.mark.integration
+def test_the_judged_bad_recordings_as_a_subprocess(files, tmp_path):
+    """A duplicated column: one line, exit 1. A 2-second gap: one warning line naming it, exit 0."""
+    lines = files["train"].read_text().splitlines()
+    duplicated = tmp_path / "dup.csv"
+    duplicated.write_text("\n".join([lines[0] + ",tau1", *(f"{line},0" for line in lines[1:])]) + "\n")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows[1200:]:
+        row[0] = repr(float(row[0]) + 2.0)
+    gapped = tmp_path / "gap.csv"
+    gapped.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    runs = {}
+    for name, path in (("dup", duplicated), ("gap", gapped)):
+        runs[name] = subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                "from idkit.cli import main; main()",
+                *ls_args(files, path),
+                f"hydra.run.dir={tmp_path / name}",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            cwd=tmp_path,
+        )
+    assert runs["dup"].returncode == 1 and "Traceback" not in runs["dup"].stderr
+    assert runs["dup"].stderr.strip().splitlines() == [
+        f"idkit: {duplicated}: column 'tau1' appears twice (columns 5 and 8); which one is meant? "
+        "Name each column once"
+    ]
+    assert runs["gap"].returncode == 0, runs["gap"].stderr
+    assert "1 gap(s) in the timestamps longer than 5 median steps" in runs["gap"].stderr
