@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml plugins/idkit-robust/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install -q --upgrade pip
 	$(VENV)/bin/python -m pip install -q torch==2.13.0
-	$(VENV)/bin/python -m pip install -q -e ".[test,docs]" -e ./plugins/idkit-robust
+	$(VENV)/bin/python -m pip install -q -e ".[test,docs,logs]" -e ./plugins/idkit-robust
 	touch $@
 
 # The peers the benchmarks measure (JAX + evosax, pyswarms: ~0.7 GB) only when benchmarking.

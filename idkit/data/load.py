@@ -12,8 +12,9 @@ accelerations, torques``, e.g. the KUKA files) are recognised in an ``.npz``. ``
   velocities), so idkit's filter replaces the file's derivatives;
 * ``"off"``: never; a raw recording is an error (it has no accelerations).
 
-Files whose columns name joints (``<joint>.q``) are matched to the robot's joints by name, in any
-order; extra joints are ignored and a joint the robot needs and the file lacks is refused by name.
+A ROS log (a bag folder, ``.mcap``, ``.db3``, ``.bag``: :mod:`idkit.data.logs`) is a raw recording.
+Files whose columns name joints (``<joint>.q``) and logs are matched to the robot's joints by name, in
+any order; extra joints are ignored and a joint the robot needs and the file lacks is refused by name.
 """
 
 from __future__ import annotations
@@ -26,8 +27,9 @@ from typing import Any
 import numpy as np
 
 from idkit.data.io import FLOBAROID_KEYS, samples_from_table
+from idkit.data.logs import LogOptions, is_log, read_log
 from idkit.data.preprocess import PreprocessOptions, preprocess_recording
-from idkit.data.recording import FLOBAROID_RECORDING_KEYS, recording_from_table
+from idkit.data.recording import FLOBAROID_RECORDING_KEYS, Recording, recording_from_table
 from idkit.data.table import Table, read_table
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
@@ -47,13 +49,15 @@ class FileKind:
 class DataFile:
     """One loaded file: its ``samples`` ``[N, n]`` (joints in the robot's order when the file names
     them), ``times[N]`` (s from the file's start, or ``None``), whether idkit ``preprocessed`` it, and
-    what preprocessing reported (``preprocessing``: the segments between gaps and a ``note``)."""
+    what preprocessing reported (``preprocessing``: the segments between gaps and a ``note``) and, for a
+    ROS log, what was read (``log``: topics, clocks, joints used and ignored)."""
 
     path: str
     samples: Samples
     times: np.ndarray | None
     preprocessed: bool
     preprocessing: dict[str, Any] | None = None
+    log: dict[str, Any] | None = None
 
 
 def file_kind(table: Table) -> FileKind:
@@ -70,15 +74,18 @@ def load_data_file(
     apply: str = "auto",
     stride: int = 1,
     joints: Sequence[str] | None = None,
+    log: LogOptions | None = None,
 ) -> DataFile:
     """Samples from one file (module doc).
 
     Args:
-        path: ``.npz`` or ``.csv`` file of samples or of a raw recording.
+        path: ``.npz`` or ``.csv`` file of samples or of a raw recording, or a ROS log
+            (:mod:`idkit.data.logs`: always a raw recording).
         options: preprocessing options (default :class:`PreprocessOptions`).
         apply: ``"auto"``, ``"on"`` or ``"off"`` (module doc).
         stride: keep every ``stride``-th sample (after preprocessing, which sees them all).
-        joints: the robot's joint names: per-joint columns are taken in this order.
+        joints: the robot's joint names: per-joint columns and log joints are taken in this order.
+        log: which topics of a log to read.
 
     Raises:
         ValueError: ``apply`` unknown; ``"on"`` for a file without timestamps; ``"off"`` (or
@@ -87,6 +94,11 @@ def load_data_file(
     """
     if apply not in APPLY:
         raise ValueError(f"preprocess.apply must be one of {', '.join(APPLY)}, got {apply!r}")
+    if is_log(path):
+        if apply == "off":
+            raise ValueError(f"{path}: a ROS log is a raw recording (no accelerations); preprocess it")
+        recording, description = read_log(path, joints, log)
+        return _preprocessed(path, recording, options, stride, description)
     table = read_table(path)
     kind = file_kind(table)
     run = apply == "on" or (apply == "auto" and not kind.samples)
@@ -113,8 +125,18 @@ def load_data_file(
             f"qdd and no timestamps t; it has {found}"
         )
     recording = recording_from_table(table, FLOBAROID_RECORDING_KEYS if kind.flobaroid else None, joints)
+    return _preprocessed(path, recording, options, stride)
+
+
+def _preprocessed(
+    path: str | Path,
+    recording: Recording,
+    options: PreprocessOptions | None,
+    stride: int,
+    log: dict[str, Any] | None = None,
+) -> DataFile:
     done = preprocess_recording(recording, options)
-    return DataFile(str(path), _thin(done.samples, stride), done.times[::stride], True, done.to_dict())
+    return DataFile(str(path), _thin(done.samples, stride), done.times[::stride], True, done.to_dict(), log)
 
 
 def _thin(samples: Samples, stride: int) -> Samples:

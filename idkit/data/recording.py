@@ -154,38 +154,59 @@ def stack_samples(parts: Sequence[Samples], labels: Sequence[str] | None = None)
 
 
 def save_recording(recording: Recording, path: str | Path, velocities: bool = False) -> Path:
-    """Write ``recording`` as a raw CSV (``t, q1..qn, tau1..taun`` and, with ``velocities``, ``qd1..``)
-    that :func:`load_recording` reads back; 17 significant digits round-trip float64."""
+    """Write ``recording`` as a raw CSV that :func:`load_recording` reads back: ``t``, then positions,
+    torques and (with ``velocities``) measured velocities, as per-joint columns ``<joint>.q`` when
+    the recording names its joints, else numbered ``q1..qn``; 17 significant digits round-trip
+    float64."""
     n = recording.n_joints
+    names = recording.joint_names
+
+    def labels(quantity: str) -> list[str]:
+        return [f"{j}.{quantity}" for j in names] if names else [f"{quantity}{j}" for j in range(1, n + 1)]
+
     columns = [recording.t[:, None], recording.q, recording.tau]
-    header = ["t", *(f"q{j}" for j in range(1, n + 1)), *(f"tau{j}" for j in range(1, n + 1))]
+    header = ["t", *labels("q"), *labels("tau")]
     if velocities:
         if recording.qd is None:
             raise ValueError(f"{recording.source}: no velocities to write")
         columns.append(recording.qd)
-        header += [f"qd{j}" for j in range(1, n + 1)]
+        header += labels("qd")
     path = Path(path)
     np.savetxt(path, np.hstack(columns), fmt="%.17g", delimiter=",", header=",".join(header), comments="")
     return path
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    """``python -m idkit.data.recording IN OUT.csv``: a recording (e.g. a FloBaRoID/KUKA ``.npz``) as a
-    raw CSV of timestamps, positions and torques — what a robot controller logs."""
+    """``python -m idkit.data.recording IN OUT.csv``: a recording — a ROS log of JointState (bag folder,
+    ``.mcap``, ``.db3``, ``.bag``), a FloBaRoID/KUKA ``.npz`` or a CSV — as a raw CSV of timestamps,
+    positions and torques (per-joint columns ``<joint>.q`` for a log). Bad input: one line, exit 1."""
     import argparse
+    import sys
+
+    from idkit.data.logs import LogOptions, is_log, read_log
 
     parser = argparse.ArgumentParser(prog="python -m idkit.data.recording", description=main.__doc__)
-    parser.add_argument("source", help=".npz or .csv recording (FloBaRoID array names are recognised)")
-    parser.add_argument("target", help="the raw .csv to write (t, q1.., tau1..)")
-    parser.add_argument("--velocities", action="store_true", help="also write the measured qd1..qdn")
+    parser.add_argument(
+        "source", help="ROS log, .npz or .csv recording (FloBaRoID array names are recognised)"
+    )
+    parser.add_argument("target", help="the raw .csv to write (t, q.., tau..)")
+    parser.add_argument("--velocities", action="store_true", help="also write the measured velocities")
+    parser.add_argument("--topic", help="a log's JointState topic (default: its only one)")
+    parser.add_argument("--effort-topic", help="a log's JointState topic carrying the efforts")
     args = parser.parse_args(argv)
-    keys = None
-    if Path(args.source).suffix.lower() == ".npz":
-        with np.load(args.source, allow_pickle=False) as data:
-            keys = FLOBAROID_RECORDING_KEYS if FLOBAROID_RECORDING_KEYS["t"] in data.files else None
-    recording = load_recording(args.source, keys=keys)
-    path = save_recording(recording, args.target, velocities=args.velocities)
-    print(f"{path}: {recording.t.size} samples, {recording.n_joints} joints")
+    try:
+        if is_log(args.source):
+            recording, read = read_log(args.source, None, LogOptions(args.topic, args.effort_topic))
+            said = f" from {read['topic']} ({read['clock']})"
+        else:
+            table = read_table(args.source)
+            flobaroid = table.has(FLOBAROID_RECORDING_KEYS["t"])
+            recording, said = recording_from_table(table, FLOBAROID_RECORDING_KEYS if flobaroid else None), ""
+        path = save_recording(recording, args.target, velocities=args.velocities)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"{parser.prog}: {exc}", file=sys.stderr)
+        sys.exit(1)
+    print(f"{path}: {recording.t.size} samples, {recording.n_joints} joints{said}")
 
 
 if __name__ == "__main__":

@@ -72,11 +72,17 @@ def check_table_path(path: str | Path) -> Path:
     if path.is_dir():
         found = sorted(p.name for p in path.iterdir() if p.suffix.lower() in (".npz", ".csv"))
         inside = f"; data files in it: {', '.join(found[:5])}{' …' * (len(found) > 5)}" if found else ""
-        raise ValueError(f"{path} is a directory, not a samples file (.npz or .csv){inside}")
+        raise ValueError(
+            f"{path} is a directory, not a data file (.npz, .csv) nor a ROS 2 bag folder (no metadata.yaml)"
+            f"{inside}"
+        )
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     if path.suffix.lower() not in (".npz", ".csv"):
-        raise ValueError(f"{path}: unsupported file type {path.suffix!r}; use .npz or .csv")
+        raise ValueError(
+            f"{path}: unsupported file type {path.suffix!r}; use .npz, .csv or a ROS log (a bag folder, "
+            ".mcap, .db3, .bag)"
+        )
     return path
 
 

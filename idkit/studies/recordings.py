@@ -1,6 +1,6 @@
 """The ``data=`` and ``validate=`` files of a study: loaded, preprocessed and checked against the robot.
 
-One or several files (``data=a.npz`` or ``data=[a.npz, b.csv]``) are each read by
+One or several files (``data=a.npz`` or ``data=[a.npz, b.csv, run.mcap]``) are each read by
 :func:`idkit.data.load.load_data_file` (samples as they are, raw recordings through the
 ``preprocess`` options), checked to have the robot's number of joints, and — for training — stacked
 into one ``Samples`` (:func:`idkit.data.recording.stack_samples`; each file is filtered on its own, so
@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from idkit.data.load import DataFile, load_data_file
+from idkit.data.logs import LogOptions
 from idkit.data.preprocess import PreprocessOptions
 from idkit.interfaces import Robot
 from idkit.problem import SAMPLE_ARRAYS, Samples
@@ -52,6 +53,26 @@ def preprocess_options(spec: Any) -> tuple[PreprocessOptions, str]:
     return PreprocessOptions(**options), apply
 
 
+def log_options(spec: Any) -> LogOptions:
+    """:class:`~idkit.data.logs.LogOptions` from the ``recording`` config node (``None``: defaults).
+
+    Raises:
+        ValueError: a key that is not an option (naming the options).
+    """
+    spec = plain(spec)
+    if spec is None:
+        return LogOptions()
+    if isinstance(spec, LogOptions):
+        return spec
+    if not isinstance(spec, Mapping):
+        raise ValueError(f"recording must be a mapping of options, got {spec!r}")
+    known = [f.name for f in fields(LogOptions)]
+    unknown = sorted(set(spec) - set(known))
+    if unknown:
+        raise ValueError(f"recording.{unknown[0]} is not a recording option; they are {', '.join(known)}")
+    return LogOptions(**{k: (None if v is None else str(v)) for k, v in spec.items()})
+
+
 def as_paths(files: Any) -> list[Any]:
     """``data=`` / ``validate=`` as a list: one path, a list of paths, or ``Samples`` objects."""
     files = plain(files)
@@ -63,15 +84,22 @@ def as_paths(files: Any) -> list[Any]:
 
 
 def load_files(
-    robot: Robot, files: Any, preprocess: Any = None, role: str = "data", stride: int = 1
+    robot: Robot,
+    files: Any,
+    preprocess: Any = None,
+    role: str = "data",
+    stride: int = 1,
+    recording: Any = None,
 ) -> list[DataFile]:
-    """Load every file of ``data=`` or ``validate=`` (``role``) for ``robot``; ``stride`` thins them.
+    """Load every file of ``data=`` or ``validate=`` (``role``) for ``robot``; ``stride`` thins them;
+    ``recording`` (the ``recording`` config node) says which topics of a ROS log to read.
 
     Raises:
         ValueError: an empty list, or a file whose number of joints is not the robot's (naming the
             file, both counts and the robot's joints); what the loader refuses.
     """
     options, apply = preprocess_options(preprocess)
+    log = log_options(recording)
     paths = as_paths(files)
     if not paths:
         raise ValueError(f"{role}= is an empty list; give a file or a list of files")
@@ -80,7 +108,7 @@ def load_files(
         if isinstance(path, Samples):
             loaded.append(DataFile("<Samples>", path, None, False))
             continue
-        loaded.append(load_data_file(os.fspath(path), options, apply, stride, list(robot.joint_names)))
+        loaded.append(load_data_file(os.fspath(path), options, apply, stride, list(robot.joint_names), log))
     for item in loaded:
         if item.samples.n_joints != robot.n_joints:
             source = getattr(robot, "urdf", None)

@@ -140,6 +140,9 @@ def _describe_files(
     else:
         out = {**source, "validate": paths}
     before = out.get("preprocess") or {}
+    logs = {**out.get("logs", {}), **{f.path: f.log for f in files if f.log is not None}}
+    if logs:
+        out["logs"] = logs
     processed = [*before.get("files", []), *(f.path for f in files if f.preprocessed)]
     gaps = {**before.get("gaps", {}), **{f.path: f.preprocessing for f in files if _split(f)}}
     if processed:
@@ -162,6 +165,7 @@ def load_data(
     n_samples: int | None = None,
     params: Any = None,
     preprocess: Any = None,
+    recording: Any = None,
 ) -> tuple[Any, dict[str, float] | None, dict[str, Any]]:
     """``(samples, truth, description)``: measured ``data`` (path(s) or ``Samples``) or a simulation.
 
@@ -180,7 +184,7 @@ def load_data(
             raise ValueError(f"n_samples={n_samples} applies to a simulated scenario, not to data=")
         from idkit.data.recording import stack_samples
 
-        files = load_files(robot, data, preprocess, role="data")
+        files = load_files(robot, data, preprocess, role="data", recording=recording)
         samples = stack_samples([f.samples for f in files], [f.path for f in files])
         return samples, None, _describe_files(files, preprocess)
     import torch
@@ -220,6 +224,7 @@ def run(
     params: Any = None,
     validate: Any = None,
     preprocess: Any = None,
+    recording: Any = None,
     identified_urdf: bool = True,
     device: str = "cpu",
     dtype: str = "float64",
@@ -241,6 +246,8 @@ def run(
             (same path, same bytes, or the same samples in another file) is refused.
         preprocess: how raw recordings become samples: ``PreprocessOptions`` fields plus ``apply``
             (``auto``: raw recordings only; ``on``; ``off``), applied to every data and validate file.
+        recording: which topics of a ROS log to read: ``LogOptions`` fields (``topic``,
+            ``effort_topic``; :mod:`idkit.data.logs`), for every data and validate log.
         identified_urdf: for a ``urdf`` robot, also produce ``identified.urdf`` (the report writes it).
         device, dtype: where and in which precision the estimator computes.
     """
@@ -250,9 +257,20 @@ def run(
     if validate is not None and data is not None:
         refuse_training_files(data, validate)
     samples, truth, source = load_data(
-        robot_obj, scenario, seed=seed, data=data, n_samples=n_samples, params=params, preprocess=preprocess
+        robot_obj,
+        scenario,
+        seed=seed,
+        data=data,
+        n_samples=n_samples,
+        params=params,
+        preprocess=preprocess,
+        recording=recording,
     )
-    held_out = [] if validate is None else load_files(robot_obj, validate, preprocess, role="validate")
+    held_out = (
+        []
+        if validate is None
+        else load_files(robot_obj, validate, preprocess, role="validate", recording=recording)
+    )
     if data is not None:
         refuse_seen_samples(samples, held_out)
     if held_out:

@@ -147,7 +147,8 @@ def test_directory_is_refused_and_its_data_files_listed(tmp_path):
         load_samples(tmp_path)
     assert (
         str(err.value)
-        == f"{tmp_path} is a directory, not a samples file (.npz or .csv); data files in it: run1.npz"
+        == f"{tmp_path} is a directory, not a data file (.npz, .csv) nor a ROS 2 bag folder (no metadata.yaml); "
+        "data files in it: run1.npz"
     )
 
 

@@ -448,3 +448,54 @@ def test_the_judged_bad_recordings_as_a_subprocess(files, tmp_path):
     ]
     assert runs["gap"].returncode == 0, runs["gap"].stderr
     assert "1 gap(s) in the timestamps longer than 5 median steps" in runs["gap"].stderr
+
+
+# --- ROS logs by name (issue 16 item 1) -----------------------------------------------------------
+
+
+def bag_of(csv_path: Path, folder: Path, drop: str | None = None) -> Path:
+    """A ROS 2 MCAP bag of the raw CSV's samples: JointState with the joints in another order (and
+    reversed in every other message), an extra gripper joint and an unrelated /status topic."""
+    from bag_cases import Stream, write_ros2
+
+    table = np.loadtxt(csv_path, delimiter=",", skiprows=1)
+    names = ["d3", "theta1", "d2"]  # the driver's order; the robot's is theta1, d2, d3
+    columns = {"theta1": 0, "d2": 1, "d3": 2}
+    keep = [n for n in names if n != drop]
+    order = [columns[n] for n in keep]
+    stamps = 1_700_000_000_000_000_000 + np.round(table[:, 0] * 1e9).astype(np.int64)
+    stream = Stream("/joint_states", stamps, keep, table[:, 1:4][:, order], None, table[:, 4:7][:, order])
+    return write_ros2(folder, [stream])
+
+
+def test_a_bag_gives_the_estimate_of_the_csv_of_the_same_samples(files, tmp_path):
+    pytest.importorskip("rosbags")
+    from bag_cases import storage_file
+
+    bag = bag_of(files["train"], tmp_path / "bag")
+    quiet = ["estimator=ls", "~cost", "plots=false", "identified_urdf=false"]
+    reference, _ = command(*robot_args(files), f"data={files['train']}", *quiet, out=tmp_path / "csv")
+    for name, path in (("folder", bag), ("file", storage_file(bag))):
+        result, data = command(*robot_args(files), f"data={path}", *quiet, out=tmp_path / name)
+        for key, value in reference.estimate.params.items():
+            assert result.estimate.params[key] == pytest.approx(value, rel=1e-6, abs=1e-9), key
+        assert data["data"]["logs"][str(path)]["ignored_joints"] == ["gripper"]
+        assert data["data"]["logs"][str(path)]["ignored_topics"] == ["/status"]
+
+
+def test_a_bag_without_a_robot_joint_is_one_line_naming_it(files, tmp_path, monkeypatch, capsys):
+    pytest.importorskip("rosbags")
+    bag = bag_of(files["train"], tmp_path / "bag", drop="d2")
+    code, out, err = idkit_main(monkeypatch, capsys, *ls_args(files, bag), run_dir=tmp_path / "run")
+    assert code == 1 and out == ""
+    assert err.splitlines() == [
+        f"idkit: {bag}: /joint_states: the log has no joint 'd2' (the robot needs it); the log's joints: "
+        "d3, theta1, gripper"
+    ]
+    code, _, err = idkit_main(
+        monkeypatch, capsys, *ls_args(files, bag), "recording.topic=/tf", run_dir=tmp_path / "run2"
+    )
+    assert code == 1 and err.splitlines() == [
+        f"idkit: {bag}: no topic '/tf' (recording.topic); the log's topics: /joint_states "
+        "(sensor_msgs/msg/JointState), /status (std_msgs/msg/String)"
+    ]
