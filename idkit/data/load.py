@@ -26,10 +26,11 @@ from typing import Any
 
 import numpy as np
 
+from idkit.data.delay import shift_torques
 from idkit.data.io import FLOBAROID_KEYS, samples_from_table
-from idkit.data.logs import LogOptions, is_log, read_log
+from idkit.data.logs import is_log, read_log
 from idkit.data.preprocess import PreprocessOptions, preprocess_recording
-from idkit.data.recording import FLOBAROID_RECORDING_KEYS, Recording, recording_from_table
+from idkit.data.recording import FLOBAROID_RECORDING_KEYS, Recording, RecordingOptions, recording_from_table
 from idkit.data.table import Table, read_table
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
@@ -50,7 +51,8 @@ class DataFile:
     """One loaded file: its ``samples`` ``[N, n]`` (joints in the robot's order when the file names
     them), ``times[N]`` (s from the file's start, or ``None``), whether idkit ``preprocessed`` it, and
     what preprocessing reported (``preprocessing``: the segments between gaps and a ``note``) and, for a
-    ROS log, what was read (``log``: topics, clocks, joints used and ignored)."""
+    ROS log, what was read (``log``: topics, clocks, joints used and ignored); ``delay``: the torque
+    delay applied to a raw recording (seconds, samples dropped)."""
 
     path: str
     samples: Samples
@@ -58,6 +60,7 @@ class DataFile:
     preprocessed: bool
     preprocessing: dict[str, Any] | None = None
     log: dict[str, Any] | None = None
+    delay: dict[str, Any] | None = None
 
 
 def file_kind(table: Table) -> FileKind:
@@ -74,7 +77,8 @@ def load_data_file(
     apply: str = "auto",
     stride: int = 1,
     joints: Sequence[str] | None = None,
-    log: LogOptions | None = None,
+    log: RecordingOptions | None = None,
+    delay: float = 0.0,
 ) -> DataFile:
     """Samples from one file (module doc).
 
@@ -85,7 +89,9 @@ def load_data_file(
         apply: ``"auto"``, ``"on"`` or ``"off"`` (module doc).
         stride: keep every ``stride``-th sample (after preprocessing, which sees them all).
         joints: the robot's joint names: per-joint columns and log joints are taken in this order.
-        log: which topics of a log to read.
+        log: which topics of a log to read (its ``delay`` is not read here: see ``delay``).
+        delay: seconds by which a raw recording's torques trail its states
+            (:func:`idkit.data.delay.shift_torques`); a samples file used as it is refuses it.
 
     Raises:
         ValueError: ``apply`` unknown; ``"on"`` for a file without timestamps; ``"off"`` (or
@@ -98,7 +104,7 @@ def load_data_file(
         if apply == "off":
             raise ValueError(f"{path}: a ROS log is a raw recording (no accelerations); preprocess it")
         recording, description = read_log(path, joints, log)
-        return _preprocessed(path, recording, options, stride, description)
+        return _preprocessed(path, recording, options, stride, delay, description)
     table = read_table(path)
     kind = file_kind(table)
     run = apply == "on" or (apply == "auto" and not kind.samples)
@@ -106,6 +112,11 @@ def load_data_file(
         if not kind.samples:
             raise ValueError(
                 f"{path}: a raw recording (no accelerations qdd); preprocess it (preprocess=auto or on)"
+            )
+        if delay != 0:
+            raise ValueError(
+                f"{path}: recording.delay={delay:g} shifts a raw recording's torques, but this file holds "
+                "samples used as they are (preprocess=on reads it as a recording)"
             )
         samples, _ = samples_from_table(table, FLOBAROID_KEYS if kind.flobaroid else None, joints)
         times = None
@@ -125,7 +136,7 @@ def load_data_file(
             f"qdd and no timestamps t; it has {found}"
         )
     recording = recording_from_table(table, FLOBAROID_RECORDING_KEYS if kind.flobaroid else None, joints)
-    return _preprocessed(path, recording, options, stride)
+    return _preprocessed(path, recording, options, stride, delay)
 
 
 def _preprocessed(
@@ -133,10 +144,14 @@ def _preprocessed(
     recording: Recording,
     options: PreprocessOptions | None,
     stride: int,
+    delay: float,
     log: dict[str, Any] | None = None,
 ) -> DataFile:
+    recording, dropped = shift_torques(recording, delay)
     done = preprocess_recording(recording, options)
-    return DataFile(str(path), _thin(done.samples, stride), done.times[::stride], True, done.to_dict(), log)
+    shifted = {"seconds": delay, "dropped_samples": dropped} if delay else None
+    thinned = _thin(done.samples, stride)
+    return DataFile(str(path), thinned, done.times[::stride], True, done.to_dict(), log, shifted)
 
 
 def _thin(samples: Samples, stride: int) -> Samples:

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from idkit.data.recording import Recording
+from idkit.data.recording import Recording, RecordingOptions
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 #: Single-file logs: ROS 2 storage files and ROS 1 bags (a ROS 2 bag folder holds ``metadata.yaml``).
@@ -45,19 +45,6 @@ INSTALL = "pip install robot-idkit[logs]"
 
 class LogWarning(UserWarning):
     """Something a log reader chose that changes the data: receive time instead of header stamps."""
-
-
-@dataclass(frozen=True)
-class LogOptions:
-    """How a log is read (the ``recording`` config section).
-
-    Attributes:
-        topic: the ``JointState`` topic of positions (and efforts); ``None``: the log's only one.
-        effort_topic: a ``JointState`` topic carrying the efforts, if not ``topic``.
-    """
-
-    topic: str | None = None
-    effort_topic: str | None = None
 
 
 def is_log(path: str | Path) -> bool:
@@ -81,14 +68,14 @@ class Stream:
 
 
 def read_log(
-    path: str | Path, joints: Sequence[str] | None = None, options: LogOptions | None = None
+    path: str | Path, joints: Sequence[str] | None = None, options: RecordingOptions | None = None
 ) -> tuple[Recording, dict[str, Any]]:
     """A raw recording from a log (module doc) and what was read (for ``result.json``).
 
     Args:
         path: a ROS 2 bag folder, ``.mcap`` or ``.db3`` file, or a ROS 1 ``.bag``.
         joints: the robot's joint names, in its order; ``None``: every joint of the first message.
-        options: topic choices (:class:`LogOptions`).
+        options: topic choices (:class:`RecordingOptions`).
 
     Returns:
         ``(recording, description)``: the description names the topics, clocks, joints used and
@@ -100,7 +87,7 @@ def read_log(
             step 1, a missing joint, missing efforts, the clock problems of step 3 — naming the log.
     """
     path = Path(path)
-    options = options or LogOptions()
+    options = options or RecordingOptions()
     if not path.exists():
         raise FileNotFoundError(f"data file not found: {path}")
     states, efforts, topics = _read_streams(path, options)
@@ -154,7 +141,7 @@ def _rosbags(path: Path) -> Any:
     return AnyReader
 
 
-def _read_streams(path: Path, options: LogOptions) -> tuple[Stream, Stream | None, list[str]]:
+def _read_streams(path: Path, options: RecordingOptions) -> tuple[Stream, Stream | None, list[str]]:
     """The state stream, the effort stream (or ``None``) and every topic of the log."""
     any_reader = _rosbags(path)
     from rosbags.highlevel import AnyReaderError

@@ -39,6 +39,24 @@ FLOBAROID_RECORDING_KEYS: Mapping[str, str] = {
 
 
 @dataclass(frozen=True)
+class RecordingOptions:
+    """How raw recordings are read (the ``recording`` config section).
+
+    Attributes:
+        topic: a ROS log's ``sensor_msgs/JointState`` topic of positions (and efforts); ``None``: the
+            log's only one (:mod:`idkit.data.logs`).
+        effort_topic: a ``JointState`` topic carrying the efforts, if not ``topic``.
+        delay: seconds by which the torques trail the states (the torque at ``t`` is read at
+            ``t + delay``), or ``"auto"``: estimated by cross-correlation with the robot's a-priori
+            model (:mod:`idkit.data.delay`). ``0``: none.
+    """
+
+    topic: str | None = None
+    effort_topic: str | None = None
+    delay: float | str = 0.0
+
+
+@dataclass(frozen=True)
 class Recording:
     """A raw recording of an ``n``-joint robot (float64 numpy arrays).
 
@@ -183,7 +201,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     import argparse
     import sys
 
-    from idkit.data.logs import LogOptions, is_log, read_log
+    from idkit.data.logs import is_log, read_log
 
     parser = argparse.ArgumentParser(prog="python -m idkit.data.recording", description=main.__doc__)
     parser.add_argument(
@@ -196,7 +214,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     try:
         if is_log(args.source):
-            recording, read = read_log(args.source, None, LogOptions(args.topic, args.effort_topic))
+            recording, read = read_log(args.source, None, RecordingOptions(args.topic, args.effort_topic))
             said = f" from {read['topic']} ({read['clock']})"
         else:
             table = read_table(args.source)

@@ -12,14 +12,18 @@ from __future__ import annotations
 
 import hashlib
 import os
+import warnings
 from collections.abc import Mapping
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from idkit.data.delay import torque_delay
 from idkit.data.load import DataFile, load_data_file
-from idkit.data.logs import LogOptions
 from idkit.data.preprocess import PreprocessOptions
+from idkit.data.recording import RecordingOptions
 from idkit.interfaces import Robot
 from idkit.problem import SAMPLE_ARRAYS, Samples
 from idkit.studies.build import plain
@@ -53,24 +57,34 @@ def preprocess_options(spec: Any) -> tuple[PreprocessOptions, str]:
     return PreprocessOptions(**options), apply
 
 
-def log_options(spec: Any) -> LogOptions:
-    """:class:`~idkit.data.logs.LogOptions` from the ``recording`` config node (``None``: defaults).
+def recording_options(spec: Any) -> RecordingOptions:
+    """:class:`~idkit.data.recording.RecordingOptions` from the ``recording`` config node (``None``:
+    defaults); ``delay`` is ``"auto"`` or a number of seconds.
 
     Raises:
-        ValueError: a key that is not an option (naming the options).
+        ValueError: a key that is not an option (naming the options), a delay that is neither.
     """
     spec = plain(spec)
     if spec is None:
-        return LogOptions()
-    if isinstance(spec, LogOptions):
+        return RecordingOptions()
+    if isinstance(spec, RecordingOptions):
         return spec
     if not isinstance(spec, Mapping):
         raise ValueError(f"recording must be a mapping of options, got {spec!r}")
-    known = [f.name for f in fields(LogOptions)]
+    known = [f.name for f in fields(RecordingOptions)]
     unknown = sorted(set(spec) - set(known))
     if unknown:
         raise ValueError(f"recording.{unknown[0]} is not a recording option; they are {', '.join(known)}")
-    return LogOptions(**{k: (None if v is None else str(v)) for k, v in spec.items()})
+    options = {k: (None if v is None else str(v)) for k, v in spec.items() if k != "delay"}
+    delay = spec.get("delay", 0.0)
+    if delay != "auto":
+        try:
+            delay = float(delay)
+        except (TypeError, ValueError):
+            raise ValueError(f"recording.delay must be 'auto' or seconds, got {delay!r}") from None
+        if not np.isfinite(delay):
+            raise ValueError(f"recording.delay must be 'auto' or finite seconds, got {delay!r}")
+    return RecordingOptions(**options, delay=delay)
 
 
 def as_paths(files: Any) -> list[Any]:
@@ -99,26 +113,77 @@ def load_files(
             file, both counts and the robot's joints); what the loader refuses.
     """
     options, apply = preprocess_options(preprocess)
-    log = log_options(recording)
+    log = recording_options(recording)
     paths = as_paths(files)
     if not paths:
         raise ValueError(f"{role}= is an empty list; give a file or a list of files")
     loaded = []
     for path in paths:
         if isinstance(path, Samples):
-            loaded.append(DataFile("<Samples>", path, None, False))
-            continue
-        loaded.append(load_data_file(os.fspath(path), options, apply, stride, list(robot.joint_names), log))
-    for item in loaded:
-        if item.samples.n_joints != robot.n_joints:
-            source = getattr(robot, "urdf", None)
-            shown = isinstance(source, str) and "<" not in source
-            which = f"robot {type(robot).__name__}" + (f" ({source})" if shown else "")
-            raise ValueError(
-                f"{role} file {item.path} has {item.samples.n_joints} joints but {which} has "
-                f"{robot.n_joints}: {', '.join(robot.joint_names)}"
-            )
+            item = DataFile("<Samples>", path, None, False)
+        else:
+            path = os.fspath(path)
+            delay = 0.0 if log.delay == "auto" else float(log.delay)
+            with warnings.catch_warnings():
+                if log.delay == "auto":  # the first reading only serves the estimate: say things once
+                    warnings.simplefilter("ignore")
+                item = load_data_file(path, options, apply, stride, list(robot.joint_names), log, delay)
+        _check_joints(robot, item, role)
+        if log.delay == "auto" and item.preprocessed:
+            item = _with_estimated_delay(robot, item, options, apply, stride, log)
+        loaded.append(item)
     return loaded
+
+
+def _check_joints(robot: Robot, item: DataFile, role: str) -> None:
+    if item.samples.n_joints != robot.n_joints:
+        source = getattr(robot, "urdf", None)
+        shown = isinstance(source, str) and "<" not in source
+        which = f"robot {type(robot).__name__}" + (f" ({source})" if shown else "")
+        raise ValueError(
+            f"{role} file {item.path} has {item.samples.n_joints} joints but {which} has "
+            f"{robot.n_joints}: {', '.join(robot.joint_names)}"
+        )
+
+
+class DelayWarning(UserWarning):
+    """A torque delay was estimated and applied to a recording."""
+
+
+def _with_estimated_delay(
+    robot: Robot,
+    item: DataFile,
+    options: PreprocessOptions,
+    apply: str,
+    stride: int,
+    log: RecordingOptions,
+) -> DataFile:
+    """``item`` read again with its torques shifted by the delay at which the robot's regressor
+    explains them best (:func:`idkit.data.delay.torque_delay`)."""
+    import torch
+
+    samples = item.samples
+    try:
+        with torch.no_grad():
+            regressor = robot.regressor(samples.q, samples.qd, samples.qdd).double().numpy()
+    except NotImplementedError:
+        raise ValueError(
+            f"{item.path}: recording.delay=auto needs a robot with a linear regressor; give the delay in s"
+        ) from None
+    try:
+        delay, peak = torque_delay(samples.tau.numpy(), regressor, item.times)
+    except ValueError as exc:
+        raise ValueError(f"{item.path}: {exc}") from None
+    joints = list(robot.joint_names)
+    shifted = load_data_file(item.path, options, apply, stride, joints, log, delay)
+    shifted = replace(shifted, delay={**(shifted.delay or {}), "estimated": True, "explained": peak})
+    warnings.warn(
+        f"{item.path}: the torques trail the states by {delay * 1e3:.3g} ms (recording.delay=auto: there "
+        f"the robot's regressor explains {100 * peak:.4g} % of them); shifted back",
+        DelayWarning,
+        stacklevel=3,
+    )
+    return shifted
 
 
 def refuse_training_files(data: Any, validate: Any) -> None:

@@ -140,9 +140,10 @@ def _describe_files(
     else:
         out = {**source, "validate": paths}
     before = out.get("preprocess") or {}
-    logs = {**out.get("logs", {}), **{f.path: f.log for f in files if f.log is not None}}
-    if logs:
-        out["logs"] = logs
+    for key in ("log", "delay"):  # a ROS log's topics and clocks; a torque delay applied
+        found = {**out.get(f"{key}s", {}), **{f.path: getattr(f, key) for f in files if getattr(f, key)}}
+        if found:
+            out[f"{key}s"] = found
     processed = [*before.get("files", []), *(f.path for f in files if f.preprocessed)]
     gaps = {**before.get("gaps", {}), **{f.path: f.preprocessing for f in files if _split(f)}}
     if processed:
@@ -246,8 +247,9 @@ def run(
             (same path, same bytes, or the same samples in another file) is refused.
         preprocess: how raw recordings become samples: ``PreprocessOptions`` fields plus ``apply``
             (``auto``: raw recordings only; ``on``; ``off``), applied to every data and validate file.
-        recording: which topics of a ROS log to read: ``LogOptions`` fields (``topic``,
-            ``effort_topic``; :mod:`idkit.data.logs`), for every data and validate log.
+        recording: how raw recordings are read: ``RecordingOptions`` fields (a ROS log's ``topic``
+            and ``effort_topic``, :mod:`idkit.data.logs`; the torque ``delay`` in s or ``"auto"``,
+            :mod:`idkit.data.delay`), for every data and validate file.
         identified_urdf: for a ``urdf`` robot, also produce ``identified.urdf`` (the report writes it).
         device, dtype: where and in which precision the estimator computes.
     """

@@ -146,9 +146,8 @@ def test_directory_is_refused_and_its_data_files_listed(tmp_path):
     with pytest.raises(ValueError) as err:
         load_samples(tmp_path)
     assert (
-        str(err.value)
-        == f"{tmp_path} is a directory, not a data file (.npz, .csv) nor a ROS 2 bag folder (no metadata.yaml); "
-        "data files in it: run1.npz"
+        str(err.value) == f"{tmp_path} is a directory, not a data file (.npz, .csv) nor a ROS 2 bag folder "
+        "(no metadata.yaml); data files in it: run1.npz"
     )
 
 

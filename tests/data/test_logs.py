@@ -12,8 +12,8 @@ import pytest
 from bag_cases import Stream, storage_file, write_ros1, write_ros2
 
 from idkit.data.load import load_data_file
-from idkit.data.logs import LogOptions, LogWarning, read_log
-from idkit.data.recording import load_recording, main
+from idkit.data.logs import LogWarning, read_log
+from idkit.data.recording import RecordingOptions, load_recording, main
 
 pytest.importorskip("rosbags")
 
@@ -99,12 +99,12 @@ def test_efforts_on_their_own_topic_and_clock_are_interpolated_onto_the_states(t
     with pytest.raises(
         ValueError, match=r"topic /joint_states carries no effort .* recording\.effort_topic=…$"
     ):
-        read_log(path, JOINTS, LogOptions("/joint_states"))
+        read_log(path, JOINTS, RecordingOptions("/joint_states"))
     with pytest.raises(
         ValueError, match=r"several JointState topics: /efforts, /joint_states; choose one with"
     ):
         read_log(path, JOINTS)
-    recording, read = read_log(path, JOINTS, LogOptions("/joint_states", "/efforts"))
+    recording, read = read_log(path, JOINTS, RecordingOptions("/joint_states", "/efforts"))
     keep = (s["t"] >= tau_t[0]) & (s["t"] <= tau_t[-1])
     np.testing.assert_array_equal(recording.q, s["q"][keep])
     np.testing.assert_allclose(recording.tau, 10 * np.outer(s["t"][keep], [1.0, 2.0, 3.0]), rtol=1e-9)
@@ -137,8 +137,12 @@ def test_zero_header_stamps_use_the_receive_time_and_say_so(tmp_path):
             r"stamps of /joint_states must increase: message 5 \(t = 0.015 s\) follows ",
         ),
         ({"stamps": "repeat"}, None, r"message 5 \(t = 0.02 s\) follows message 4 \(t = 0.02 s\)"),
-        ({}, LogOptions("/nope"), r"no topic '/nope' \(recording\.topic\); the log's topics: /joint_states"),
-        ({}, LogOptions("/status"), r"topic /status \(recording\.topic\) holds std_msgs/msg/String, not"),
+        (
+            {},
+            RecordingOptions("/nope"),
+            r"no topic '/nope' \(recording\.topic\); the log's topics: /joint_st",
+        ),
+        ({}, RecordingOptions("/status"), r"topic /status \(recording\.topic\) holds std_msgs/msg/String"),
         ({"topic": "/status_only"}, None, None),
     ],
 )

@@ -23,7 +23,7 @@ from idkit.estimators.observation import IdentificationError
 from idkit.reports import single as report
 from idkit.robots.urdf import URDFRobot
 from idkit.studies import single
-from idkit.studies.recordings import preprocess_options
+from idkit.studies.recordings import DelayWarning, preprocess_options
 
 ASSET = Path(__file__).resolve().parents[2] / "idkit" / "robots" / "assets" / "cylindrical.urdf"
 RATE = 200.0
@@ -499,3 +499,40 @@ def test_a_bag_without_a_robot_joint_is_one_line_naming_it(files, tmp_path, monk
         f"idkit: {bag}: no topic '/tf' (recording.topic); the log's topics: /joint_states "
         "(sensor_msgs/msg/JointState), /status (std_msgs/msg/String)"
     ]
+
+
+def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
+    """Torques logged 4 samples (20 ms) after their states: delay=auto finds it (the lag where the
+    robot's regressor explains the torques best), and the fit is as good as with the delay given, or
+    without any delay in the log; ignoring the delay is worse."""
+    robot = URDFRobot(str(ASSET), friction=True, offset=True)
+    t, q, qd, qdd = motion(12.0, 0.2, 1)
+    tau = robot.inverse_dynamics(truth(robot), *map(torch.from_numpy, (q, qd, qdd))).numpy()
+    header = ["t", *(f"q{j}" for j in (1, 2, 3)), *(f"tau{j}" for j in (1, 2, 3))]
+    late = tmp_path / "late.csv"  # tau logged at t belongs to the state at t - 20 ms
+    table = np.column_stack([t[4:], q[4:], tau[:-4]])
+    np.savetxt(late, table, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
+    quiet = ["estimator=ls", "~cost", "plots=false", "identified_urdf=false"]
+    with pytest.warns(
+        DelayWarning, match=r"late\.csv: the torques trail the states by (19\.[5-9]|20(\.[0-5])?) ms"
+    ):
+        found, data = command(
+            *robot_args(files), f"data={late}", "recording.delay=auto", *quiet, out=tmp_path / "a"
+        )
+    delay = data["data"]["delays"][str(late)]
+    assert delay["seconds"] == pytest.approx(0.02, abs=5e-4) and delay["estimated"] is True
+    given, _ = command(*robot_args(files), f"data={late}", "recording.delay=0.02", *quiet, out=tmp_path / "b")
+    ignored, _ = command(*robot_args(files), f"data={late}", *quiet, out=tmp_path / "c")
+    true = dict(zip(robot.base_param_names, robot.base_params(truth(robot)).tolist(), strict=True))
+
+    def error(result):  # the largest base-parameter error relative to the largest base parameter
+        scale = max(abs(v) for v in true.values())
+        return max(abs(result.estimate.base_params[n] - v) for n, v in true.items()) / scale
+
+    # the floor: the same samples logged without delay (the 10 Hz filter rounds the Coulomb steps)
+    aligned = tmp_path / "aligned.csv"
+    np.savetxt(aligned, np.column_stack([t, q, tau]), delimiter=",", header=",".join(header), comments="")
+    floor = error(command(*robot_args(files), f"data={aligned}", *quiet, out=tmp_path / "e")[0])
+    assert error(given) < 1.1 * floor and error(found) < 1.1 * floor and error(ignored) > 5 * floor
+    with pytest.raises(ValueError, match=r"recording\.delay must be 'auto' or seconds, got 'soon'"):
+        command(*robot_args(files), f"data={late}", "recording.delay=soon", *quiet, out=tmp_path / "d")
