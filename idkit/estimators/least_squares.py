@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 import torch
 from torch import Tensor
 
-from idkit.estimate import Estimate, jsonable
+from idkit.estimate import Estimate, to_python
 from idkit.estimators.observation import (
     Conditioning,
     IdentificationError,
@@ -153,7 +153,7 @@ class LinearEstimator(Estimator):
                     cost=costs[t],
                     wall_time_s=wall / trials,
                     base_params=dict(zip(system.base_names, alpha[t], strict=True)),
-                    details=jsonable(
+                    details=to_python(
                         {
                             "criterion": solution.criterion,
                             "criterion_value": solution.values[t],

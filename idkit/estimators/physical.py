@@ -56,11 +56,13 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.estimate import Estimate, jsonable
+from idkit.estimate import Estimate, to_python
 from idkit.estimators.observation import IdentificationError
 from idkit.estimators.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
+from idkit.robots.model_checks import nonphysical_links
+from idkit.seeds import torch_generator
 
 #: Weight (χ² per squared relative deviation) of the pull to CAD when ``prior_weight = 0`` (module doc).
 TIE_BREAK = 1.0
@@ -125,10 +127,18 @@ def cad_pseudo_inertias(robot: Robot) -> np.ndarray:
     """The CAD pseudo-inertias ``[nb, 4, 4]``, lifted where singular (``PRIOR_REGULARISATION``).
 
     Raises:
-        ValueError: a link has no ``<inertial>`` in the URDF (CAD mass 0): pcls needs a-priori
-            inertials to resolve the unidentifiable directions and for the prior.
+        ValueError: a link has no ``<inertial>`` in the URDF (CAD mass 0), or an inertia no rigid
+            body has (``idkit.robots.model_checks.nonphysical_links``): pcls needs physical
+            a-priori inertials to resolve the unidentifiable directions and for the prior.
     """
     nb = _n_links(robot)
+    nonphysical = nonphysical_links(robot.tree)
+    if nonphysical:
+        more = f" (and {len(nonphysical) - 1} more links)" if len(nonphysical) > 1 else ""
+        raise ValueError(
+            f"urdf: {nonphysical[0]}{more}; physically consistent fitting needs a physical CAD model "
+            "(fix the URDF's <inertia>, or use another estimator)"
+        )
     nominal = robot.nominal_params()[: 10 * nb].reshape(nb, 10)
     empty = [name for name, row in zip(robot.link_names, nominal, strict=True) if float(row[0]) <= 0.0]
     if empty:
@@ -391,7 +401,7 @@ def nearest_consistent(
                 f"{tuple(target.shape)}"
             )
     if samples is None:
-        generator = torch.Generator().manual_seed(int(getattr(robot, "seed", 0)))
+        generator = torch_generator(getattr(robot, "seed", 0))
         states = robot.random_states(int(getattr(robot, "n_states", 200)), generator)
     else:
         s = samples.to(dtype=torch.float64)
@@ -473,5 +483,5 @@ class PhysicallyConsistentLS(Estimator):
             cost=cost,
             wall_time_s=time.perf_counter() - start,
             base_params=dict(zip(robot.base_param_names, alpha.tolist(), strict=True)),
-            details=jsonable(details),
+            details=to_python(details),
         )

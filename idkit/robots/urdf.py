@@ -36,6 +36,7 @@ from idkit.limits import MotionLimits
 from idkit.robots.base_params import BaseParameters, find_base_parameters
 from idkit.robots.rnea import TreeTensors, rnea, rnea_regressor
 from idkit.robots.urdf_model import INERTIAL_NAMES, KinematicTree, parse_urdf
+from idkit.seeds import Seed, torch_generator
 
 
 class URDFRobot(Robot):
@@ -75,7 +76,7 @@ class URDFRobot(Robot):
         gravity: float = 9.81,
         n_states: int = 200,
         tolerance: float = 1e-8,
-        seed: int = 0,
+        seed: Seed = 0,
         max_coulomb: float = 10.0,
         max_viscous: float = 10.0,
         max_offset: float = 10.0,
@@ -143,7 +144,7 @@ class URDFRobot(Robot):
                 f"urdf: n_states={self.n_states} gives {self.n_states * self.n_joints} regressor rows for "
                 f"{self.n_params} parameters; use n_states > {self.n_params // self.n_joints} (default 200)"
             )
-        generator = torch.Generator().manual_seed(int(self.seed))
+        generator = torch_generator(self.seed)
         states = self.random_states(self.n_states, generator)
         stacked = self.standard_regressor(*states).reshape(-1, self.n_params)
         return find_base_parameters(stacked.numpy(), self.tolerance)

@@ -51,6 +51,7 @@ from torch import Tensor
 from idkit.estimators.physical import min_pseudo_inertia_eigenvalues
 from idkit.problem import Problem, Samples
 from idkit.robots.urdf import URDFRobot
+from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.labels import searches_cost, unique_labels
 from idkit.studies.recordings import DataFile, load_files, preprocess_options
@@ -243,7 +244,7 @@ def run(
     search_cost: Spec = "f1",
     plot_window: Sequence[float] = (10.0, 25.0),
     preprocess: Any = None,
-    seed: int = 0,
+    seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
 ) -> KukaStudy:

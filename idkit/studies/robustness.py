@@ -37,6 +37,7 @@ import numpy as np
 
 from idkit import registry
 from idkit.data.presets import PAPER_SCENARIOS
+from idkit.seeds import Seed, trial_seed
 from idkit.studies.average import average_label, mean_params
 from idkit.studies.build import Spec, build, describe, name_and_options
 from idkit.studies.labels import unique_labels
@@ -352,7 +353,7 @@ def run(
     chunk: int = DEFAULT_CHUNK,
     shard: int = 0,
     shards: int = 1,
-    seed: int = 0,
+    seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
     progress: bool = True,
@@ -382,7 +383,7 @@ def run(
             checkpoint or Ctrl-C can take the finished trials.
         shard, shards: fit only shard ``shard`` of ``shards`` contiguous slices of the trials
             (Hydra multirun jobs; the sweep's callback merges them into one report).
-        seed: seed of the noise draws; trial ``i``'s estimators use ``seed + i``.
+        seed: seed of the noise draws; trial ``i``'s estimators use ``seed + i`` (modulo ``2**64``).
         checkpoint: called with the study so far every ``checkpoint_every_s`` seconds (the command
             line writes the partial report, so a long study that dies still reports).
 
@@ -450,7 +451,9 @@ def run(
     def fit_chunk(scenario: str, chosen: range) -> None:
         """Every estimator on trials ``chosen`` of ``scenario``, appended to ``found``."""
         problems = [
-            Problem(robot_obj, batches[scenario][t], None, seed=seed + t, device=device, dtype=dtype)
+            Problem(
+                robot_obj, batches[scenario][t], None, seed=trial_seed(seed, t), device=device, dtype=dtype
+            )
             for t in chosen
         ]
         # The study's chunk is the batch (it bounds memory already): one batched call per estimator.

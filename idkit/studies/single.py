@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from idkit.estimate import Estimate
+from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
 from idkit.studies.labels import cost_label, estimator_label, searches_cost
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
@@ -161,7 +162,7 @@ def load_data(
     robot: Any,
     scenario: Any = None,
     *,
-    seed: int = 0,
+    seed: Seed = 0,
     data: Any = None,
     n_samples: int | None = None,
     params: Any = None,
@@ -219,7 +220,7 @@ def run(
     cost: Spec | None = "f13",
     scenario: Any = None,
     *,
-    seed: int = 0,
+    seed: Seed = 0,
     data: Any = None,
     n_samples: int | None = None,
     params: Any = None,

@@ -109,8 +109,13 @@ def test_prior_pulls_towards_cad():
     problem = Problem(robot, simulated(robot, true_params(robot) * 1.3, noise=0.05, seed=2))
     free = PhysicallyConsistentLS().fit(problem)
     pulled = PhysicallyConsistentLS(prior_weight=1e4).fit(problem)
+    # What the prior guarantees: it is a barrier (-log det), so every link stays strictly inside the
+    # PSD cone (finite divergence), and by optimality of both programs the pulled fit trades data
+    # fit for divergence: its summed divergence is no larger and its data criterion no smaller. The
+    # free fit may legitimately sit on the PSD boundary, where its divergence is infinite.
+    assert all(np.isfinite(v) for v in pulled.details["divergence"].values())
     assert sum(pulled.details["divergence"].values()) < sum(free.details["divergence"].values())
-    assert pulled.details["criterion_value"] >= free.details["criterion_value"]
+    assert pulled.details["criterion_value"] >= free.details["criterion_value"] * (1 - 1e-6)
     assert pulled.estimator == "PCLS-prior10000"
 
 
