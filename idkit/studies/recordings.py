@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -77,6 +77,9 @@ def load_files(
 ) -> list[DataFile]:
     """Load every file of ``data=`` or ``validate=`` (``role``) for ``robot``; ``stride`` thins them.
 
+    The recorded efforts become joint torques here (``robot.joint_torques``: a ``urdf`` robot's
+    ``effort_scale``), so fits, validation errors (N·m) and identified models are in joint torque.
+
     Raises:
         ValueError: an empty list, or a file whose number of joints is not the robot's (naming the
             file, both counts and the robot's joints); what the loader refuses.
@@ -101,4 +104,5 @@ def load_files(
                 f"{role} file {item.path} has {item.samples.n_joints} joints but {which} has "
                 f"{robot.n_joints}: {', '.join(robot.joint_names)}"
             )
-    return loaded
+    # Where recorded efforts become joint torques (robot.effort_scale): every figure after is in N·m.
+    return [replace(f, samples=replace(f.samples, tau=robot.joint_torques(f.samples.tau))) for f in loaded]
