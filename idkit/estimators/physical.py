@@ -61,6 +61,7 @@ from idkit.estimators.observation import IdentificationError
 from idkit.estimators.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
+from idkit.robots.drives import NONNEGATIVE
 
 #: Weight (χ² per squared relative deviation) of the pull to CAD when ``prior_weight = 0`` (module doc).
 TIE_BREAK = 1.0
@@ -75,10 +76,10 @@ SOLVER_OPTIONS = {
 PROJECTION_UNIT = 1e-3
 #: Floor of the pcls data scale ``s²``, relative to ``‖tau‖²`` (noise-free data).
 NOISE_FLOOR = 1e-10
-#: Parameter-name suffixes constrained to be non-negative (Coulomb and viscous friction). A Stribeck
-#: coefficient ``fs`` may be negative (friction building up over ``v_s`` after a reversal) as long as
-#: the friction at low speed opposes the motion: ``fc + fs >= 0``.
-NONNEGATIVE_SUFFIXES = (".fc", ".fv")
+#: Parameter-name suffixes constrained to be non-negative (friction, armature: ``idkit.robots.drives``).
+#: A Stribeck coefficient ``fs`` may be negative (friction building up over ``v_s`` after a reversal)
+#: as long as the friction at low speed opposes the motion: ``fc + fs >= 0``.
+NONNEGATIVE_SUFFIXES = tuple(f".{suffix}" for suffix in NONNEGATIVE)
 #: A solution whose pseudo-inertia eigenvalue is below ``-PSD_TOLERANCE × max|J|`` of its link is
 #: not consistent: an inaccurate solver status ended outside the cone (refused, not returned).
 PSD_TOLERANCE = 1e-6
@@ -225,6 +226,9 @@ def solve_consistent(
     if nonnegative:
         constraints.append(z[nonnegative] >= 0)
     index = {name: k for k, name in enumerate(robot.param_names)}
+    held = [index[name] for name in getattr(robot, "a_priori_params", ())]  # merged armatures, shapes
+    if held:
+        constraints.append(z[held] == nominal[held] / unit[held])
     for joint in robot.joint_names:
         if f"{joint}.fs" in index:
             constraints.append(p[index[f"{joint}.fc"]] + p[index[f"{joint}.fs"]] >= 0)
@@ -465,7 +469,7 @@ class PhysicallyConsistentLS(Estimator):
             "status": solution.status,
             "solve_time_s": solution.solve_time_s,
             "equations": int(W.shape[0]),
-            **base_uncertainty(W, tau, alpha, robot.base_param_names).to_details(),
+            **base_uncertainty(W, tau, alpha, robot.base_param_names, robot.unidentifiable).to_details(),
         }
         return Estimate(
             estimator=self.name,

@@ -53,26 +53,29 @@ FRICTION_MODELS: dict[object, tuple[str, ...]] = {
     "asymmetric": ("fc_pos", "fc_neg", "fv"),
     "sigmoid": ("phi1", "fv", "phi2", "phi3"),
 }
-#: Suffixes of the nonlinear (shape) parameters of the sigmoid model.
-SHAPE_SUFFIXES = ("phi2", "phi3")
+#: Suffixes of the parameters that are physically ``≥ 0`` (pcls constrains them).
+NONNEGATIVE = ("fc", "fv", "fc_pos", "fc_neg", "phi1", "armature")
 
 
 @dataclass(frozen=True)
 class Term:
-    """One per-joint parameter group ``<joint>.<suffix>``: its search box and sign.
+    """One per-joint parameter group ``<joint>.<suffix>``: its search box and kind.
 
     Attributes:
         suffix: the parameter-name suffix.
         lower, upper: search box of each joint's coefficient.
-        nonnegative: physically ``≥ 0`` (pcls constrains it).
         shape: a nonlinear shape parameter (no regressor column).
     """
 
     suffix: str
     lower: float
     upper: float
-    nonnegative: bool = False
     shape: bool = False
+
+    @property
+    def nonnegative(self) -> bool:
+        """Physically ``≥ 0`` (``NONNEGATIVE``)."""
+        return self.suffix in NONNEGATIVE
 
 
 @dataclass(frozen=True)
@@ -239,15 +242,15 @@ class DriveModel:
                 f"{who}: the sigmoid steepness range must be 0 < low < high, got {boxes.steepness}"
             )
         catalogue = {
-            "fc": Term("fc", 0.0, boxes.coulomb, nonnegative=True),
-            "fv": Term("fv", 0.0, boxes.viscous, nonnegative=True),
+            "fc": Term("fc", 0.0, boxes.coulomb),
+            "fv": Term("fv", 0.0, boxes.viscous),
             "fs": Term("fs", -boxes.coulomb, boxes.coulomb),
-            "fc_pos": Term("fc_pos", 0.0, boxes.coulomb, nonnegative=True),
-            "fc_neg": Term("fc_neg", 0.0, boxes.coulomb, nonnegative=True),
-            "phi1": Term("phi1", 0.0, boxes.coulomb, nonnegative=True),
+            "fc_pos": Term("fc_pos", 0.0, boxes.coulomb),
+            "fc_neg": Term("fc_neg", 0.0, boxes.coulomb),
+            "phi1": Term("phi1", 0.0, boxes.coulomb),
             "phi2": Term("phi2", lo, hi, shape=True),
             "phi3": Term("phi3", -boxes.shift, boxes.shift, shape=True),
-            "armature": Term("armature", 0.0, boxes.armature, nonnegative=True),
+            "armature": Term("armature", 0.0, boxes.armature),
             "offset": Term("offset", -boxes.offset, boxes.offset),
         }
         suffixes = list(FRICTION_MODELS[key]) + (["fs"] if stribeck_scales is not None else [])
