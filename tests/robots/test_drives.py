@@ -283,7 +283,9 @@ def test_identified_urdf_round_trips_the_armature(tmp_path):
     armatures = [robot.param_names.index(f"{j}.armature") for j in robot.joint_names]
     np.testing.assert_allclose(back.nominal_params()[armatures], params[armatures], rtol=1e-14)
     plain = quiet_robot(TREE_URDF, armature=True)  # no transmissions: armature 0 a priori
-    bare = identified_urdf(plain, plain.nominal_params() + torch.linspace(0.0, 0.01, plain.n_params))
+    params = plain.nominal_params()
+    params[-4:] = torch.tensor([0.01, 0.02, 0.03, 0.04])
+    bare = identified_urdf(plain, params)
     assert set(read_armatures(bare)) == {"j1", "j2", "j3", "j4"}  # new transmissions where none were
     pin_model(bare)  # pinocchio still loads it
 
