@@ -32,6 +32,7 @@ floating base), unknown types, ``<mimic>`` joints; closed loops are refused too.
 
 from __future__ import annotations
 
+import inspect
 import warnings
 from collections.abc import Sequence
 
@@ -176,6 +177,12 @@ class URDFRobot(Robot):
         return DriveModel(
             joints, self.friction, self.armature, self.offset, self.stribeck_scales, prior, shape, boxes
         )
+
+    def with_options(self, **changes: object) -> URDFRobot:
+        """The same robot built with some constructor options changed (e.g. the reference sigmoid
+        shape a fit found): every option is stored unchanged under its own name."""
+        keys = inspect.signature(type(self)).parameters
+        return type(self)(**{**{key: getattr(self, key) for key in keys}, **changes})
 
     def _a_priori_armatures(self) -> dict[str, float]:
         """The model file's armature per joint (a URDF's transmissions); the MJCF reader overrides it."""
