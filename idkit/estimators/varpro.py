@@ -325,7 +325,8 @@ def _polish(data: Projection, theta: Tensor, lower: Tensor, upper: Tensor, steps
 def _least_squares(robot: Robot, data: Projection, theta: Tensor) -> tuple[Tensor, dict[str, Any]]:
     """Standard parameters ``[P]`` of the least-squares linear parameters at shape ``theta``."""
     w = data.matrix(theta)
-    solution = torch.linalg.lstsq(w, data.tau.reshape(-1, 1)).solution[:, 0]
+    driver = "gelsd" if w.device.type == "cpu" else None  # the CPU default (gelsy) varies in round-off
+    solution = torch.linalg.lstsq(w, data.tau.reshape(-1, 1), driver=driver).solution[:, 0]
     alpha = torch.empty(len(robot.base_param_names), dtype=w.dtype, device=w.device)
     alpha[data.fixed + data.scaled] = solution
     params = robot.params_from_base(alpha).clone()
