@@ -185,12 +185,10 @@ def _write_armatures(robot: URDFRobot, values: np.ndarray, root: ET.Element) -> 
         key = f"{joint}.armature"
         if key not in index:
             continue
-        transmission = single.get(joint)
-        if transmission is None:
-            transmission = _new_transmission(root, joint)
+        transmission = single.get(joint) or _new_transmission(root, joint)
         actuator = transmission.find("actuator")
         if actuator is None:
-            actuator = ET.SubElement(transmission, "actuator", name=f"{joint}_motor")
+            actuator = _append(transmission, ET.Element("actuator", name=f"{joint}_motor"))
         reduction = actuator.find("mechanicalReduction")
         if reduction is None:
             reduction = transmission.find("mechanicalReduction")
@@ -199,27 +197,33 @@ def _write_armatures(robot: URDFRobot, values: np.ndarray, root: ET.Element) -> 
         if rotor is None:
             rotor = transmission.find("rotor_inertia")
         if rotor is None:
-            rotor = ET.SubElement(actuator, "rotor_inertia")
+            rotor = _append(actuator, ET.Element("rotor_inertia"))
         rotor.text = _number(values[index[key]] / ratio**2)
         if key in robot.a_priori_params:
-            transmission.append(
-                ET.Comment(
-                    f" idkit: the armature of {joint} merges with the link inertia (not identifiable); "
-                    "rotor_inertia is its a-priori value "
-                )
-            )
+            note = f" idkit: the armature of {joint} merges with the link inertia (not identifiable); "
+            _append(transmission, ET.Comment(note + "rotor_inertia is its a-priori value "))
+
+
+def _append(parent: ET.Element, child: ET.Element) -> ET.Element:
+    """Append ``child`` indented like its siblings (a pretty-printed source stays pretty)."""
+    if len(parent):
+        child.tail, parent[-1].tail = parent[-1].tail, parent.text
+    else:
+        child.tail, parent.text = parent.tail, (parent.tail or "") + "  "
+    parent.append(child)
+    return child
 
 
 def _new_transmission(root: ET.Element, joint: str) -> ET.Element:
-    """A ``SimpleTransmission`` of ``joint`` with one actuator of reduction 1."""
-    transmission = ET.SubElement(root, "transmission", name=f"{joint}_idkit_drive")
+    """A ``SimpleTransmission`` of ``joint`` with one actuator of reduction 1 (its rotor inertia 0)."""
+    transmission = ET.Element("transmission", name=f"{joint}_idkit_drive")
     ET.SubElement(transmission, "type").text = "transmission_interface/SimpleTransmission"
     ET.SubElement(transmission, "joint", name=joint)
     actuator = ET.SubElement(transmission, "actuator", name=f"{joint}_motor")
     ET.SubElement(actuator, "mechanicalReduction").text = "1"
+    ET.SubElement(actuator, "rotor_inertia").text = "0"
     ET.indent(transmission, space="  ", level=1)
-    transmission.tail = "\n"
-    return transmission
+    return _append(root, transmission)
 
 
 def write_identified_urdf(
