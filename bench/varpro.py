@@ -18,7 +18,9 @@ regressor included):
 * ``least_squares (2-point)`` — scipy's ``trf`` on all parameters (base + shapes), its default
   finite-difference Jacobian, the shapes boxed;
 * ``least_squares (analytic J)`` — the same with the exact Jacobian (the regressor and the sigmoid's
-  derivatives): the strongest form of the peer.
+  derivatives): the strongest form of the peer;
+* the two again from the middle of the shape box (``φ2 = 50.5 s/rad``, ``φ3 = 0``): the start a
+  user without a reference shape would pick.
 
 Columns: wall time, the ratio to varpro's, held-out ‖E‖/‖T‖, the largest relative error of any
 ``φ1`` or ``φ2`` and the largest absolute error of any ``φ3`` (the true shifts are 0.004–0.046 rad/s,
@@ -94,8 +96,11 @@ def fit_varpro(robot: URDFRobot, train: Samples) -> tuple[torch.Tensor, int]:
     return params, estimate.details["evaluations"]
 
 
-def fit_least_squares(robot: URDFRobot, train: Samples, analytic: bool) -> tuple[torch.Tensor, int]:
-    """scipy's trf on ``x = (base parameters but φ1, φ1, φ2, φ3)``, from CAD and the reference shape."""
+def fit_least_squares(
+    robot: URDFRobot, train: Samples, analytic: bool, centre: bool = False
+) -> tuple[torch.Tensor, int]:
+    """scipy's trf on ``x = (base parameters but φ1, φ1, φ2, φ3)`` from CAD and the reference shape
+    (``centre``: the middle of the shape box instead)."""
     n = robot.n_joints
     regressor = robot.regressor(train.q, train.qd, train.qdd).numpy()  # [N, n, B]
     amplitude = [robot.base_param_names.index(f"{j}.phi1") for j in robot.joint_names]
@@ -105,7 +110,8 @@ def fit_least_squares(robot: URDFRobot, train: Samples, analytic: bool) -> tuple
     shapes = [robot.param_names.index(f"{j}.{k}") for k in ("phi2", "phi3") for j in robot.joint_names]
     lower, upper = (bound[shapes].numpy() for bound in robot.bounds())
     start_alpha = robot.base_params(robot.nominal_params()).numpy()
-    x0 = np.concatenate([start_alpha[fixed], start_alpha[amplitude], robot.nominal_params()[shapes].numpy()])
+    start_shape = (lower + upper) / 2 if centre else robot.nominal_params()[shapes].numpy()
+    x0 = np.concatenate([start_alpha[fixed], start_alpha[amplitude], start_shape])
     L = len(fixed)
 
     def parts(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -160,6 +166,8 @@ def table(robot: URDFRobot, samples: int, noise: float, repeats: int) -> None:
         "varpro": lambda: fit_varpro(robot, train),
         "least_squares (2-point)": lambda: fit_least_squares(robot, train, analytic=False),
         "least_squares (analytic J)": lambda: fit_least_squares(robot, train, analytic=True),
+        "least_squares (2-point), box-centre start": lambda: fit_least_squares(robot, train, False, True),
+        "least_squares (analytic J), box-centre start": lambda: fit_least_squares(robot, train, True, True),
     }
     rows = []
     for label, fit in methods.items():
