@@ -213,7 +213,8 @@ class VariableProjection(Estimator):
             )
         s = problem.tensors()
         n = robot.n_joints
-        threads = resolve_threads(self.threads, self.particles * s.tau.numel() * len(robot.base_param_names))
+        searched = min(s.tau.shape[0], self.search_samples) * n  # the swarm's error-tensor size per particle
+        threads = resolve_threads(self.threads, self.particles * searched)
         with torch_threads(threads), torch.no_grad():
             data = projection(robot, s.q, s.qd, s.qdd, s.tau)
             stride = -(-s.q.shape[0] // self.search_samples)  # the swarm's every stride-th sample
@@ -232,12 +233,14 @@ class VariableProjection(Estimator):
             theta = _polish(data, state.global_position, lower, upper, self.polish)
         search_time = time.perf_counter() - start
         steepness, shift = theta[:n], theta[n:]
-        if self.refine == "pcls":
-            params, details = self._pcls(robot, problem, steepness, shift)
-        else:
-            params, details = _least_squares(robot, data, theta)
-        alpha = robot.base_params(params)
-        residual = float(torch.linalg.vector_norm(s.tau - robot.inverse_dynamics(params, s.q, s.qd, s.qdd)))
+        with torch_threads(threads):
+            if self.refine == "pcls":
+                params, details = self._pcls(robot, problem, steepness, shift)
+            else:
+                params, details = _least_squares(robot, data, theta)
+            alpha = robot.base_params(params)
+            predicted = robot.inverse_dynamics(params, s.q, s.qd, s.qdd)
+        residual = float(torch.linalg.vector_norm(s.tau - predicted))
         cost = residual if problem.cost is None else float(problem.evaluate(params))
         details = {
             "criterion": "||tau_s - W(theta) alpha||_2, theta = sigmoid shapes searched by PSO",
