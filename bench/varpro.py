@@ -50,24 +50,22 @@ from idkit.data.scenarios import simulate
 from idkit.estimators.varpro import VariableProjection
 from idkit.excitation.fourier import FourierExcitation
 from idkit.problem import Problem, Samples
+from idkit.robots.drives import GAZ_PANDA_FRICTION, with_drive_values
 from idkit.robots.urdf import URDFRobot
 from idkit.studies.validation import validate
 
 KUKA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kuka-lwr4" / "kuka_lwr4.urdf"
-#: Gaz et al. (2019), Table of the Panda's friction parameters, joints 1..7.
-PHI1 = [0.54615, 0.87224, 0.64068, 1.2794, 0.83904, 0.30301, 0.56489]
-PHI2 = [5.1181, 9.0657, 10.136, 5.5903, 8.3469, 17.133, 10.336]
-PHI3 = [0.039533, 0.025882, -0.04607, 0.036194, 0.026226, -0.021047, 0.0035526]
 
 
 def truth_of(robot: URDFRobot) -> torch.Tensor:
-    truth = robot.nominal_params()
-    for j, joint in enumerate(robot.joint_names):
-        for key, values in (("phi1", PHI1), ("phi2", PHI2), ("phi3", PHI3)):
-            truth[robot.param_names.index(f"{joint}.{key}")] = values[j]
-        truth[robot.param_names.index(f"{joint}.fv")] = 0.1 + 0.05 * j
-        truth[robot.param_names.index(f"{joint}.offset")] = 0.2 - 0.05 * j
-    return truth
+    """The CAD rigid body, Gaz et al.'s Panda friction, viscous friction and offsets."""
+    n = robot.n_joints
+    values = {
+        **GAZ_PANDA_FRICTION,
+        "fv": [0.1 + 0.05 * j for j in range(n)],
+        "offset": [0.2 - 0.05 * j for j in range(n)],
+    }
+    return with_drive_values(robot.param_names, robot.joint_names, robot.nominal_params(), values)
 
 
 def noisy(samples: Samples, level: float, seed: int) -> Samples:

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -52,6 +52,13 @@ FRICTION_MODELS: dict[object, tuple[str, ...]] = {
     True: ("fc", "fv"),
     "asymmetric": ("fc_pos", "fc_neg", "fv"),
     "sigmoid": ("phi1", "fv", "phi2", "phi3"),
+}
+#: The sigmoid friction Gaz et al. (RA-L 2019) identified on a Franka Emika Panda, joints 1–7: a
+#: realistic 7-joint reference for simulations (``phi1`` N·m, ``phi2`` s/rad, ``phi3`` rad/s).
+GAZ_PANDA_FRICTION: dict[str, tuple[float, ...]] = {
+    "phi1": (0.54615, 0.87224, 0.64068, 1.2794, 0.83904, 0.30301, 0.56489),
+    "phi2": (5.1181, 9.0657, 10.136, 5.5903, 8.3469, 17.133, 10.336),
+    "phi3": (0.039533, 0.025882, -0.04607, 0.036194, 0.026226, -0.021047, 0.0035526),
 }
 #: Suffixes of the parameters that are physically ``≥ 0`` (pcls constrains them).
 NONNEGATIVE = ("fc", "fv", "fc_pos", "fc_neg", "phi1", "armature")
@@ -123,6 +130,25 @@ def per_joint(value: float | Sequence[float], joints: Sequence[str], option: str
             f"(joints: {', '.join(joints)})"
         )
     return array
+
+
+def with_drive_values(
+    param_names: Sequence[str], joints: Sequence[str], params: Tensor, values: Mapping[str, Sequence[float]]
+) -> Tensor:
+    """A copy of ``params[P]`` with ``<joint>.<suffix>`` set to ``values[suffix][j]`` for joint ``j``.
+
+    A sequence longer than the robot's joints gives its first values (e.g. the Panda's friction on
+    a 4-joint arm); a suffix the robot lacks is a ``KeyError`` naming the parameter.
+    """
+    out = params.clone()
+    index = {name: k for k, name in enumerate(param_names)}
+    for suffix, numbers in values.items():
+        for joint, number in zip(joints, numbers, strict=False):
+            name = f"{joint}.{suffix}"
+            if name not in index:
+                raise KeyError(f"the robot has no parameter {name!r}")
+            out[index[name]] = float(number)
+    return out
 
 
 def check_effort_scale(value: Sequence[float] | None, joints: Sequence[str], who: str) -> np.ndarray | None:

@@ -1,4 +1,5 @@
-"""Variable projection for the sigmoid friction shapes (``varpro``).
+"""Variable projection for the sigmoid friction shapes (``varpro``), on data simulated with the
+friction Gaz et al. identified on a Panda (``GAZ_PANDA_FRICTION``).
 
 References: numpy's ``lstsq`` for the projected residual, and ``scipy.optimize.least_squares`` on all
 parameters at once for the minimiser (both minimise the same sum of squares).
@@ -17,13 +18,9 @@ from idkit.data.scenarios import simulate
 from idkit.estimators.physical import min_pseudo_inertia_eigenvalues
 from idkit.estimators.varpro import VariableProjection, projection
 from idkit.problem import IdentificationError, Problem, Samples
+from idkit.robots.drives import GAZ_PANDA_FRICTION, with_drive_values
 from idkit.robots.urdf import URDFRobot
 from tests.urdf_cases import TREE_URDF
-
-#: Gaz et al. (RA-L 2019): the Panda's identified friction, joints 1..7.
-PHI1 = [0.54615, 0.87224, 0.64068, 1.2794, 0.83904, 0.30301, 0.56489]
-PHI2 = [5.1181, 9.0657, 10.136, 5.5903, 8.3469, 17.133, 10.336]
-PHI3 = [0.039533, 0.025882, -0.04607, 0.036194, 0.026226, -0.021047, 0.0035526]
 
 
 def sigmoid_robot(urdf: str, **options) -> URDFRobot:
@@ -33,13 +30,13 @@ def sigmoid_robot(urdf: str, **options) -> URDFRobot:
 
 
 def gaz_truth(robot: URDFRobot) -> torch.Tensor:
-    truth = robot.nominal_params()
-    for j, joint in enumerate(robot.joint_names):
-        for key, values in (("phi1", PHI1), ("phi2", PHI2), ("phi3", PHI3)):
-            truth[robot.param_names.index(f"{joint}.{key}")] = values[j]
-        truth[robot.param_names.index(f"{joint}.fv")] = 0.1 + 0.05 * j
-        truth[robot.param_names.index(f"{joint}.offset")] = 0.2 - 0.05 * j
-    return truth
+    n = robot.n_joints
+    values = {
+        **GAZ_PANDA_FRICTION,
+        "fv": [0.1 + 0.05 * j for j in range(n)],
+        "offset": [0.2 - 0.05 * j for j in range(n)],
+    }
+    return with_drive_values(robot.param_names, robot.joint_names, robot.nominal_params(), values)
 
 
 def phi_index(robot: URDFRobot, *keys: str) -> list[int]:
@@ -78,7 +75,10 @@ def test_varpro_recovers_the_shapes_of_noise_free_data(tree):
     index = phi_index(robot, "phi1", "phi2", "phi3")
     np.testing.assert_allclose(params[index].numpy(), truth[index].numpy(), rtol=1e-6)
     assert estimate.details["rel_error_train"] < 1e-9
-    assert estimate.details["shape"]["j1"] == {"phi2": pytest.approx(PHI2[0]), "phi3": pytest.approx(PHI3[0])}
+    assert estimate.details["shape"]["j1"] == {
+        "phi2": pytest.approx(GAZ_PANDA_FRICTION["phi2"][0]),
+        "phi3": pytest.approx(GAZ_PANDA_FRICTION["phi3"][0]),
+    }
     again = VariableProjection(particles=16, iterations=15).fit(Problem(robot, samples, seed=3))
     assert again.params == estimate.params  # the seed fixes every number
 

@@ -21,7 +21,7 @@ from idkit.data.scenarios import simulate
 from idkit.estimators.physical import PhysicallyConsistentLS
 from idkit.problem import Problem
 from idkit.registry import create
-from idkit.robots.drives import read_armatures
+from idkit.robots.drives import read_armatures, with_drive_values
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_export import identified_urdf
 from idkit.studies.single import run
@@ -253,11 +253,10 @@ def check_ls_recovers_armature(urdf: str, truth_of, tmp_path, n_samples: int) ->
 
 
 def tree_truth(robot: URDFRobot) -> torch.Tensor:
-    truth = robot.nominal_params()
-    for k, joint in enumerate(robot.joint_names):
-        truth[robot.param_names.index(f"{joint}.fc")] = 0.2 + 0.1 * k
-        truth[robot.param_names.index(f"{joint}.fv")] = 0.05 + 0.02 * k
-    return truth
+    """The URDF's inertials and armature, Coulomb and viscous friction."""
+    n = robot.n_joints
+    values = {"fc": [0.2 + 0.1 * k for k in range(n)], "fv": [0.05 + 0.02 * k for k in range(n)]}
+    return with_drive_values(robot.param_names, robot.joint_names, robot.nominal_params(), values)
 
 
 def test_ls_recovers_every_separable_armature_of_the_test_robot_from_currents(tmp_path):
