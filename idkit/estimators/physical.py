@@ -10,7 +10,8 @@ origin, the order of :mod:`idkit.robots.urdf_model`) describe a real mass distri
 fit under it is a convex semidefinite program. Both tools here solve
 
     min_p  ‖R (K p) − b‖² / s²  +  w Σ_links D(J_i(p) ‖ J_i0)
-    s.t.   J_i(p) ⪰ 0,  m_i ≥ min_mass,  fc, fv ≥ 0,  fc + fs ≥ 0 (Stribeck term, if any),
+    s.t.   J_i(p) ⪰ 0,  m_i ≥ min_mass,  friction and armature ≥ 0,  fc + fs ≥ 0 (Stribeck term),
+           p_k = p0_k for the robot's ``a_priori_params`` (merged armatures, sigmoid shapes),
 
 with ``p`` the standard parameters ``[P]`` of a ``urdf`` robot, ``K`` its base map (``alpha = K p``)
 and ``(R, b, s²)`` a QR-compressed data term: for ``pcls`` the regressor and torques of the samples,
