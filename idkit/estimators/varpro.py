@@ -34,8 +34,8 @@ from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
 from idkit.estimators import swarm
-from idkit.estimators.observation import IdentificationError
-from idkit.estimators.uncertainty import base_uncertainty
+from idkit.estimators.linear.observation import IdentificationError
+from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem
 from idkit.robots.drives import sigmoid_friction

@@ -35,6 +35,7 @@ from __future__ import annotations
 import inspect
 import warnings
 from collections.abc import Sequence
+from typing import ClassVar
 
 import numpy as np
 import torch
@@ -46,6 +47,7 @@ from idkit.robots.base_params import BaseParameters, find_base_parameters
 from idkit.robots.drives import Boxes, DriveModel, Friction, check_effort_scale, per_joint, read_armatures
 from idkit.robots.rnea import TreeTensors, rnea, rnea_regressor
 from idkit.robots.urdf_model import INERTIAL_NAMES, KinematicTree, parse_urdf
+from idkit.seeds import Seed, torch_generator
 
 
 class URDFRobot(Robot):
@@ -87,6 +89,8 @@ class URDFRobot(Robot):
     """
 
     search_space = "base"
+    #: The model format: names it in error messages (a subclass reading another format sets it).
+    source_format: ClassVar[str] = "urdf"
 
     def __init__(
         self,
@@ -96,7 +100,7 @@ class URDFRobot(Robot):
         gravity: float = 9.81,
         n_states: int = 200,
         tolerance: float = 1e-8,
-        seed: int = 0,
+        seed: Seed = 0,
         max_coulomb: float = 10.0,
         max_viscous: float = 10.0,
         max_offset: float = 10.0,
@@ -127,10 +131,10 @@ class URDFRobot(Robot):
         self.sigmoid_shift = sigmoid_shift
         self.steepness_range = steepness_range
         self.max_shift = max_shift
-        self.tree: KinematicTree = parse_urdf(urdf)
+        self.tree: KinematicTree = self._read_tree()
         self.joint_names = self.tree.joint_names
         self.stribeck_scales = self._check_stribeck(stribeck_velocity)
-        self.effort_scales = check_effort_scale(effort_scale, self.joint_names, "urdf")
+        self.effort_scales = check_effort_scale(effort_scale, self.joint_names, self.source_format)
         self.link_names = self.tree.link_names
         self.drives = self._drive_model()
         names = [f"{link}.{p}" for link in self.link_names for p in INERTIAL_NAMES]
@@ -163,8 +167,8 @@ class URDFRobot(Robot):
         shape = None
         if self.friction == "sigmoid":
             shape = (
-                per_joint(self.sigmoid_steepness, joints, "sigmoid_steepness", "urdf"),
-                per_joint(self.sigmoid_shift, joints, "sigmoid_shift", "urdf"),
+                per_joint(self.sigmoid_steepness, joints, "sigmoid_steepness", self.source_format),
+                per_joint(self.sigmoid_shift, joints, "sigmoid_shift", self.source_format),
             )
         boxes = Boxes(
             self.max_coulomb,
@@ -175,7 +179,15 @@ class URDFRobot(Robot):
             self.max_shift,
         )
         return DriveModel(
-            joints, self.friction, self.armature, self.offset, self.stribeck_scales, prior, shape, boxes
+            joints,
+            self.friction,
+            self.armature,
+            self.offset,
+            self.stribeck_scales,
+            prior,
+            shape,
+            boxes,
+            self.source_format,
         )
 
     def with_options(self, **changes: object) -> URDFRobot:
@@ -209,8 +221,12 @@ class URDFRobot(Robot):
             )
             names.append(name)
         if statements:
-            warnings.warn(f"urdf: {'; '.join(statements)}", stacklevel=3)
+            warnings.warn(f"{self.source_format}: {'; '.join(statements)}", stacklevel=3)
         return tuple(statements), tuple(names)
+
+    def _read_tree(self) -> KinematicTree:
+        """The tree the dynamics run on: the seam where another format plugs in (``mjcf``)."""
+        return parse_urdf(self.urdf)
 
     def _tree_tensors(self, like: Tensor) -> TreeTensors:
         key = (like.device, like.dtype)
@@ -236,10 +252,11 @@ class URDFRobot(Robot):
     def _find_base(self) -> BaseParameters:
         if self.n_states * self.n_joints <= self.n_params:
             raise ValueError(
-                f"urdf: n_states={self.n_states} gives {self.n_states * self.n_joints} regressor rows for "
-                f"{self.n_params} parameters; use n_states > {self.n_params // self.n_joints} (default 200)"
+                f"{self.source_format}: n_states={self.n_states} gives {self.n_states * self.n_joints} "
+                f"regressor rows for {self.n_params} parameters; use n_states > "
+                f"{self.n_params // self.n_joints} (default 200)"
             )
-        generator = torch.Generator().manual_seed(int(self.seed))
+        generator = torch_generator(self.seed)
         states = self.random_states(self.n_states, generator)
         stacked = self.standard_regressor(*states).reshape(-1, self.n_params)
         return find_base_parameters(stacked.numpy(), self.tolerance)
@@ -321,8 +338,8 @@ class URDFRobot(Robot):
         """
         if alpha.shape[-1] != len(self.base_param_names):
             raise ValueError(
-                f"urdf: base parameters need {len(self.base_param_names)} values in the last dimension, "
-                f"got shape {tuple(alpha.shape)}"
+                f"{self.source_format}: base parameters need {len(self.base_param_names)} values in the "
+                f"last dimension, got shape {tuple(alpha.shape)}"
             )
         base_map, pinv = self.base_map.to(alpha), self._pinv.to(alpha)
         nominal = self.nominal_params().to(alpha)
@@ -332,7 +349,7 @@ class URDFRobot(Robot):
     def _check_params(self, params: Tensor) -> None:
         if params.shape[-1:] != (self.n_params,):
             raise ValueError(
-                f"urdf: params need {self.n_params} values in the last dimension "
+                f"{self.source_format}: params need {self.n_params} values in the last dimension "
                 f"({self.param_names[0]}, ...), got shape {tuple(params.shape)}"
             )
 
@@ -340,8 +357,8 @@ class URDFRobot(Robot):
         for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
             if value.ndim != 2 or value.shape[1] != self.n_joints or value.shape != q.shape:
                 raise ValueError(
-                    f"urdf: {name} must be [N, {self.n_joints}] like q, got {tuple(value.shape)} "
-                    f"(joints: {', '.join(self.joint_names)})"
+                    f"{self.source_format}: {name} must be [N, {self.n_joints}] like q, got "
+                    f"{tuple(value.shape)} (joints: {', '.join(self.joint_names)})"
                 )
 
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
@@ -394,8 +411,8 @@ class URDFRobot(Robot):
             scales = np.full(self.n_joints, scales[0])
         if self.friction is not True or scales.shape != (self.n_joints,) or not (scales > 0).all():
             raise ValueError(
-                f"urdf: stribeck_velocity={value!r} needs friction=true and one value > 0 (rad/s) or "
-                f"{self.n_joints} of them (joints: {', '.join(self.joint_names)})"
+                f"{self.source_format}: stribeck_velocity={value!r} needs friction=true and one value > 0 "
+                f"(rad/s) or {self.n_joints} of them (joints: {', '.join(self.joint_names)})"
             )
         return scales
 

@@ -15,10 +15,10 @@ import torch
 from scipy.optimize import least_squares
 
 from idkit.data.scenarios import simulate
-from idkit.estimators.physical import min_pseudo_inertia_eigenvalues
 from idkit.estimators.varpro import VariableProjection, projection
 from idkit.problem import IdentificationError, Problem, Samples
 from idkit.robots.drives import GAZ_PANDA_FRICTION, with_drive_values
+from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
 from tests.urdf_cases import TREE_URDF
 
