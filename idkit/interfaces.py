@@ -44,6 +44,9 @@ class Robot(ABC):
     #: ``bounds()`` (the paper's way), or the base parameters within ``base_bounds()`` (robots
     #: with many unidentifiable physical parameters, e.g. a URDF arm).
     search_space: ClassVar[str] = "physical"
+    #: Parameters the model carries but no data can separate (e.g. a rotor inertia that merges with
+    #: a link inertia), one readable statement each; the uncertainty report lists them.
+    unidentifiable: tuple[str, ...] = ()
 
     @property
     def n_joints(self) -> int:
@@ -82,6 +85,11 @@ class Robot(ABC):
                 raise ValueError(
                     f"{name}: {label} must be [N, {self.n_joints}] like q, got shape {tuple(state.shape)}"
                 )
+
+    def joint_torques(self, effort: Tensor) -> Tensor:
+        """Joint torques ``[N, n]`` of a recording's efforts ``[N, n]`` (identity here; a robot whose
+        drives record something else, e.g. a motor current, converts it)."""
+        return effort
 
     @abstractmethod
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:

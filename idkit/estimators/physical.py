@@ -11,7 +11,8 @@ shared with the URDF reader and writer, is :mod:`idkit.robots.inertia`)::
 fit under it is a convex semidefinite program. Both tools here solve
 
     min_p  ‖R (K p) − b‖² / s²  +  w Σ_links D(J_i(p) ‖ J_i0)
-    s.t.   J_i(p) ⪰ 0,  m_i ≥ min_mass,  fc, fv ≥ 0,  fc + fs ≥ 0 (Stribeck term, if any),
+    s.t.   J_i(p) ⪰ 0,  m_i ≥ min_mass,  friction and armature ≥ 0,  fc + fs ≥ 0 (Stribeck term),
+           p_k = p0_k for the robot's ``a_priori_params`` (merged armatures, sigmoid shapes),
 
 with ``p`` the standard parameters ``[P]`` of a ``urdf`` robot, ``K`` its base map (``alpha = K p``)
 and ``(R, b, s²)`` a QR-compressed data term: for ``pcls`` the regressor and torques of the samples,
@@ -63,6 +64,7 @@ from idkit.estimators.linear.observation import IdentificationError
 from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
+from idkit.robots.drives import NONNEGATIVE
 from idkit.robots.inertia import link_count, pseudo_inertia, pseudo_inertia_rows
 from idkit.robots.model_checks import nonphysical_links
 from idkit.seeds import torch_generator
@@ -80,10 +82,10 @@ SOLVER_OPTIONS = {
 PROJECTION_UNIT = 1e-3
 #: Floor of the pcls data scale ``s²``, relative to ``‖tau‖²`` (noise-free data).
 NOISE_FLOOR = 1e-10
-#: Parameter-name suffixes constrained to be non-negative (Coulomb and viscous friction). A Stribeck
-#: coefficient ``fs`` may be negative (friction building up over ``v_s`` after a reversal) as long as
-#: the friction at low speed opposes the motion: ``fc + fs >= 0``.
-NONNEGATIVE_SUFFIXES = (".fc", ".fv")
+#: Parameter-name suffixes constrained to be non-negative (friction, armature: ``idkit.robots.drives``).
+#: A Stribeck coefficient ``fs`` may be negative (friction building up over ``v_s`` after a reversal)
+#: as long as the friction at low speed opposes the motion: ``fc + fs >= 0``.
+NONNEGATIVE_SUFFIXES = tuple(f".{suffix}" for suffix in NONNEGATIVE)
 #: A solution whose pseudo-inertia eigenvalue is below ``-PSD_TOLERANCE × max|J|`` of its link is
 #: not consistent: an inaccurate solver status ended outside the cone (refused, not returned).
 PSD_TOLERANCE = 1e-6
@@ -236,6 +238,9 @@ def solve_consistent(
     if nonnegative:
         constraints.append(z[nonnegative] >= 0)
     index = {name: k for k, name in enumerate(robot.param_names)}
+    held = [index[name] for name in getattr(robot, "a_priori_params", ())]  # merged armatures, shapes
+    if held:
+        constraints.append(z[held] == nominal[held] / unit[held])
     for joint in robot.joint_names:
         if f"{joint}.fs" in index:
             constraints.append(p[index[f"{joint}.fc"]] + p[index[f"{joint}.fs"]] >= 0)
@@ -461,7 +466,7 @@ class PhysicallyConsistentLS(Estimator):
             "status": solution.status,
             "solve_time_s": solution.solve_time_s,
             "equations": int(W.shape[0]),
-            **base_uncertainty(W, tau, alpha, robot.base_param_names).to_details(),
+            **base_uncertainty(W, tau, alpha, robot.base_param_names, robot.unidentifiable).to_details(),
         }
         return Estimate(
             estimator=self.name,

@@ -108,6 +108,9 @@ def load_files(
     """Load every file of ``data=`` or ``validate=`` (``role``) for ``robot``; ``stride`` thins them;
     ``recording`` (the ``recording`` config node) says which topics of a ROS log to read.
 
+    The recorded efforts become joint torques here (``robot.joint_torques``: a ``urdf`` robot's
+    ``effort_scale``), so fits, validation errors (N·m) and identified models are in joint torque.
+
     Raises:
         ValueError: an empty list, or a file whose number of joints is not the robot's (naming the
             file, both counts and the robot's joints); what the loader refuses.
@@ -132,7 +135,8 @@ def load_files(
         if log.delay == "auto" and item.preprocessed:
             item = _with_estimated_delay(robot, item, options, apply, stride, log)
         loaded.append(item)
-    return loaded
+    # Where recorded efforts become joint torques (robot.effort_scale): every figure after is in N·m.
+    return [replace(f, samples=replace(f.samples, tau=robot.joint_torques(f.samples.tau))) for f in loaded]
 
 
 def _check_joints(robot: Robot, item: DataFile, role: str) -> None:
@@ -171,7 +175,7 @@ def _with_estimated_delay(
             f"{item.path}: recording.delay=auto needs a robot with a linear regressor; give the delay in s"
         ) from None
     try:
-        delay, peak = torque_delay(samples.tau.numpy(), regressor, item.times)
+        delay, peak = torque_delay(robot.joint_torques(samples.tau).numpy(), regressor, item.times)
     except ValueError as exc:
         raise ValueError(f"{item.path}: {exc}") from None
     joints = list(robot.joint_names)

@@ -177,7 +177,12 @@ class LinearEstimator(Estimator):
                 params = robot.params_from_base(solution.alpha)  # [T, P]
                 costs = self._costs(problems, params, solution, log)
                 uncertainty = base_uncertainties(
-                    system.W, system.tau, solution.alpha, system.base_names, conditioning
+                    system.W,
+                    system.tau,
+                    solution.alpha,
+                    system.base_names,
+                    conditioning,
+                    robot.unidentifiable,
                 )
         finally:  # every trial's warnings, also when a later trial fails
             log.reissue()
