@@ -19,9 +19,10 @@ Gravity is the model's ``<option gravity>`` (along −z). ``range`` gives the po
 Refused with one line naming the element, because ``mj_inverse`` would then add forces the tree
 does not model: ``free``/``ball`` joints, two joints in one body, unnamed joints or bodies,
 equality constraints, tendons with stiffness, damping, friction loss, armature or limits, joint
-stiffness, joint armature (not modelled yet), gravity compensation, fluid forces (``density`` /
-``viscosity``), flexes, and gravity not along −z. Joint ``damping`` and ``frictionloss`` are what
-``friction=true``'s ``fv`` and ``fc`` model (their a-priori value is 0, as for a URDF); contacts and
+stiffness, gravity compensation, fluid forces (``density`` / ``viscosity``), flexes, gravity not
+along −z, and a joint ``armature`` unless ``armature=True`` models it. Joint ``damping`` and
+``frictionloss`` are what ``friction=true``'s ``fv`` and ``fc`` model (their a-priori value is 0, as
+for a URDF; ``armature`` is the a-priori value of ``<joint>.armature``); contacts and
 joint-limit forces are not modelled (measured data have none inside the limits).
 """
 
@@ -37,10 +38,12 @@ from typing import Any, ClassVar
 import numpy as np
 
 from idkit.registry import PluginLoadError
+from idkit.robots.drives import Friction
 from idkit.robots.inertia import standard_parameters
 from idkit.robots.model_checks import check_model
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_model import ASSETS, Body, KinematicTree, LinkInertial
+from idkit.seeds import Seed
 
 #: What to install when ``mujoco`` is missing.
 INSTALL = "pip install robot-idkit[mjcf]"
@@ -64,7 +67,8 @@ class MJCFModel:
         gravity: magnitude of the model's gravity along −z (0 when disabled).
         anchors: ``[nb, 3]`` each tree body's joint ``pos`` in its MuJoCo body frame: idkit's body
             frame is the MuJoCo one moved there (same orientation), which the writer undoes.
-        damping, frictionloss: ``[nb]`` the joints' MuJoCo viscous and Coulomb friction.
+        damping, frictionloss, armature: ``[nb]`` the joints' MuJoCo viscous and Coulomb friction
+            and reflected rotor inertia.
         source: the model's file path, or ``None`` for MJCF text.
         text: the MJCF text that was read.
     """
@@ -74,6 +78,7 @@ class MJCFModel:
     anchors: np.ndarray
     damping: np.ndarray
     frictionloss: np.ndarray
+    armature: np.ndarray
     source: Path | None
     text: str
 
@@ -191,16 +196,10 @@ def _refuse_unmodelled(mujoco: Any, model: Any, label: str) -> None:
             raise ValueError(
                 f"mjcf: {label}: the body of joint {name!r} has no name: parameters are named after it"
             )
-        dof = int(model.jnt_dofadr[j])
         if model.jnt_stiffness[j] != 0:
             raise ValueError(
                 f"mjcf: {label}: {where} has stiffness={model.jnt_stiffness[j]:g}: joint springs are not "
                 "supported"
-            )
-        if model.dof_armature[dof] != 0:
-            raise ValueError(
-                f"mjcf: {label}: {where} has armature={model.dof_armature[dof]:g}: rotor inertia is not "
-                "modelled yet (set it to 0 to identify the rest)"
             )
     gravity = np.asarray(model.opt.gravity, dtype=np.float64)
     if gravity[0] != 0 or gravity[1] != 0 or gravity[2] > 0:
@@ -236,7 +235,7 @@ def model_from_mujoco(model: Any, label: str, text: str, source: Path | None) ->
     bodies: list[Body] = []
     inertials: list[np.ndarray] = []
     welded: list[list[str]] = []
-    anchors, damping, frictionloss = [], [], []
+    anchors, damping, frictionloss, armature = [], [], [], []
     links: list[LinkInertial] = []
     for b in range(1, model.nbody):
         name = _name(mujoco, model, obj.mjOBJ_BODY, b)
@@ -271,6 +270,7 @@ def model_from_mujoco(model: Any, label: str, text: str, source: Path | None) ->
             anchors.append(anchor)
             damping.append(float(model.dof_damping[model.jnt_dofadr[j]]))
             frictionloss.append(float(model.dof_frictionloss[model.jnt_dofadr[j]]))
+            armature.append(float(model.dof_armature[model.jnt_dofadr[j]]))
             owner, rot, pos = len(bodies) - 1, np.eye(3), -anchor
         elif owner >= 0:
             welded[owner].append(name)
@@ -298,6 +298,7 @@ def model_from_mujoco(model: Any, label: str, text: str, source: Path | None) ->
         np.array(anchors).reshape(-1, 3),
         np.array(damping),
         np.array(frictionloss),
+        np.array(armature),
         source,
         text,
     )
@@ -348,15 +349,20 @@ class MJCFRobot(URDFRobot):
         mjcf: an MJCF file path, MJCF text, or the name of an MJCF shipped in ``idkit/robots/assets``
             (default ``arm``: two hinges and a slide). Read with ``mujoco``: ``pip install
             robot-idkit[mjcf]``.
-        friction, offset, stribeck_velocity: as for :class:`~idkit.robots.urdf.URDFRobot` (``fc`` is
-            MuJoCo's ``frictionloss``, ``fv`` its ``damping``).
+        friction, offset, stribeck_velocity, effort_scale, sigmoid_steepness, sigmoid_shift: as for
+            :class:`~idkit.robots.urdf.URDFRobot` (``fc`` is MuJoCo's ``frictionloss``, ``fv`` its
+            ``damping``).
+        armature: as for :class:`~idkit.robots.urdf.URDFRobot`; the a-priori value is the joint's
+            MuJoCo ``armature``. A model with a non-zero ``armature`` needs ``armature=True``:
+            ``mj_inverse`` adds ``armature · q̈``, which the model would otherwise lack.
         n_states, tolerance, seed: as for :class:`~idkit.robots.urdf.URDFRobot`.
-        max_coulomb, max_viscous, max_offset: as for :class:`~idkit.robots.urdf.URDFRobot`.
+        max_coulomb, max_viscous, max_offset, max_armature, steepness_range, max_shift: as for
+            :class:`~idkit.robots.urdf.URDFRobot`.
 
     Gravity is the model's ``<option gravity>`` (``self.gravity``, m/s² along −z). Parameters are
     named after the MuJoCo bodies and joints: ``<body>.m … <body>.Izz``,
-    ``<joint>.fc``, ``<joint>.fv``; the inertia is about idkit's body frame (the MuJoCo body frame
-    moved to the joint's ``pos``). ``mujoco_model`` keeps what the writer needs
+    ``<joint>.fc``, ``<joint>.fv``, ``<joint>.armature``; the inertia is about idkit's body frame (the
+    MuJoCo body frame moved to the joint's ``pos``). ``mujoco_model`` keeps what the writer needs
     (:mod:`idkit.robots.mjcf_export`).
     """
 
@@ -365,18 +371,33 @@ class MJCFRobot(URDFRobot):
     def __init__(
         self,
         mjcf: str = "arm",
-        friction: bool = False,
+        friction: Friction = False,
         offset: bool = False,
         n_states: int = 200,
         tolerance: float = 1e-8,
-        seed: int = 0,
+        seed: Seed = 0,
         max_coulomb: float = 10.0,
         max_viscous: float = 10.0,
         max_offset: float = 10.0,
         stribeck_velocity: float | Sequence[float] | None = None,
+        armature: bool = False,
+        effort_scale: Sequence[float] | None = None,
+        max_armature: float = 10.0,
+        sigmoid_steepness: float | Sequence[float] = 10.0,
+        sigmoid_shift: float | Sequence[float] = 0.0,
+        steepness_range: tuple[float, float] = (1.0, 100.0),
+        max_shift: float = 0.2,
     ) -> None:
         self.mjcf = mjcf
         self.mujoco_model = read_mjcf(mjcf)
+        joints = self.mujoco_model.tree.joint_names
+        armatures = zip(joints, self.mujoco_model.armature, strict=True)
+        with_rotors = [f"{joint} ({value:g})" for joint, value in armatures if value]
+        if with_rotors and not armature:
+            raise ValueError(
+                f"mjcf: {self.mujoco_model.tree.source}: joints with armature: {', '.join(with_rotors)}; "
+                "identify it with robot.armature=true (mj_inverse adds armature · q̈), or set it to 0"
+            )
         super().__init__(
             mjcf,
             friction=friction,
@@ -389,7 +410,18 @@ class MJCFRobot(URDFRobot):
             max_viscous=max_viscous,
             max_offset=max_offset,
             stribeck_velocity=stribeck_velocity,
+            armature=armature,
+            effort_scale=effort_scale,
+            max_armature=max_armature,
+            sigmoid_steepness=sigmoid_steepness,
+            sigmoid_shift=sigmoid_shift,
+            steepness_range=steepness_range,
+            max_shift=max_shift,
         )
 
     def _read_tree(self) -> KinematicTree:
         return self.mujoco_model.tree
+
+    def _a_priori_armatures(self) -> dict[str, float]:
+        """The joints' MuJoCo ``armature``."""
+        return dict(zip(self.joint_names, self.mujoco_model.armature.tolist(), strict=True))

@@ -143,6 +143,26 @@ def test_torques_equal_mj_inverse_on_the_test_arm(friction):
     assert np.abs(expected).max() > 1.0  # not a vacuous comparison
 
 
+def test_armature_and_drive_options_pass_through_and_equal_mj_inverse():
+    """A model's joint ``armature`` is the a-priori ``<joint>.armature``; with it mj_inverse still agrees."""
+    text = edit('<joint name="elbow"', '<joint name="elbow" armature="0.1"')
+    text = text.replace('<joint name="shoulder"', '<joint name="shoulder" armature="0.25"', 1)
+    robot = MJCFRobot(text, armature=True, effort_scale=[2.0, 3.0, 4.0, 5.0])
+    prior = dict(zip(robot.param_names, robot.nominal_params().tolist(), strict=True))
+    assert prior["elbow.armature"] == pytest.approx(0.1) and prior["shoulder.armature"] == pytest.approx(0.25)
+    assert prior["twist.armature"] == 0.0
+    model = mujoco.MjModel.from_xml_string(text)
+    model.dof_damping[:] = 0.0
+    model.dof_frictionloss[:] = 0.0
+    q, qd, qdd = moving_states(robot, 40, seed=5)
+    expected = mj_torques(model, q, qd, qdd, robot.joint_names)
+    torques = robot.inverse_dynamics(robot.nominal_params(), q, qd, qdd).numpy()
+    np.testing.assert_allclose(torques, expected, rtol=0, atol=1e-8)
+    without = MJCFRobot(text.replace('armature="0.1"', 'armature="0"').replace('armature="0.25"', 'armature="0"'))
+    assert np.abs(expected - without.inverse_dynamics(without.nominal_params(), q, qd, qdd).numpy()).max() > 1e-3
+    np.testing.assert_allclose(robot.joint_torques(torch.ones(1, 4)).numpy(), [[2.0, 3.0, 4.0, 5.0]])
+
+
 def test_the_tree_urdf_converted_by_mujoco():
     """MuJoCo's conversion of the shared URDF case: idkit's MJCF robot equals mj_inverse on it, and
     equals the URDF robot up to the 6 significant digits MuJoCo writes placements with."""
@@ -226,7 +246,7 @@ REFUSED = {
     ),
     "armature": (
         edit('<joint name="elbow"', '<joint name="elbow" armature="0.1"'),
-        "joint 'elbow'.*armature=0.1",
+        "joints with armature: elbow \\(0.1\\); identify it with robot.armature=true",
     ),
     "gravcomp": (edit('<body name="side"', '<body name="side" gravcomp="1"'), "body 'side' has gravcomp=1"),
     "fluid": (
