@@ -21,11 +21,15 @@ from hydra.errors import (
 from omegaconf.errors import ConfigAttributeError, ConfigKeyError
 
 from idkit import registry
+from idkit.cli.output import single_line
 from idkit.options import closest_first
 from idkit.registry import NAME_KEY
 
 #: Errors caused by what the user asked for (a study's or plugin's refusal of its input).
 USER_ERRORS = (registry.PluginError, ValueError, TypeError, FileNotFoundError, FileExistsError, LookupError)
+
+#: Config groups whose options are named like the group (``robot`` → "available robots").
+NAMED_GROUPS = ("robot", "estimator", "cost", "scenario", "experiment")
 
 #: Exit status of a refused input.
 USAGE = 1
@@ -34,7 +38,8 @@ PREFIX = "idkit: "
 
 
 def fail(message: str) -> NoReturn:
-    """Print ``idkit: <message>`` on stderr and exit with :data:`USAGE`."""
+    """Print ``idkit: <message>`` (on one line) on stderr and exit with :data:`USAGE`."""
+    message = single_line(message)
     print(message if message.startswith(PREFIX) else PREFIX + message, file=sys.stderr)
     sys.exit(USAGE)
 
@@ -67,7 +72,10 @@ def one_line(exc: BaseException) -> str | None:
     """
     if isinstance(exc, MissingConfigException) and exc.missing_cfg_file and exc.options:
         group, _, name = exc.missing_cfg_file.rpartition("/")
-        return registry.unknown_name_message(group or "config", name, list(exc.options))
+        if group in NAMED_GROUPS:
+            return registry.unknown_name_message(group, name, list(exc.options))
+        listed = ", ".join(closest_first(name, list(exc.options)))
+        return f"unknown {group or 'config'} option {name!r}; the options (closest first): {listed}"
     cause = exc.__cause__
     if isinstance(exc, ConfigCompositionException) and isinstance(
         cause, (ConfigAttributeError, ConfigKeyError)
@@ -76,10 +84,5 @@ def one_line(exc: BaseException) -> str | None:
     if isinstance(exc, OverrideParseException):  # its message does not say which override
         return f"cannot read {exc.override!r}: {str(exc).splitlines()[0]} (see `idkit --hydra-help`)"
     if isinstance(exc, (CompactHydraException, *USER_ERRORS)):
-        return _flat(str(exc))
+        return single_line(str(exc))
     return None
-
-
-def _flat(text: str) -> str:
-    """One line: Hydra's messages wrap and indent; the cause is on their first lines."""
-    return " ".join(part.strip() for part in text.strip().splitlines() if part.strip())
