@@ -180,6 +180,20 @@ def test_each_bad_input_ends_in_one_line_naming_its_cause(tmp_path):
 
 
 @pytest.mark.integration
+def test_warnings_are_one_line_each_and_debug_shows_their_source(tmp_path):
+    """The urdf fit warns (a floored torque, twice; a non-physical export): one line per message."""
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "IDKIT_DEBUG")}
+    out = idkit("robot=urdf", "plots=false", cwd=tmp_path, env=env)
+    assert out.returncode == 0, out.stderr
+    said = out.stderr.splitlines()
+    assert said and all(line.startswith("warning: ") for line in said), said
+    assert len(said) == len(set(said)) and ".py:" not in out.stderr
+    debug = idkit("robot=urdf", "plots=false", cwd=tmp_path, env={**env, "IDKIT_DEBUG": "1"})
+    assert debug.returncode == 0, debug.stderr
+    assert "idkit/costs/paper.py:" in debug.stderr and "RelativeFloorWarning: " in debug.stderr
+
+
+@pytest.mark.integration
 def test_a_third_party_distribution_is_selectable_by_name(tmp_path):
     site = tmp_path / "site"
     info = site / "toy_dist-1.2.dist-info"
