@@ -16,6 +16,7 @@ $(STAMP): pyproject.toml plugins/idkit-robust/pyproject.toml
 	$(VENV)/bin/python -m pip install -q torch==2.13.0
 	$(VENV)/bin/python -m pip install -q -e ".[test,docs]" -e ./plugins/idkit-robust
 	touch $@
+	@echo "idkit is installed in $(VENV); to put the idkit command on PATH: . $(VENV)/bin/activate"
 
 # The peers the benchmarks measure (JAX + evosax, pyswarms: ~0.7 GB) only when benchmarking.
 BENCH_STAMP := $(VENV)/.bench-installed
