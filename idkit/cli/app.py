@@ -109,11 +109,14 @@ def task(cfg: DictConfig) -> Any:
         provenance.record(run_dir, cfg, HydraConfig.instance().cfg)
         with output.one_line_warnings():  # also in a launcher's worker process
             return _run(cfg, run_dir)
-    except errors.USER_ERRORS as exc:
+    except Exception as exc:
+        message = errors.one_line(exc)  # a refused input, or more memory than there is
+        if message is None:
+            raise  # a bug: Hydra reports it with its traceback
         if single and not TRACEBACKS_REQUESTED:
-            errors.fail(str(exc))  # before Hydra adds "Error executing job with overrides: ..."
+            errors.fail(message)  # before Hydra adds "Error executing job with overrides: ..."
         # a sweep goes on; the summary callback records the failed job's cause
-        raise CompactHydraException(f"{errors.PREFIX}{exc}") from exc
+        raise CompactHydraException(f"{errors.PREFIX}{message}") from exc
     except KeyboardInterrupt:
         print(f"idkit: interrupted; no results were written to {run_dir}", file=sys.stderr)
         sys.exit(INTERRUPTED)

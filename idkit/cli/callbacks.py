@@ -171,7 +171,11 @@ class RunFolderCheck(Callback):
     @staticmethod
     def _check(config: DictConfig, check: Callable[[], None]) -> None:
         # Hydra turns a callback's exception into a warning and goes on: a refusal must exit here.
+        from hydra.core.hydra_config import HydraConfig
+
         from idkit.cli import errors
+
+        HydraConfig.instance().set_config(config)  # as run_job does first: ${hydra:...} in a folder name
 
         if config.hydra.output_subdir is not None:
             errors.fail(

@@ -67,8 +67,8 @@ def one_line(exc: BaseException) -> str | None:
     Covers Hydra's unknown config name (``MissingConfigException``), an override of a key the
     config does not have (``ConfigCompositionException`` caused by OmegaConf's struct check), an
     override Hydra cannot parse (``OverrideParseException``), any other compact Hydra error, a
-    bad override value Hydra refuses with a ``ValueError`` (``cost=null`` for a group), and
-    :data:`USER_ERRORS`.
+    bad override value Hydra refuses with a ``ValueError`` (``cost=null`` for a group),
+    :data:`USER_ERRORS`, and running out of memory (:func:`out_of_memory_message`).
     """
     if isinstance(exc, MissingConfigException) and exc.missing_cfg_file and exc.options:
         group, _, name = exc.missing_cfg_file.rpartition("/")
@@ -85,4 +85,26 @@ def one_line(exc: BaseException) -> str | None:
         return f"cannot read {exc.override!r}: {str(exc).splitlines()[0]} (see `idkit --hydra-help`)"
     if isinstance(exc, (CompactHydraException, *USER_ERRORS)):
         return single_line(str(exc))
-    return None
+    return out_of_memory_message(exc)
+
+
+#: Size options, named when memory runs out.
+SIZES = "estimator.particles, estimator.iterations, estimator.runs, n_samples, trials"
+
+
+def out_of_memory_message(exc: BaseException) -> str | None:
+    """One line for a run that asked for more memory than there is, else ``None``.
+
+    Python's ``MemoryError``, torch's ``OutOfMemoryError`` (CUDA) and its CPU allocator's
+    ``RuntimeError`` ("can't allocate memory") all come from sizes the user chose.
+    """
+    text = str(exc)
+    if not (
+        isinstance(exc, MemoryError)
+        or type(exc).__name__ == "OutOfMemoryError"
+        or "can't allocate memory" in text
+    ):
+        return None
+    start = text.find("can't allocate memory")  # after torch's C++ source location
+    said = text[start:] if start > 0 else text
+    return f"out of memory: {single_line(said)}; smaller sizes need less ({SIZES})"
