@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import os
-import sys
 
 import pytest
-from hydra.core.global_hydra import GlobalHydra
 
 from idkit.cli import app, errors
 
@@ -73,14 +71,9 @@ def test_running_out_of_memory_is_one_line_naming_the_sizes():
     assert errors.one_line(RuntimeError("shape mismatch")) is None  # a bug keeps its traceback
 
 
-def test_main_prints_one_line_and_exits_1(monkeypatch, capsys):
-    monkeypatch.setattr(sys, "argv", ["idkit", "estimator=psoo"])
-    monkeypatch.delenv(app.FULL_ERROR, raising=False)
-    GlobalHydra.instance().clear()
-    with pytest.raises(SystemExit) as exit_:
-        app.main()
-    GlobalHydra.instance().clear()
-    assert exit_.value.code == errors.USAGE
-    said = capsys.readouterr().err.strip().splitlines()
+def test_main_prints_one_line_and_exits_1(run_idkit):
+    status, _, err = run_idkit("estimator=psoo")
+    assert status == errors.USAGE
+    said = err.strip().splitlines()
     assert len(said) == 1 and said[0].startswith("idkit: unknown estimator 'psoo'; available estimators")
     assert app.FULL_ERROR not in os.environ  # set for Hydra during the run only

@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import importlib.metadata
 import io
-import sys
 import warnings
 
 import pytest
-from hydra.core.global_hydra import GlobalHydra
 
-from idkit.cli import app, command_line, errors, output
+from idkit.cli import command_line, errors, output
 
 
 def test_a_warning_is_one_line_and_shown_once(capsys, monkeypatch):
@@ -68,23 +66,8 @@ def test_a_warning_during_a_progress_bar_leaves_one_bar(through_idkit):
         assert len([row for row in screen if "robustness" in row]) == 2
 
 
-def _main(monkeypatch, capsys, *words: str) -> tuple[int, str, str]:
-    monkeypatch.setattr(sys, "argv", ["idkit", *words])
-    monkeypatch.delenv(app.FULL_ERROR, raising=False)
-    GlobalHydra.instance().clear()
-    try:
-        app.main()
-        status = 0
-    except SystemExit as exit_:
-        status = exit_.code
-    finally:
-        GlobalHydra.instance().clear()
-    said = capsys.readouterr()
-    return status, said.out, said.err
-
-
-def test_version_is_the_distributions_not_hydras(monkeypatch, capsys):
-    status, out, _ = _main(monkeypatch, capsys, "estimator=ls", "--version")
+def test_version_is_the_distributions_not_hydras(run_idkit):
+    status, out, _ = run_idkit("estimator=ls", "--version")
     assert status == 0 and out == f"idkit {importlib.metadata.version('robot-idkit')}\n"
     import idkit
 
@@ -128,7 +111,7 @@ def test_flags_may_come_anywhere_and_their_mistakes_are_one_line():
         command_line.arrange(["--particles", "3"])
 
 
-def test_main_refuses_a_bare_word_in_one_line(monkeypatch, capsys):
-    status, out, err = _main(monkeypatch, capsys, "paper")
+def test_main_refuses_a_bare_word_in_one_line(run_idkit):
+    status, out, err = run_idkit("paper")
     assert (status, out) == (errors.USAGE, "")
     assert err == "idkit: 'paper' is not an override (key=value); did you mean +experiment=paper?\n"

@@ -1,38 +1,20 @@
 """A run into a folder another run used is refused before anything is written, in every mode.
 
-The command runs in process (``idkit.cli.app.main`` with ``sys.argv`` set): a least-squares fit
-takes milliseconds once torch is imported, so these stay in the fast suite.
+The command runs in process (the ``run_idkit`` fixture), so these stay in the fast suite.
 """
 
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import pytest
-from hydra.core.global_hydra import GlobalHydra
 
-from idkit.cli import app, errors
+from idkit.cli import errors
 from idkit.cli.callbacks import claim_sweep
 from idkit.cli.provenance import RunDirectoryTaken, claim
 
 FIT = ["estimator=ls", "plots=false"]
-
-
-def idkit(monkeypatch, capsys, *words: str) -> tuple[int, str]:
-    """Run the command in process; returns its exit status and stderr."""
-    monkeypatch.setattr(sys, "argv", ["idkit", *words])
-    monkeypatch.delenv(app.FULL_ERROR, raising=False)
-    GlobalHydra.instance().clear()
-    try:
-        app.main()
-        status = 0
-    except SystemExit as exit_:
-        status = exit_.code
-    finally:
-        GlobalHydra.instance().clear()
-    return status, capsys.readouterr().err
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
@@ -66,17 +48,18 @@ def test_claim_sweep_refuses_a_folder_with_another_sweep(tmp_path):
         claim_sweep(tmp_path)
 
 
-def test_a_run_into_an_earlier_runs_folder_changes_none_of_its_files(tmp_path, monkeypatch, capsys):
+def test_a_run_into_an_earlier_runs_folder_changes_none_of_its_files(tmp_path, monkeypatch, run_idkit):
     monkeypatch.chdir(tmp_path)
     run = tmp_path / "run"
-    assert idkit(monkeypatch, capsys, *FIT, f"hydra.run.dir={run}") == (0, "")
+    first = run_idkit(*FIT, f"hydra.run.dir={run}")
+    assert (first.status, first.err) == (0, "")
     assert {"result.json", ".hydra/config.yaml", ".hydra/hydra.yaml", ".hydra/overrides.yaml"} <= set(
         snapshot(run)
     )
     overrides = (run / ".hydra" / "overrides.yaml").read_text()
     assert "- estimator=ls" in overrides and f"- hydra.run.dir={run}" not in overrides  # as Hydra writes it
     before = snapshot(run)
-    status, said = idkit(monkeypatch, capsys, "estimator=rls", "plots=false", f"hydra.run.dir={run}")
+    status, _, said = run_idkit("estimator=rls", "plots=false", f"hydra.run.dir={run}")
     assert status == errors.USAGE
     assert said.splitlines() == [
         f"idkit: {run} already holds another run (result.json, .hydra); nothing was written: "
@@ -85,23 +68,23 @@ def test_a_run_into_an_earlier_runs_folder_changes_none_of_its_files(tmp_path, m
     assert snapshot(run) == before
 
 
-def test_a_folder_holding_only_a_saved_result_gets_nothing(tmp_path, monkeypatch, capsys):
+def test_a_folder_holding_only_a_saved_result_gets_nothing(tmp_path, run_idkit):
     """A folder ``Result.save`` wrote (no .hydra, no log): not even Hydra's log file appears."""
     folder = tmp_path / "saved"
     folder.mkdir()
     (folder / "result.json").write_text(json.dumps({"run_id": "library"}))
-    status, said = idkit(monkeypatch, capsys, *FIT, f"hydra.run.dir={folder}")
+    status, _, said = run_idkit(*FIT, f"hydra.run.dir={folder}")
     assert status == errors.USAGE and "already holds another run (result.json)" in said
     assert snapshot(folder) == {"result.json": b'{"run_id": "library"}'}
 
 
-def test_a_sweep_into_an_earlier_sweeps_folder_changes_none_of_its_files(tmp_path, monkeypatch, capsys):
+def test_a_sweep_into_an_earlier_sweeps_folder_changes_none_of_its_files(tmp_path, monkeypatch, run_idkit):
     monkeypatch.chdir(tmp_path)
     sweep = tmp_path / "sweep"
-    assert idkit(monkeypatch, capsys, "-m", *FIT, "seed=0,1", f"hydra.sweep.dir={sweep}")[0] == 0
+    assert run_idkit("-m", *FIT, "seed=0,1", f"hydra.sweep.dir={sweep}").status == 0
     before = snapshot(sweep)
     assert {"multirun.yaml", "summary.csv", "0/result.json", "1/.hydra/config.yaml"} <= set(before)
-    status, said = idkit(monkeypatch, capsys, "-m", *FIT, "seed=2,3", f"hydra.sweep.dir={sweep}")
+    status, _, said = run_idkit("-m", *FIT, "seed=2,3", f"hydra.sweep.dir={sweep}")
     assert status == errors.USAGE
     assert said.splitlines() == [
         f"idkit: {sweep} already holds another sweep (multirun.yaml, summary.csv, summary.md, 0/result.json, "
@@ -110,13 +93,13 @@ def test_a_sweep_into_an_earlier_sweeps_folder_changes_none_of_its_files(tmp_pat
     assert snapshot(sweep) == before
 
 
-def test_two_jobs_sent_to_one_folder_keep_the_first(tmp_path, monkeypatch, capsys):
+def test_two_jobs_sent_to_one_folder_keep_the_first(tmp_path, monkeypatch, run_idkit):
     """``hydra.sweep.subdir`` that names one folder for two jobs: the second is refused and its
     error is not written into the first job's folder."""
     monkeypatch.chdir(tmp_path)
     sweep = tmp_path / "sweep"
     words = ["-m", *FIT, "seed=0,1", f"hydra.sweep.dir={sweep}", "hydra.sweep.subdir=same"]
-    status, said = idkit(monkeypatch, capsys, *words)
+    status, _, said = run_idkit(*words)
     assert status == errors.USAGE
     assert said.splitlines()[-1].startswith(f"idkit: {sweep / 'same'} already holds another run")
     job = json.loads((sweep / "same" / "result.json").read_text())
