@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 import torch
@@ -51,3 +54,38 @@ def hydra_compose():
 
         yield _compose
     GlobalHydra.instance().clear()
+
+
+class Outcome(NamedTuple):
+    """What the command did: exit status, stdout, stderr."""
+
+    status: int
+    out: str
+    err: str
+
+
+@pytest.fixture
+def run_idkit(monkeypatch, capsys) -> Callable[..., Outcome]:
+    """``run_idkit(*words)``: ``idkit.cli.app.main`` with ``sys.argv = ["idkit", *words]``.
+
+    Once torch is imported a least-squares fit takes milliseconds, so whole runs stay fast.
+    """
+    from hydra.core.global_hydra import GlobalHydra
+
+    from idkit.cli import app
+
+    def run(*words: str) -> Outcome:
+        monkeypatch.setattr(sys, "argv", ["idkit", *words])
+        monkeypatch.delenv(app.FULL_ERROR, raising=False)
+        GlobalHydra.instance().clear()
+        try:
+            app.main()
+            status = 0
+        except SystemExit as exit_:
+            status = exit_.code
+        finally:
+            GlobalHydra.instance().clear()
+        said = capsys.readouterr()
+        return Outcome(status, said.out, said.err)
+
+    return run
