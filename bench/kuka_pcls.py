@@ -21,12 +21,9 @@ import torch
 
 from idkit import registry
 from idkit.data.load import load_data_file
-from idkit.estimators.physical import (
-    PhysicallyConsistentLS,
-    min_pseudo_inertia_eigenvalues,
-    nearest_consistent,
-)
+from idkit.estimators.physical import PhysicallyConsistentLS, nearest_consistent
 from idkit.problem import Problem, Samples
+from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
 from idkit.studies.validation import validate
 

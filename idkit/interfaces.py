@@ -1,4 +1,5 @@
-"""The plugin contract: ``Robot``, ``Cost``, ``Estimator`` and ``Excitation``.
+"""The plugin contract: ``Robot``, ``Cost``, ``Estimator`` and ``Excitation``, and the optional
+capabilities an estimator may add (``BatchedEstimator``, ``CostSearcher``).
 
 Shapes are part of the contract. ``...`` is any batch of leading dimensions (swarm particles,
 independent runs, several costs); ``N`` is the number of samples, ``n`` the number of joints, ``P``
@@ -15,7 +16,7 @@ import numbers
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 from idkit.registry import create
 
@@ -219,6 +220,32 @@ class Estimator(ABC):
     @abstractmethod
     def fit(self, problem: Problem) -> Estimate:
         """Estimate the physical parameters (and base parameters where defined)."""
+
+
+@runtime_checkable
+class BatchedEstimator(Protocol):
+    """An estimator that fits many trials (a study's noise draws) in batched computations.
+
+    ``idkit.estimators.trials.fit_trials`` calls ``fit_trials`` on an estimator that has it and
+    falls back to one ``fit`` per trial (and cost) otherwise. Each trial's estimates must be the
+    ones its own ``fit`` gives — whatever ``chunk`` and whatever the other trials — so batching
+    changes the speed, never a number.
+    """
+
+    def fit_trials(
+        self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None
+    ) -> list[list[Estimate]]:
+        """``T`` lists of estimates, one per cost (``costs=None``: each problem's own cost, or the
+        estimator's fixed criterion), fitting at most ``chunk`` trials per batch."""
+
+
+@runtime_checkable
+class CostSearcher(Protocol):
+    """An estimator that minimises whichever cost it is given (PSO, Adam), so its estimates are
+    labelled by the cost (``PSO-f13``) and a study fits all its costs in one call."""
+
+    def fit_costs(self, problem: Problem, costs: Sequence[Cost]) -> list[Estimate]:
+        """One estimate per cost, each minimising that cost on ``problem``'s samples."""
 
 
 class Excitation(ABC):

@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple
 
 import pytest
 import torch
@@ -56,26 +53,17 @@ def hydra_compose():
     GlobalHydra.instance().clear()
 
 
-class Outcome(NamedTuple):
-    """What the command did: exit status, stdout, stderr."""
-
-    status: int
-    out: str
-    err: str
-
-
 @pytest.fixture
-def run_idkit(monkeypatch, capsys) -> Callable[..., Outcome]:
-    """``run_idkit(*words)``: ``idkit.cli.app.main`` with ``sys.argv = ["idkit", *words]``.
+def run_idkit(monkeypatch, capsys):
+    """``run(*overrides) -> (exit status, stderr lines)`` of the ``idkit`` command, in process."""
+    import sys
 
-    Once torch is imported a least-squares fit takes milliseconds, so whole runs stay fast.
-    """
     from hydra.core.global_hydra import GlobalHydra
 
     from idkit.cli import app
 
-    def run(*words: str) -> Outcome:
-        monkeypatch.setattr(sys, "argv", ["idkit", *words])
+    def _run(*overrides: str) -> tuple[int, list[str]]:
+        monkeypatch.setattr(sys, "argv", ["idkit", *overrides])
         monkeypatch.delenv(app.FULL_ERROR, raising=False)
         GlobalHydra.instance().clear()
         try:
@@ -85,7 +73,6 @@ def run_idkit(monkeypatch, capsys) -> Callable[..., Outcome]:
             status = exit_.code
         finally:
             GlobalHydra.instance().clear()
-        said = capsys.readouterr()
-        return Outcome(status, said.out, said.err)
+        return status, capsys.readouterr().err.strip().splitlines()
 
-    return run
+    return _run

@@ -26,6 +26,7 @@ floating base), unknown types, ``<mimic>`` joints; closed loops are refused too.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import ClassVar
 
 import numpy as np
 import torch
@@ -36,6 +37,7 @@ from idkit.limits import MotionLimits
 from idkit.robots.base_params import BaseParameters, find_base_parameters
 from idkit.robots.rnea import TreeTensors, rnea, rnea_regressor
 from idkit.robots.urdf_model import INERTIAL_NAMES, KinematicTree, parse_urdf
+from idkit.seeds import Seed, torch_generator
 
 
 class URDFRobot(Robot):
@@ -66,6 +68,8 @@ class URDFRobot(Robot):
     """
 
     search_space = "base"
+    #: The model format: names it in error messages (a subclass reading another format sets it).
+    source_format: ClassVar[str] = "urdf"
 
     def __init__(
         self,
@@ -75,7 +79,7 @@ class URDFRobot(Robot):
         gravity: float = 9.81,
         n_states: int = 200,
         tolerance: float = 1e-8,
-        seed: int = 0,
+        seed: Seed = 0,
         max_coulomb: float = 10.0,
         max_viscous: float = 10.0,
         max_offset: float = 10.0,
@@ -92,7 +96,7 @@ class URDFRobot(Robot):
         self.max_viscous = max_viscous
         self.max_offset = max_offset
         self.stribeck_velocity = stribeck_velocity
-        self.tree: KinematicTree = parse_urdf(urdf)
+        self.tree: KinematicTree = self._read_tree()
         self.joint_names = self.tree.joint_names
         self.stribeck_scales = self._check_stribeck(stribeck_velocity)
         self.link_names = self.tree.link_names
@@ -116,6 +120,10 @@ class URDFRobot(Robot):
         )
 
     # ---------------------------------------------------------------- structure
+    def _read_tree(self) -> KinematicTree:
+        """The tree the dynamics run on: the seam where another format plugs in (``mjcf``)."""
+        return parse_urdf(self.urdf)
+
     def _tree_tensors(self, like: Tensor) -> TreeTensors:
         key = (like.device, like.dtype)
         if key not in self._tensors:
@@ -140,10 +148,11 @@ class URDFRobot(Robot):
     def _find_base(self) -> BaseParameters:
         if self.n_states * self.n_joints <= self.n_params:
             raise ValueError(
-                f"urdf: n_states={self.n_states} gives {self.n_states * self.n_joints} regressor rows for "
-                f"{self.n_params} parameters; use n_states > {self.n_params // self.n_joints} (default 200)"
+                f"{self.source_format}: n_states={self.n_states} gives {self.n_states * self.n_joints} "
+                f"regressor rows for {self.n_params} parameters; use n_states > "
+                f"{self.n_params // self.n_joints} (default 200)"
             )
-        generator = torch.Generator().manual_seed(int(self.seed))
+        generator = torch_generator(self.seed)
         states = self.random_states(self.n_states, generator)
         stacked = self.standard_regressor(*states).reshape(-1, self.n_params)
         return find_base_parameters(stacked.numpy(), self.tolerance)
@@ -225,8 +234,8 @@ class URDFRobot(Robot):
         """
         if alpha.shape[-1] != len(self.base_param_names):
             raise ValueError(
-                f"urdf: base parameters need {len(self.base_param_names)} values in the last dimension, "
-                f"got shape {tuple(alpha.shape)}"
+                f"{self.source_format}: base parameters need {len(self.base_param_names)} values in the "
+                f"last dimension, got shape {tuple(alpha.shape)}"
             )
         base_map, pinv = self.base_map.to(alpha), self._pinv.to(alpha)
         nominal = self.nominal_params().to(alpha)
@@ -236,7 +245,7 @@ class URDFRobot(Robot):
     def _check_params(self, params: Tensor) -> None:
         if params.shape[-1:] != (self.n_params,):
             raise ValueError(
-                f"urdf: params need {self.n_params} values in the last dimension "
+                f"{self.source_format}: params need {self.n_params} values in the last dimension "
                 f"({self.param_names[0]}, ...), got shape {tuple(params.shape)}"
             )
 
@@ -244,8 +253,8 @@ class URDFRobot(Robot):
         for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
             if value.ndim != 2 or value.shape[1] != self.n_joints or value.shape != q.shape:
                 raise ValueError(
-                    f"urdf: {name} must be [N, {self.n_joints}] like q, got {tuple(value.shape)} "
-                    f"(joints: {', '.join(self.joint_names)})"
+                    f"{self.source_format}: {name} must be [N, {self.n_joints}] like q, got "
+                    f"{tuple(value.shape)} (joints: {', '.join(self.joint_names)})"
                 )
 
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
@@ -315,8 +324,8 @@ class URDFRobot(Robot):
             scales = np.full(self.n_joints, scales[0])
         if not self.friction or scales.shape != (self.n_joints,) or not (scales > 0).all():
             raise ValueError(
-                f"urdf: stribeck_velocity={value!r} needs friction=true and one value > 0 (rad/s) or "
-                f"{self.n_joints} of them (joints: {', '.join(self.joint_names)})"
+                f"{self.source_format}: stribeck_velocity={value!r} needs friction=true and one value > 0 "
+                f"(rad/s) or {self.n_joints} of them (joints: {', '.join(self.joint_names)})"
             )
         return scales
 

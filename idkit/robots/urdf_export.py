@@ -28,29 +28,24 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from idkit.robots.inertia import centroidal, min_pseudo_inertia_eigenvalues, pseudo_inertia
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_model import read_urdf_text
 
 
-def _vector(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> np.ndarray:
+def parameter_vector(
+    robot: URDFRobot, params: Tensor | Mapping[str, float], writer: str = "urdf export"
+) -> np.ndarray:
+    """``params`` (``[P]`` or name → value) as a float64 ``[P]`` array; ``writer`` prefixes errors."""
     if isinstance(params, Mapping):
         missing = [name for name in robot.param_names if name not in params]
         if missing:
-            raise ValueError(f"urdf export: parameters missing: {', '.join(missing[:5])}")
+            raise ValueError(f"{writer}: parameters missing: {', '.join(missing[:5])}")
         return np.array([float(params[name]) for name in robot.param_names])
     values = torch.as_tensor(params, dtype=torch.float64).detach().cpu().numpy()
     if values.shape != (robot.n_params,):
-        raise ValueError(f"urdf export: params must be [{robot.n_params}], got {values.shape}")
+        raise ValueError(f"{writer}: params must be [{robot.n_params}], got {values.shape}")
     return values
-
-
-def centroidal(standard: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """``(m, c[3], I_c[3, 3])`` of standard parameters ``[10]`` (inertia about the origin)."""
-    m, h = float(standard[0]), standard[1:4]
-    xx, xy, xz, yy, yz, zz = standard[4:]
-    inertia_o = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-    c = h / m
-    return m, c, inertia_o - m * (c @ c * np.eye(3) - np.outer(c, c))
 
 
 def _number(x: float) -> str:
@@ -63,9 +58,7 @@ def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
     Raises:
         ValueError: wrong parameter shape or names, or a link mass ``≤ 0`` (naming the link).
     """
-    from idkit.estimators.physical import min_pseudo_inertia_eigenvalues, pseudo_inertia
-
-    values = _vector(robot, params)
+    values = parameter_vector(robot, params)
     data, _ = read_urdf_text(robot.urdf)
     root = ET.fromstring(data, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
     links = {link.get("name"): link for link in root.findall("link")}

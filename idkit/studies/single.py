@@ -12,7 +12,8 @@ n_samples=40, ...)``. From Python, ``idkit.run(...)`` calls it and writes the re
 Measured data: ``data=`` is one file or a list (stacked for training), ``validate=`` lists held-out
 files the identified model is scored on (:mod:`idkit.studies.validation`), ``preprocess`` says how raw
 recordings become samples (:mod:`idkit.studies.recordings`). A fit of a ``urdf`` robot also carries
-its ``identified.urdf`` text (``identified_urdf=False`` to skip), which the report writes.
+its ``identified.urdf`` text (``identified_urdf=False`` to skip), a fit of an ``mjcf`` robot its
+``identified.xml`` (MJCF; ``identified_mjcf=True`` for a ``urdf`` robot too), which the report writes.
 """
 
 from __future__ import annotations
@@ -26,8 +27,10 @@ from typing import Any
 import numpy as np
 
 from idkit.estimate import Estimate
+from idkit.interfaces import CostSearcher
+from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
-from idkit.studies.labels import cost_label, estimator_label, searches_cost
+from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
 from idkit.studies.recordings import DataFile, as_paths, load_files, preprocess_options
 from idkit.studies.result import Provenance
@@ -56,6 +59,8 @@ class RunResult:
         validation: scores on the ``validate=`` files, in their order.
         urdf: the ``identified.urdf`` text of a ``urdf`` robot's fit (``None``: other robots, turned
             off, or not writable, e.g. a link mass <= 0).
+        mjcf: the ``identified.xml`` (MJCF) text of an ``mjcf`` robot's fit, or of a ``urdf`` robot's
+            with ``identified_mjcf=True`` (``None``: not asked, or not writable: non-physical inertia).
     """
 
     estimate: Estimate
@@ -64,6 +69,7 @@ class RunResult:
     provenance: Provenance
     validation: list[HeldOut] = field(default_factory=list)
     urdf: str | None = None
+    mjcf: str | None = None
 
     @property
     def seed(self) -> int:
@@ -143,7 +149,7 @@ def load_data(
     robot: Any,
     scenario: Any = None,
     *,
-    seed: int = 0,
+    seed: Seed = 0,
     data: Any = None,
     n_samples: int | None = None,
     params: Any = None,
@@ -185,12 +191,31 @@ def _identified_urdf(robot: Any, params: dict[str, float]) -> str | None:
     from idkit.robots.urdf import URDFRobot
     from idkit.robots.urdf_export import identified_urdf
 
-    if not isinstance(robot, URDFRobot):
+    if not isinstance(robot, URDFRobot) or robot.source_format != "urdf":
         return None
     try:
         return identified_urdf(robot, params)
     except ValueError as exc:
         warnings.warn(f"identified.urdf not written: {exc}", stacklevel=3)
+        return None
+
+
+def _identified_mjcf(robot: Any, params: dict[str, float], wanted: bool | None) -> str | None:
+    """The ``identified.xml`` text of an ``mjcf`` robot's fit (``wanted=None`` or ``True``) or of a
+    ``urdf`` robot's (``wanted=True``); ``None`` (with a one-line warning) if MuJoCo would refuse it."""
+    from idkit.registry import PluginLoadError
+    from idkit.robots.urdf import URDFRobot
+
+    if not isinstance(robot, URDFRobot) or wanted is False:
+        return None
+    if wanted is None and robot.source_format != "mjcf":
+        return None
+    from idkit.robots.mjcf_export import identified_mjcf
+
+    try:
+        return identified_mjcf(robot, params)
+    except (ValueError, PluginLoadError) as exc:
+        warnings.warn(f"identified.xml not written: {exc}", stacklevel=3)
         return None
 
 
@@ -200,13 +225,14 @@ def run(
     cost: Spec | None = "f13",
     scenario: Any = None,
     *,
-    seed: int = 0,
+    seed: Seed = 0,
     data: Any = None,
     n_samples: int | None = None,
     params: Any = None,
     validate: Any = None,
     preprocess: Any = None,
     identified_urdf: bool = True,
+    identified_mjcf: bool | None = None,
     device: str = "cpu",
     dtype: str = "float64",
 ) -> RunResult:
@@ -227,6 +253,8 @@ def run(
         preprocess: how raw recordings become samples: ``PreprocessOptions`` fields plus ``apply``
             (``auto``: raw recordings only; ``on``; ``off``), applied to every data and validate file.
         identified_urdf: for a ``urdf`` robot, also produce ``identified.urdf`` (the report writes it).
+        identified_mjcf: produce ``identified.xml`` (MJCF, :mod:`idkit.robots.mjcf_export`): ``None``
+            for an ``mjcf`` robot only, ``True`` for a ``urdf`` robot too, ``False`` never.
         device, dtype: where and in which precision the estimator computes.
     """
     from idkit.problem import Problem
@@ -243,7 +271,7 @@ def run(
     problem = Problem(robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype)
     problem.check_identifiable()  # for every estimator, a third party's included, before its fit
     fitted = estimator_obj.fit(problem)
-    label = estimator_label(estimator, cost, with_cost=searches_cost(estimator_obj))
+    label = estimator_label(estimator, cost, with_cost=isinstance(estimator_obj, CostSearcher))
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
     provenance = Provenance(
         task="single",
@@ -263,4 +291,5 @@ def run(
         provenance,
         [HeldOut(f.path, s, f.times) for f, s in zip(held_out, scores, strict=True)],
         _identified_urdf(robot_obj, fitted.params) if identified_urdf else None,
+        _identified_mjcf(robot_obj, fitted.params, identified_mjcf),
     )

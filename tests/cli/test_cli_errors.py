@@ -72,8 +72,7 @@ def test_running_out_of_memory_is_one_line_naming_the_sizes():
 
 
 def test_main_prints_one_line_and_exits_1(run_idkit):
-    status, _, err = run_idkit("estimator=psoo")
+    status, said = run_idkit("estimator=psoo")
     assert status == errors.USAGE
-    said = err.strip().splitlines()
     assert len(said) == 1 and said[0].startswith("idkit: unknown estimator 'psoo'; available estimators")
     assert app.FULL_ERROR not in os.environ  # set for Hydra during the run only

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import importlib.metadata
 import io
+import sys
 import warnings
 
 import pytest
 
-from idkit.cli import command_line, errors, output
+from idkit.cli import app, command_line, errors, output
 
 
 def test_a_warning_is_one_line_and_shown_once(capsys, monkeypatch):
@@ -66,9 +67,10 @@ def test_a_warning_during_a_progress_bar_leaves_one_bar(through_idkit):
         assert len([row for row in screen if "robustness" in row]) == 2
 
 
-def test_version_is_the_distributions_not_hydras(run_idkit):
-    status, out, _ = run_idkit("estimator=ls", "--version")
-    assert status == 0 and out == f"idkit {importlib.metadata.version('robot-idkit')}\n"
+def test_version_is_the_distributions_not_hydras(monkeypatch, capsys):
+    monkeypatch.setattr(sys, "argv", ["idkit", "estimator=ls", "--version"])
+    app.main()
+    assert capsys.readouterr().out == f"idkit {importlib.metadata.version('robot-idkit')}\n"
     import idkit
 
     assert idkit.__version__ == importlib.metadata.version("robot-idkit")
@@ -112,6 +114,7 @@ def test_flags_may_come_anywhere_and_their_mistakes_are_one_line():
 
 
 def test_main_refuses_a_bare_word_in_one_line(run_idkit):
-    status, out, err = run_idkit("paper")
-    assert (status, out) == (errors.USAGE, "")
-    assert err == "idkit: 'paper' is not an override (key=value); did you mean +experiment=paper?\n"
+    assert run_idkit("paper") == (
+        errors.USAGE,
+        ["idkit: 'paper' is not an override (key=value); did you mean +experiment=paper?"],
+    )

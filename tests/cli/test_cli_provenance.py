@@ -51,17 +51,16 @@ def test_claim_sweep_refuses_a_folder_with_another_sweep(tmp_path):
 def test_a_run_into_an_earlier_runs_folder_changes_none_of_its_files(tmp_path, monkeypatch, run_idkit):
     monkeypatch.chdir(tmp_path)
     run = tmp_path / "run"
-    first = run_idkit(*FIT, f"hydra.run.dir={run}")
-    assert (first.status, first.err) == (0, "")
+    assert run_idkit(*FIT, f"hydra.run.dir={run}") == (0, [])
     assert {"result.json", ".hydra/config.yaml", ".hydra/hydra.yaml", ".hydra/overrides.yaml"} <= set(
         snapshot(run)
     )
     overrides = (run / ".hydra" / "overrides.yaml").read_text()
     assert "- estimator=ls" in overrides and f"- hydra.run.dir={run}" not in overrides  # as Hydra writes it
     before = snapshot(run)
-    status, _, said = run_idkit("estimator=rls", "plots=false", f"hydra.run.dir={run}")
+    status, said = run_idkit("estimator=rls", "plots=false", f"hydra.run.dir={run}")
     assert status == errors.USAGE
-    assert said.splitlines() == [
+    assert said == [
         f"idkit: {run} already holds another run (result.json, .hydra); nothing was written: "
         "choose another hydra.run.dir (a new folder) or leave it unset"
     ]
@@ -73,20 +72,20 @@ def test_a_folder_holding_only_a_saved_result_gets_nothing(tmp_path, run_idkit):
     folder = tmp_path / "saved"
     folder.mkdir()
     (folder / "result.json").write_text(json.dumps({"run_id": "library"}))
-    status, _, said = run_idkit(*FIT, f"hydra.run.dir={folder}")
-    assert status == errors.USAGE and "already holds another run (result.json)" in said
+    status, said = run_idkit(*FIT, f"hydra.run.dir={folder}")
+    assert status == errors.USAGE and "already holds another run (result.json)" in said[0]
     assert snapshot(folder) == {"result.json": b'{"run_id": "library"}'}
 
 
 def test_a_sweep_into_an_earlier_sweeps_folder_changes_none_of_its_files(tmp_path, monkeypatch, run_idkit):
     monkeypatch.chdir(tmp_path)
     sweep = tmp_path / "sweep"
-    assert run_idkit("-m", *FIT, "seed=0,1", f"hydra.sweep.dir={sweep}").status == 0
+    assert run_idkit("-m", *FIT, "seed=0,1", f"hydra.sweep.dir={sweep}")[0] == 0
     before = snapshot(sweep)
     assert {"multirun.yaml", "summary.csv", "0/result.json", "1/.hydra/config.yaml"} <= set(before)
-    status, _, said = run_idkit("-m", *FIT, "seed=2,3", f"hydra.sweep.dir={sweep}")
+    status, said = run_idkit("-m", *FIT, "seed=2,3", f"hydra.sweep.dir={sweep}")
     assert status == errors.USAGE
-    assert said.splitlines() == [
+    assert said == [
         f"idkit: {sweep} already holds another sweep (multirun.yaml, summary.csv, summary.md, 0/result.json, "
         "…); nothing was written: choose another hydra.sweep.dir (a new folder) or leave it unset"
     ]
@@ -99,9 +98,9 @@ def test_two_jobs_sent_to_one_folder_keep_the_first(tmp_path, monkeypatch, run_i
     monkeypatch.chdir(tmp_path)
     sweep = tmp_path / "sweep"
     words = ["-m", *FIT, "seed=0,1", f"hydra.sweep.dir={sweep}", "hydra.sweep.subdir=same"]
-    status, _, said = run_idkit(*words)
+    status, said = run_idkit(*words)
     assert status == errors.USAGE
-    assert said.splitlines()[-1].startswith(f"idkit: {sweep / 'same'} already holds another run")
+    assert said[-1].startswith(f"idkit: {sweep / 'same'} already holds another run")
     job = json.loads((sweep / "same" / "result.json").read_text())
     assert job["seed"] == 0 and not (sweep / "same" / "error.json").exists()
     assert "seed=0" in (sweep / "same" / ".hydra" / "overrides.yaml").read_text()

@@ -19,7 +19,7 @@ from omegaconf import OmegaConf
 from idkit.cli.app import setup
 from idkit.cli.tasks import arguments
 from idkit.data.preprocess import PreprocessOptions
-from idkit.estimators.observation import IdentificationError
+from idkit.estimators.linear.observation import IdentificationError
 from idkit.reports import single as report
 from idkit.robots.urdf import URDFRobot
 from idkit.studies import single

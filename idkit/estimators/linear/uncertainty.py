@@ -9,7 +9,7 @@ lower bounds; they are most useful to rank parameters (a base parameter at 50 % 
 by this trajectory, whatever its value).
 
 ``(WᵀW)⁻¹`` is never formed: with ``W D⁻¹ = U S Vᵀ`` (``D`` the column norms, the same
-equilibration as :mod:`idkit.estimators.observation`), ``(WᵀW)⁻¹ = D⁻¹ V S⁻² Vᵀ D⁻¹``. Directions of
+equilibration as :mod:`idkit.estimators.linear.observation`), ``(WᵀW)⁻¹ = D⁻¹ V S⁻² Vᵀ D⁻¹``. Directions of
 ``V`` with singular value below the rank tolerance are the combinations the data cannot separate;
 every parameter touching them gets an infinite standard deviation.
 """
@@ -24,7 +24,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from idkit.estimators.observation import Conditioning, _null_directions
+from idkit.estimators.linear.observation import Conditioning, _null_directions
 
 
 @dataclass(frozen=True)
