@@ -32,7 +32,14 @@ from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
 from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
-from idkit.studies.recordings import DataFile, as_paths, load_files, preprocess_options
+from idkit.studies.recordings import (
+    DataFile,
+    as_paths,
+    load_files,
+    preprocess_options,
+    refuse_seen_samples,
+    refuse_training_files,
+)
 from idkit.studies.result import Provenance
 from idkit.studies.validation import Validation, validate_files
 
@@ -138,11 +145,22 @@ def _describe_files(
         out: dict[str, Any] = {"file": paths[0]} if len(paths) == 1 else {"files": paths}
     else:
         out = {**source, "validate": paths}
-    processed = [*(out.get("preprocess") or {}).get("files", []), *(f.path for f in files if f.preprocessed)]
+    before = out.get("preprocess") or {}
+    for key in ("log", "delay"):  # a ROS log's topics and clocks; a torque delay applied
+        found = {**out.get(f"{key}s", {}), **{f.path: getattr(f, key) for f in files if getattr(f, key)}}
+        if found:
+            out[f"{key}s"] = found
+    processed = [*before.get("files", []), *(f.path for f in files if f.preprocessed)]
+    gaps = {**before.get("gaps", {}), **{f.path: f.preprocessing for f in files if _split(f)}}
     if processed:
         options, _ = preprocess_options(preprocess)
-        out["preprocess"] = {"files": processed, **vars(options)}
+        out["preprocess"] = {"files": processed, **vars(options), **({"gaps": gaps} if gaps else {})}
     return out
+
+
+def _split(file: DataFile) -> bool:
+    """Whether preprocessing split ``file`` at gaps in its timestamps."""
+    return bool(file.preprocessing and file.preprocessing.get("note"))
 
 
 def load_data(
@@ -154,6 +172,7 @@ def load_data(
     n_samples: int | None = None,
     params: Any = None,
     preprocess: Any = None,
+    recording: Any = None,
 ) -> tuple[Any, dict[str, float] | None, dict[str, Any]]:
     """``(samples, truth, description)``: measured ``data`` (path(s) or ``Samples``) or a simulation.
 
@@ -172,7 +191,7 @@ def load_data(
             raise ValueError(f"n_samples={n_samples} applies to a simulated scenario, not to data=")
         from idkit.data.recording import stack_samples
 
-        files = load_files(robot, data, preprocess, role="data")
+        files = load_files(robot, data, preprocess, role="data", recording=recording)
         samples = stack_samples([f.samples for f in files], [f.path for f in files])
         return samples, None, _describe_files(files, preprocess)
     import torch
@@ -231,6 +250,7 @@ def run(
     params: Any = None,
     validate: Any = None,
     preprocess: Any = None,
+    recording: Any = None,
     identified_urdf: bool = True,
     identified_mjcf: bool | None = None,
     device: str = "cpu",
@@ -249,9 +269,13 @@ def run(
             list of them (stacked for training; each must have the robot's joints).
         n_samples: the scenario's number of samples (``None``: the scenario's own).
         params: true parameters ``[P]`` to simulate with (default ``robot.nominal_params()``).
-        validate: held-out files (or ``Samples``) the identified model is scored on.
+        validate: held-out files (or ``Samples``) the identified model is scored on; a training file
+            (same path, same bytes, or the same samples in another file) is refused.
         preprocess: how raw recordings become samples: ``PreprocessOptions`` fields plus ``apply``
             (``auto``: raw recordings only; ``on``; ``off``), applied to every data and validate file.
+        recording: how raw recordings are read: ``RecordingOptions`` fields (a ROS log's ``topic``
+            and ``effort_topic``, :mod:`idkit.data.logs`; the torque ``delay`` in s or ``"auto"``,
+            :mod:`idkit.data.delay`), for every data and validate file.
         identified_urdf: for a ``urdf`` robot, also produce ``identified.urdf`` (the report writes it).
         identified_mjcf: produce ``identified.xml`` (MJCF, :mod:`idkit.robots.mjcf_export`): ``None``
             for an ``mjcf`` robot only, ``True`` for a ``urdf`` robot too, ``False`` never.
@@ -260,10 +284,25 @@ def run(
     from idkit.problem import Problem
 
     robot_obj = build("robot", robot)
+    if validate is not None and data is not None:
+        refuse_training_files(data, validate)
     samples, truth, source = load_data(
-        robot_obj, scenario, seed=seed, data=data, n_samples=n_samples, params=params, preprocess=preprocess
+        robot_obj,
+        scenario,
+        seed=seed,
+        data=data,
+        n_samples=n_samples,
+        params=params,
+        preprocess=preprocess,
+        recording=recording,
     )
-    held_out = [] if validate is None else load_files(robot_obj, validate, preprocess, role="validate")
+    held_out = (
+        []
+        if validate is None
+        else load_files(robot_obj, validate, preprocess, role="validate", recording=recording)
+    )
+    if data is not None:
+        refuse_seen_samples(samples, held_out)
     if held_out:
         source = _describe_files(held_out, preprocess, source)
     cost_obj = build("cost", cost)
