@@ -55,7 +55,13 @@ def write_line(line: str, file: TextIO | None = None) -> None:
 
 
 class OneLineWarnings:
-    """The ``warnings.showwarning`` replacement: each distinct message once, on one line."""
+    """The ``warnings.formatwarning`` replacement: each distinct message once, on one line.
+
+    It writes the line itself (through tqdm while a bar runs, which a returned string could not)
+    and gives Python nothing more to write. Replacing the formatter, not ``warnings.showwarning``,
+    leaves recorders alone: ``warnings.catch_warnings(record=True)`` and ``pytest.warns`` collect
+    warnings without formatting them, so they still see every one.
+    """
 
     def __init__(self) -> None:
         self.seen: set[str] = set()
@@ -66,13 +72,13 @@ class OneLineWarnings:
         category: type[Warning],
         filename: str,
         lineno: int,
-        file: TextIO | None = None,
         line: str | None = None,
-    ) -> None:
+    ) -> str:
         text = single_line(str(message))
         if text not in self.seen:
             self.seen.add(text)
-            write_line(PREFIX + text, file)
+            write_line(PREFIX + text)
+        return ""
 
 
 @contextlib.contextmanager
@@ -82,12 +88,12 @@ def one_line_warnings() -> Iterator[None]:
     Re-entrant: an inner block (a job inside the command) leaves the outer one in charge, so a
     message already shown by an earlier job of a sweep is not shown again.
     """
-    if debugging() or isinstance(warnings.showwarning, OneLineWarnings):
+    if debugging() or isinstance(warnings.formatwarning, OneLineWarnings):
         yield
         return
-    previous = warnings.showwarning
-    warnings.showwarning = OneLineWarnings()
+    previous = warnings.formatwarning
+    warnings.formatwarning = OneLineWarnings()
     try:
         yield
     finally:
-        warnings.showwarning = previous
+        warnings.formatwarning = previous

@@ -13,26 +13,33 @@ from idkit.cli import app, command_line, errors, output
 
 
 def test_a_warning_is_one_line_and_shown_once(capsys, monkeypatch):
+    """What Python's printer gets from the installed formatter (pytest records warnings itself)."""
     monkeypatch.delenv(output.DEBUG_VARIABLE, raising=False)
+    message = "irls: huber stage did not converge\n    in 200 iterations"
     with output.one_line_warnings():
-        for _ in range(3):
-            with warnings.catch_warnings():  # resets Python's once-per-location registry, as studies do
-                warnings.simplefilter("default")
-                message = "irls: huber stage did not converge\n    in 200 iterations"
-                warnings.warn(message, RuntimeWarning, stacklevel=1)
-        warnings.warn("another one", UserWarning, stacklevel=1)
+        for text in (message, message, "another one"):
+            assert warnings.formatwarning(RuntimeWarning(text), RuntimeWarning, "x.py", 1, "code") == ""
     assert capsys.readouterr().err.splitlines() == [
         "warning: irls: huber stage did not converge in 200 iterations",
         "warning: another one",
     ]
-    assert not isinstance(warnings.showwarning, output.OneLineWarnings)  # restored after the block
+    assert not isinstance(warnings.formatwarning, output.OneLineWarnings)  # restored after the block
 
 
-def test_debug_leaves_pythons_own_warning_printer(monkeypatch):
+def test_recorded_warnings_stay_recorded(monkeypatch):
+    """``pytest.warns`` around the command (tests run ``main`` in process) still sees each warning."""
+    monkeypatch.delenv(output.DEBUG_VARIABLE, raising=False)
+    with pytest.warns(UserWarning, match="kept") as said, output.one_line_warnings():
+        warnings.warn("kept", UserWarning, stacklevel=1)
+        warnings.warn("kept", UserWarning, stacklevel=1)
+    assert len(said) >= 1
+
+
+def test_debug_leaves_pythons_own_warning_format(monkeypatch):
     monkeypatch.setenv(output.DEBUG_VARIABLE, "1")
-    before = warnings.showwarning
+    before = warnings.formatwarning
     with output.one_line_warnings():
-        assert warnings.showwarning is before  # path, line and code of every warning, as Python prints
+        assert warnings.formatwarning is before  # path, line and code of every warning, as Python prints
 
 
 def _screen(stream: str) -> list[str]:
