@@ -23,6 +23,7 @@ $(STAMP): pyproject.toml plugins/idkit-robust/pyproject.toml constraints.txt
 	$(PIP) torch==2.13.0 $$($(PYTHON) .ci/torch-index)
 	$(PIP) -e ".[$(EXTRAS)]" -e ./plugins/idkit-robust
 	touch $@
+	@echo "idkit is installed in $(VENV); to put the idkit command on PATH: . $(VENV)/bin/activate"
 
 # The peers the benchmarks measure (JAX + evosax, pyswarms: ~0.7 GB) only when benchmarking.
 BENCH_STAMP := $(VENV)/.bench-installed

@@ -9,7 +9,8 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-__version__ = "0.1.0"
+#: The distribution that installs the package (``idkit`` on PyPI is an unrelated project).
+DISTRIBUTION = "robot-idkit"
 
 _LAZY = {
     "Robot": "idkit.interfaces",
@@ -25,7 +26,19 @@ _LAZY = {
 __all__ = sorted(_LAZY)
 
 
+def _version() -> str:
+    """The installed distribution's version: ``pyproject.toml`` is its one source."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(DISTRIBUTION)
+    except PackageNotFoundError:  # a source tree on sys.path that was never installed
+        return "0+unknown"
+
+
 def __getattr__(name: str) -> Any:
+    if name == "__version__":
+        return _version()
     if name not in _LAZY:
         raise AttributeError(f"module 'idkit' has no attribute {name!r}")
     module = importlib.import_module(_LAZY[name])

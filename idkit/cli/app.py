@@ -3,8 +3,11 @@
 ``setup()`` must run before Hydra composes anything (``main`` calls it; tests using Hydra's compose
 API call it too): it registers the ``idkit://`` config source that turns the plugin registry and the
 scenario presets into config groups, and the ``${idkit.uid:}`` resolver that keeps run directories
-unique. ``task`` runs the study named by ``cfg.task`` with its config section as arguments
-(:mod:`idkit.cli.tasks`), then its report into Hydra's output directory.
+unique. ``task`` claims Hydra's output directory and records the config in it
+(:mod:`idkit.cli.provenance`), runs the study named by ``cfg.task`` with its config section as
+arguments (:mod:`idkit.cli.tasks`), then writes its report there. ``main`` reads the command line
+first (:mod:`idkit.cli.command_line`: ``--version``, flags anywhere, one-line refusals) and shows
+warnings on one line each (:mod:`idkit.cli.output`).
 """
 
 from __future__ import annotations
@@ -23,18 +26,19 @@ from hydra.errors import CompactHydraException
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
-from idkit.cli import errors
+from idkit.cli import command_line, errors, output, provenance
 from idkit.cli.source import RegistryConfigSource, RegistrySearchPath
 from idkit.cli.tasks import arguments, get_task
 from idkit.options import check_setting
 
 HELP_FLAGS = ("--help", "-h", "--hydra-help")
 
-#: Hydra's switch for full tracebacks. Set by the user, every error shows its traceback; otherwise
-#: ``main`` sets it for Hydra (which then raises instead of printing) and prints one line itself.
+#: Hydra's switch for full tracebacks. ``main`` sets it for Hydra (which then raises instead of
+#: printing) and prints one line itself, unless the user asked for tracebacks: this switch or
+#: ``IDKIT_DEBUG=1`` (:mod:`idkit.cli.output`).
 FULL_ERROR = "HYDRA_FULL_ERROR"
 #: Read when the command starts, before ``main`` sets the switch for Hydra.
-TRACEBACKS_REQUESTED = os.environ.get(FULL_ERROR) == "1"
+TRACEBACKS_REQUESTED = os.environ.get(FULL_ERROR) == "1" or output.debugging()
 
 #: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
 INTERRUPTED = 130
@@ -69,9 +73,10 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
     report = task.report_module()
     resolved = OmegaConf.to_container(cfg, resolve=True)
     kwargs = arguments(cfg.task, resolved, study)
-    if (
-        "checkpoint" in inspect.signature(study).parameters
-    ):  # a long study saves its partial report as it goes
+    takes = inspect.signature(study).parameters
+    if "progress" in takes:  # a bar on a terminal; in a log file its redraws would pile up
+        kwargs["progress"] = sys.stderr.isatty()
+    if "checkpoint" in takes:  # a long study saves its partial report as it goes
         kwargs["checkpoint"] = lambda partial: _write(report, partial, resolved, run_dir, plots=False)
     try:
         result = study(**kwargs)
@@ -84,8 +89,8 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
         )
         sys.exit(INTERRUPTED)
     written = _write(report, result, resolved, run_dir, plots=check_setting("plots", cfg.plots, bool))
-    print(report.text(result))
-    print(f"results: {written['result']}")
+    output.say(report.text(result))
+    output.say(f"results: {written['result']}")
     return result
 
 
@@ -95,34 +100,54 @@ def _write(report: Any, result: Any, config: dict, run_dir: Path, plots: bool) -
 
 
 def task(cfg: DictConfig) -> Any:
-    """Run the task named by ``cfg.task`` in Hydra's output directory."""
-    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    """Run the task named by ``cfg.task`` in Hydra's output directory, once it is claimed."""
+    hydra_cfg = HydraConfig.get()
+    run_dir = Path(hydra_cfg.runtime.output_dir)
+    single = hydra_cfg.mode == RunMode.RUN
     try:
-        return _run(cfg, run_dir)
-    except errors.USER_ERRORS as exc:
-        if HydraConfig.get().mode == RunMode.RUN and not TRACEBACKS_REQUESTED:
-            errors.fail(str(exc))  # before Hydra adds "Error executing job with overrides: ..."
+        provenance.claim(run_dir, "hydra.run.dir" if single else "hydra.sweep.dir or hydra.sweep.subdir")
+        provenance.record(run_dir, cfg, HydraConfig.instance().cfg)
+        with output.one_line_warnings():  # also in a launcher's worker process
+            return _run(cfg, run_dir)
+    except Exception as exc:
+        message = errors.one_line(exc)  # a refused input, or more memory than there is
+        if message is None:
+            raise  # a bug: Hydra reports it with its traceback
+        if single and not TRACEBACKS_REQUESTED:
+            errors.fail(message)  # before Hydra adds "Error executing job with overrides: ..."
         # a sweep goes on; the summary callback records the failed job's cause
-        raise CompactHydraException(f"{errors.PREFIX}{exc}") from exc
+        raise CompactHydraException(f"{errors.PREFIX}{message}") from exc
     except KeyboardInterrupt:
-        print(f"idkit: interrupted; nothing was written to {run_dir}", file=sys.stderr)
+        print(f"idkit: interrupted; no results were written to {run_dir}", file=sys.stderr)
         sys.exit(INTERRUPTED)
 
 
 def main() -> None:
     """Run the command; a refused input ends in one line on stderr and exit status 1 (``errors``)."""
-    setup(names_only=any(arg in HELP_FLAGS for arg in sys.argv[1:]))
-    app = hydra.main(version_base="1.3", config_path="pkg://idkit.conf", config_name="config")(task)
-    if TRACEBACKS_REQUESTED:
-        app()
+    words = sys.argv[1:]
+    if command_line.VERSION_FLAG in words:
+        import idkit
+
+        print(f"idkit {idkit.__version__}")
         return
+    try:
+        sys.argv[1:] = command_line.arrange(words)
+    except command_line.UsageError as exc:
+        errors.fail(str(exc))
+    setup(names_only=any(arg in HELP_FLAGS for arg in words))
+    app = hydra.main(version_base="1.3", config_path="pkg://idkit.conf", config_name="config")(task)
+    users_switch = os.environ.get(FULL_ERROR)
     os.environ[FULL_ERROR] = "1"
     try:
-        app()
+        with output.one_line_warnings():
+            app()
     except Exception as exc:
-        message = errors.one_line(exc)
+        message = None if TRACEBACKS_REQUESTED else errors.one_line(exc)
         if message is None:
-            raise  # not a refused input but a bug: keep the traceback
+            raise  # asked for, or not a refused input but a bug: keep the traceback
         errors.fail(message)
     finally:
-        os.environ.pop(FULL_ERROR, None)
+        if users_switch is None:
+            os.environ.pop(FULL_ERROR, None)
+        else:
+            os.environ[FULL_ERROR] = users_switch

@@ -1,11 +1,15 @@
-"""Hydra callback gathering every job of a multirun into ``summary.csv`` and ``summary.md``.
+"""Hydra callbacks: a taken run or sweep folder refused, and every job of a multirun gathered into
+``summary.csv`` and ``summary.md``.
 
-The summary is rebuilt from the job folders on disk after every job (under a file lock, since
-parallel launchers end jobs concurrently) and once more at the end of the sweep. Rebuilding from
-disk is what lets a failing job leave the others intact: Hydra stops calling back once a job has
-failed, but by then the summary already lists every job that finished, and the failed one has an
-``error.json`` in its folder. Import-light (no torch): Hydra instantiates it in the launching
-process.
+:class:`RunFolderCheck` refuses a run or sweep folder that another run used before Hydra writes
+into it (see :mod:`idkit.cli.provenance`).
+
+:class:`MultirunSummary` rebuilds the summary from the job folders on disk after every job (under a
+file lock, since parallel launchers end jobs concurrently) and once more at the end of the sweep.
+Rebuilding from disk is what lets a failing job leave the others intact: Hydra stops calling back
+once a job has failed, but by then the summary already lists every job that finished, and the
+failed one has an ``error.json`` in its folder. Import-light (no torch): Hydra instantiates the
+callbacks in the launching process.
 
 At the end of the sweep, the jobs of a sharded robustness study (``robustness.shard=0,1
 robustness.shards=2``) are merged into one report in ``<sweep>/merged`` (``merged_<k>`` when the
@@ -17,7 +21,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -25,12 +29,15 @@ from hydra.core.utils import JobReturn, JobStatus
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
+from idkit.cli.provenance import ERROR_FILE, RUN_FILES, RunDirectoryTaken, claim, refusal, run_files
+
 log = logging.getLogger(__name__)
 
 SUMMARY_CSV = "summary.csv"
 SUMMARY_MD = "summary.md"
 MERGED_DIR = "merged"
-ERROR_FILE = "error.json"
+#: What Hydra writes into a sweep folder before its first job.
+MULTIRUN_FILE = "multirun.yaml"
 
 
 @contextlib.contextmanager
@@ -128,6 +135,59 @@ def write_summary(sweep_dir: Path) -> None:
     files.write_text(sweep_dir / SUMMARY_MD, markdown_table(header, table) + "\n")
 
 
+def sweep_files(folder: Path) -> list[str]:
+    """What another sweep left in ``folder``: its own files and each job folder's run files."""
+    if not folder.is_dir():
+        return []
+    names = (MULTIRUN_FILE, SUMMARY_CSV, SUMMARY_MD, *RUN_FILES)
+    found = [name for name in names if (folder / name).exists()]
+    for job in sorted(p for p in folder.iterdir() if p.is_dir()):
+        found += [f"{job.name}/{name}" for name in run_files(job)]
+    return found
+
+
+def claim_sweep(sweep_dir: Path) -> None:
+    """Refuse ``sweep_dir`` when another sweep (or run) used it.
+
+    Raises:
+        idkit.cli.provenance.RunDirectoryTaken: it holds a sweep's files or a job folder with another
+            run's files.
+    """
+    found = sweep_files(sweep_dir)
+    if found:
+        raise refusal(sweep_dir, found, "sweep", "hydra.sweep.dir")
+
+
+class RunFolderCheck(Callback):
+    """Refuses a run folder (``hydra.run.dir``) or sweep folder (``hydra.sweep.dir``) that another
+    run used, before Hydra creates anything in it: one line, exit status 1."""
+
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        self._check(config, lambda: claim(Path(config.hydra.run.dir)))
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        self._check(config, lambda: claim_sweep(Path(config.hydra.sweep.dir)))
+
+    @staticmethod
+    def _check(config: DictConfig, check: Callable[[], None]) -> None:
+        # Hydra turns a callback's exception into a warning and goes on: a refusal must exit here.
+        from hydra.core.hydra_config import HydraConfig
+
+        from idkit.cli import errors
+
+        HydraConfig.instance().set_config(config)  # as run_job does first: ${hydra:...} in a folder name
+
+        if config.hydra.output_subdir is not None:
+            errors.fail(
+                f"hydra.output_subdir={config.hydra.output_subdir} is not supported: idkit writes the "
+                "run's config into .hydra/ itself, after checking that the folder holds no other run"
+            )
+        try:
+            check()
+        except RunDirectoryTaken as taken:
+            errors.fail(str(taken))
+
+
 class MultirunSummary(Callback):
     """Writes ``error.json`` for a failed job and keeps the sweep's summary up to date."""
 
@@ -143,8 +203,9 @@ class MultirunSummary(Callback):
             # idkit.cli.app wraps user errors for Hydra's compact printing: record the original.
             exc = job_return._return_value
             cause = exc.__cause__ or exc
-            error = {"status": "failed", "error": f"{type(cause).__name__}: {cause}"}
-            files.write_json(job_dir / ERROR_FILE, error)
+            if not isinstance(cause, RunDirectoryTaken):  # that folder is another run's: leave it be
+                error = {"status": "failed", "error": f"{type(cause).__name__}: {cause}"}
+                files.write_json(job_dir / ERROR_FILE, error)
         if hydra_cfg.mode == RunMode.MULTIRUN:
             self._summarise(Path(hydra_cfg.sweep.dir))
 

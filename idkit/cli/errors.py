@@ -21,11 +21,15 @@ from hydra.errors import (
 from omegaconf.errors import ConfigAttributeError, ConfigKeyError
 
 from idkit import registry
+from idkit.cli.output import single_line
 from idkit.options import closest_first
 from idkit.registry import NAME_KEY
 
 #: Errors caused by what the user asked for (a study's or plugin's refusal of its input).
 USER_ERRORS = (registry.PluginError, ValueError, TypeError, FileNotFoundError, FileExistsError, LookupError)
+
+#: Config groups whose options are named like the group (``robot`` → "available robots").
+NAMED_GROUPS = ("robot", "estimator", "cost", "scenario", "experiment")
 
 #: Exit status of a refused input.
 USAGE = 1
@@ -34,7 +38,8 @@ PREFIX = "idkit: "
 
 
 def fail(message: str) -> NoReturn:
-    """Print ``idkit: <message>`` on stderr and exit with :data:`USAGE`."""
+    """Print ``idkit: <message>`` (on one line) on stderr and exit with :data:`USAGE`."""
+    message = single_line(message)
     print(message if message.startswith(PREFIX) else PREFIX + message, file=sys.stderr)
     sys.exit(USAGE)
 
@@ -62,12 +67,15 @@ def one_line(exc: BaseException) -> str | None:
     Covers Hydra's unknown config name (``MissingConfigException``), an override of a key the
     config does not have (``ConfigCompositionException`` caused by OmegaConf's struct check), an
     override Hydra cannot parse (``OverrideParseException``), any other compact Hydra error, a
-    bad override value Hydra refuses with a ``ValueError`` (``cost=null`` for a group), and
-    :data:`USER_ERRORS`.
+    bad override value Hydra refuses with a ``ValueError`` (``cost=null`` for a group),
+    :data:`USER_ERRORS`, and running out of memory (:func:`out_of_memory_message`).
     """
     if isinstance(exc, MissingConfigException) and exc.missing_cfg_file and exc.options:
         group, _, name = exc.missing_cfg_file.rpartition("/")
-        return registry.unknown_name_message(group or "config", name, list(exc.options))
+        if group in NAMED_GROUPS:
+            return registry.unknown_name_message(group, name, list(exc.options))
+        listed = ", ".join(closest_first(name, list(exc.options)))
+        return f"unknown {group or 'config'} option {name!r}; the options (closest first): {listed}"
     cause = exc.__cause__
     if isinstance(exc, ConfigCompositionException) and isinstance(
         cause, (ConfigAttributeError, ConfigKeyError)
@@ -76,10 +84,27 @@ def one_line(exc: BaseException) -> str | None:
     if isinstance(exc, OverrideParseException):  # its message does not say which override
         return f"cannot read {exc.override!r}: {str(exc).splitlines()[0]} (see `idkit --hydra-help`)"
     if isinstance(exc, (CompactHydraException, *USER_ERRORS)):
-        return _flat(str(exc))
-    return None
+        return single_line(str(exc))
+    return out_of_memory_message(exc)
 
 
-def _flat(text: str) -> str:
-    """One line: Hydra's messages wrap and indent; the cause is on their first lines."""
-    return " ".join(part.strip() for part in text.strip().splitlines() if part.strip())
+#: Size options, named when memory runs out.
+SIZES = "estimator.particles, estimator.iterations, estimator.runs, n_samples, trials"
+
+
+def out_of_memory_message(exc: BaseException) -> str | None:
+    """One line for a run that asked for more memory than there is, else ``None``.
+
+    Python's ``MemoryError``, torch's ``OutOfMemoryError`` (CUDA) and its CPU allocator's
+    ``RuntimeError`` ("can't allocate memory") all come from sizes the user chose.
+    """
+    text = str(exc)
+    if not (
+        isinstance(exc, MemoryError)
+        or type(exc).__name__ == "OutOfMemoryError"
+        or "can't allocate memory" in text
+    ):
+        return None
+    start = text.find("can't allocate memory")  # after torch's C++ source location
+    said = text[start:] if start > 0 else text
+    return f"out of memory: {single_line(said)}; smaller sizes need less ({SIZES})"

@@ -35,7 +35,8 @@ GROUPS = (*PLUGIN_GROUPS, SCENARIO_GROUP)
 SCENARIO_HIDDEN = ("description", "n_samples")
 
 
-def _options(group: str) -> list[str]:
+def group_options(group: str) -> list[str]:
+    """The option names of a registry or scenario group (installed metadata, no plugin import)."""
     if group == SCENARIO_GROUP:
         from idkit.data.presets import SCENARIOS
 
@@ -77,7 +78,7 @@ class RegistryConfigSource(ConfigSource):
 
     def is_config(self, config_path: str) -> bool:
         group, name = self._split(config_path)
-        return group in GROUPS and "/" not in name and name in _options(group)
+        return group in GROUPS and "/" not in name and name in group_options(group)
 
     def list(self, config_path: str, results_filter: ObjectType | None) -> list[str]:
         group, name = self._split(config_path)
@@ -86,7 +87,7 @@ class RegistryConfigSource(ConfigSource):
         if group == "":
             return list(GROUPS) if results_filter in (None, ObjectType.GROUP) else []
         if group in GROUPS and results_filter in (None, ObjectType.CONFIG):
-            return sorted(_options(group))
+            return sorted(group_options(group))
         return []
 
     def load_config(self, config_path: str) -> ConfigResult:

@@ -113,7 +113,11 @@ BAD_INPUTS = [
     (["seeed=1"], "there is no setting 'seeed'; the settings (closest first): seed, "),
     (["+experiment=kuka", "cost=f13"], "the kuka task takes no cost (got cost=f13)"),
     (["+scenario=outliers", "data=recording.npz", "estimator=ls"], "give either data= (measured samples) or"),
-    (["estimator=ls", "hydra.run.dir=other-run"], "other-run already holds the result of another run"),
+    (["estimator=ls", "hydra.run.dir=other-run"], "other-run already holds another run (result.json);"),
+    (["hydra.output_subdir=.hydra"], "hydra.output_subdir=.hydra is not supported"),
+    (["paper"], "'paper' is not an override (key=value); did you mean +experiment=paper?"),
+    (["--cfg", "jobb"], "argument --cfg/-c: invalid choice: 'jobb'"),
+    (["preprocess=xyz"], "unknown preprocess option 'xyz'; the options (closest first): "),
 ]
 
 
@@ -173,6 +177,20 @@ def test_each_bad_input_ends_in_one_line_naming_its_cause(tmp_path):
     assert not wrong, "\n".join(wrong)
     other = json.loads((tmp_path / "other-run" / "result.json").read_text())
     assert other == {"run_id": "another run"}  # the refused run left the other run's result alone
+
+
+@pytest.mark.integration
+def test_warnings_are_one_line_each_and_debug_shows_their_source(tmp_path):
+    """The urdf fit warns (a floored torque, twice; a non-physical export): one line per message."""
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "IDKIT_DEBUG")}
+    out = idkit("robot=urdf", "plots=false", cwd=tmp_path, env=env)
+    assert out.returncode == 0, out.stderr
+    said = out.stderr.splitlines()
+    assert said and all(line.startswith("warning: ") for line in said), said
+    assert len(said) == len(set(said)) and ".py:" not in out.stderr
+    debug = idkit("robot=urdf", "plots=false", cwd=tmp_path, env={**env, "IDKIT_DEBUG": "1"})
+    assert debug.returncode == 0, debug.stderr
+    assert "idkit/costs/paper.py:" in debug.stderr and "RelativeFloorWarning: " in debug.stderr
 
 
 @pytest.mark.integration
@@ -243,21 +261,43 @@ def test_joblib_sweep_keeps_finished_jobs_when_one_fails(tmp_path):
 
 @pytest.mark.integration
 def test_ctrl_c_leaves_a_partial_study_and_one_line(tmp_path):
-    """SIGINT during a robustness study: exit 130, one line naming the folder, files marked partial."""
+    """SIGINT during a robustness study: exit 130, one line naming the folder, files marked partial.
+
+    stderr is a terminal (a pty), as for a person pressing Ctrl-C: the progress bar shows there,
+    and its rate says when a chunk of trials is done.
+    """
+    import fcntl
+    import pty
     import signal
+    import struct
+    import termios
     import threading
     import time
 
+    terminal, child_end = pty.openpty()
+    fcntl.ioctl(child_end, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # 0 columns: no bar
     process = subprocess.Popen(
         [*IDKIT, "+experiment=robustness", "trials=100000", "robustness.scenarios=[outliers]",
          "estimator.runs=2", "estimator.iterations=10", "plots=false"],
-        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        cwd=tmp_path, stdout=subprocess.PIPE, stderr=child_end,
         # A runner started in the background of a non-interactive shell ignores SIGINT, and Python
         # keeps an inherited SIG_IGN: give the child the default disposition, as a terminal would.
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
+    os.close(child_end)
     stderr: list[str] = []
-    reader = threading.Thread(target=lambda: stderr.extend(iter(lambda: process.stderr.read(64), "")))
+
+    def read() -> None:
+        while True:
+            try:
+                chunk = os.read(terminal, 1024)
+            except OSError:  # EIO: the child closed its end
+                return
+            if not chunk:
+                return
+            stderr.append(chunk.decode("utf-8", "replace"))
+
+    reader = threading.Thread(target=read)
     reader.start()
     deadline = time.monotonic() + 240
     measured_rate = re.compile(r"\d trial/s|\dtrial/s")  # tqdm's rate once a chunk of trials is done
@@ -271,6 +311,7 @@ def test_ctrl_c_leaves_a_partial_study_and_one_line(tmp_path):
         reader.join(timeout=10)
         pytest.fail("no exit 300 s after SIGINT; stderr ends with: " + "".join(stderr)[-2000:])
     reader.join(timeout=10)
+    os.close(terminal)
     text = "".join(stderr)
     assert process.returncode == 130, text[-2000:]
     run_dir = only(list((tmp_path / "outputs").glob("*/*")))

@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import os
-import sys
 
 import pytest
-from hydra.core.global_hydra import GlobalHydra
 
 from idkit.cli import app, errors
 
@@ -57,14 +55,24 @@ def test_user_errors_pass_and_bugs_keep_their_traceback():
     assert errors.one_line(RuntimeError("bug")) is None
 
 
-def test_main_prints_one_line_and_exits_1(monkeypatch, capsys):
-    monkeypatch.setattr(sys, "argv", ["idkit", "estimator=psoo"])
-    monkeypatch.delenv(app.FULL_ERROR, raising=False)
-    GlobalHydra.instance().clear()
-    with pytest.raises(SystemExit) as exit_:
-        app.main()
-    GlobalHydra.instance().clear()
-    assert exit_.value.code == errors.USAGE
-    said = capsys.readouterr().err.strip().splitlines()
+def test_running_out_of_memory_is_one_line_naming_the_sizes():
+    import torch
+
+    try:
+        torch.empty(10**15)  # 8 PB: refused by the allocator before anything is touched
+    except RuntimeError as exc:
+        line = errors.one_line(exc)
+    assert line is not None
+    assert line.startswith("out of memory: can't allocate memory: you tried to allocate ")
+    assert line.endswith(f"; smaller sizes need less ({errors.SIZES})")
+    assert errors.one_line(MemoryError("kernel buffers")) == (
+        f"out of memory: kernel buffers; smaller sizes need less ({errors.SIZES})"
+    )
+    assert errors.one_line(RuntimeError("shape mismatch")) is None  # a bug keeps its traceback
+
+
+def test_main_prints_one_line_and_exits_1(run_idkit):
+    status, said = run_idkit("estimator=psoo")
+    assert status == errors.USAGE
     assert len(said) == 1 and said[0].startswith("idkit: unknown estimator 'psoo'; available estimators")
     assert app.FULL_ERROR not in os.environ  # set for Hydra during the run only
