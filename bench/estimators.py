@@ -19,18 +19,19 @@ import argparse
 import os
 import statistics
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 
 import numpy as np
+
+import no_compiler  # noqa: E402  (bench/ is the script's folder)
 
 os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
 import torch  # noqa: E402
 
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
-from idkit.estimators import native
+from idkit.optim import fast
 from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
@@ -186,18 +187,12 @@ def evosax_pso(robot: CylindricalRobot, problem: Problem, runs: int) -> tuple[Ca
 # --- the benchmark --------------------------------------------------------------------------
 
 
+#: The fast kernel's candidates measured side by side (``idkit.optim.fast.CANDIDATE``).
+CANDIDATES = {"numba": "numba", "C extension": "c"}
+
+
 def peers_table(robot: CylindricalRobot, problem: Problem, repeats: int, quick: bool) -> list[str]:
-    """Markdown rows: the three sizes × (idkit native, idkit eager, evosax, pyswarms)."""
-    # A cold kernel build, measured in a throw-away cache (later processes load the cached one).
-    # The kernel of this problem: its sizes and the robot's base map in C.
-    objective = Objective(problem, [paper.f13()])
-    with tempfile.TemporaryDirectory() as tmp:
-        os.environ["IDKIT_CACHE_DIR"] = tmp
-        native.kernel.cache_clear()
-        _, how, build_s = native.build(objective)
-        del os.environ["IDKIT_CACHE_DIR"]
-        native.kernel.cache_clear()
-    native.build(objective)  # the persistent cache, as every later process sees it
+    """Markdown rows: the three sizes × (idkit's kernel candidates, idkit eager, evosax, pyswarms)."""
     cost13 = numpy_cost(robot, problem, "f13")
     big = 2_000 if quick else 10_000
     peer_runs = 10 if quick else 20
@@ -205,9 +200,12 @@ def peers_table(robot: CylindricalRobot, problem: Problem, repeats: int, quick: 
     for label, runs in (("one PSO run", 1), ("one 10-run estimate", 10), (f"batch of {big:,} runs", big)):
         timing = timed if runs <= 10 else (lambda f, _: once(f))
         idkit = {}
-        for engine in ("native", "eager"):
-            pso = ParticleSwarm(preset="paper", runs=runs, threads=1, engine=engine, history=False)
-            idkit[engine] = timing(lambda pso=pso: pso.fit(problem), repeats)
+        for name, candidate in CANDIDATES.items():
+            fast.CANDIDATE = candidate
+            pso = ParticleSwarm(preset="paper", runs=runs, threads=1, engine="native", history=False)
+            idkit[name] = timing(lambda pso=pso: pso.fit(problem), repeats)
+        pso = ParticleSwarm(preset="paper", runs=runs, threads=1, engine="eager", history=False)
+        idkit["eager"] = timing(lambda pso=pso: pso.fit(problem), repeats)
         evosax_call, evosax_compile = evosax_pso(robot, problem, runs)
         evosax = timing(evosax_call, repeats)
         if runs == 1:
@@ -220,18 +218,18 @@ def peers_table(robot: CylindricalRobot, problem: Problem, repeats: int, quick: 
             peer_text = f"{seconds * 1e3:,.0f} ms" + (
                 "" if measured == runs else f" (extrapolated from {measured} runs)"
             )
-        best = idkit["native"][0]
+        columns = " | ".join(ms(idkit[name]) for name in (*CANDIDATES, "eager"))
+        ratios = " | ".join(f"{evosax[0] / idkit[name][0]:.2f}×" for name in CANDIDATES)
         rows.append(
-            f"| {label} | {ms(idkit['native'])} | {ms(idkit['eager'])} | {ms(evosax)} "
-            f"| {evosax_compile:.2f} s | {peer_text} | {evosax[0] / best:.2f}× | {peer[0] / best:.1f}× |"
+            f"| {label} | {columns} | {ms(evosax)} | {evosax_compile:.2f} s | {peer_text} | {ratios} "
+            f"| {peer[0] / idkit['numba'][0]:.1f}× |"
         )
-    two = ParticleSwarm(preset="paper", runs=big, threads=2, engine="native", history=False)
-    took = once(lambda: two.fit(problem))
-    rows.append(f"| batch of {big:,} runs, idkit native on 2 threads | {ms(took)} | – | – | – | – | – | – |")
-    rows.append(
-        f"| native kernel build (once per machine, cached on disk) | {build_s:.2f} s ({how}) "
-        "| – | – | – | – | – | – |"
-    )
+    for name, candidate in CANDIDATES.items():
+        fast.CANDIDATE = candidate
+        two = ParticleSwarm(preset="paper", runs=big, threads=2, engine="native", history=False)
+        took = once(lambda two=two: two.fit(problem))
+        rows.append(f"| batch of {big:,} runs, {name} on 2 threads | {ms(took)} |" + " – |" * 7)
+    fast.CANDIDATE = "numba"
     return rows
 
 
@@ -266,6 +264,8 @@ def main() -> None:
     peers = peers_table(robot, problem, repeats, args.quick)
     gpu = gpu_rows(robot, data["torque_noise"], repeats)
     progress("peers done", started)
+    fresh = no_compiler.rows(repeats, {name: {"IDKIT_KERNEL": c} for name, c in CANDIDATES.items()})
+    progress("fresh processes done", started)
 
     # 2. Tables II–V workload.
     def workload() -> None:
@@ -337,11 +337,13 @@ def main() -> None:
         f"load average before {load_before[0]:.1f}, after {os.getloadavg()[0]:.1f}"
     )
     print(
-        "\n| PSO, f13, torque_noise, 20 particles × 300 iterations | idkit native | idkit eager "
-        "| evosax run | evosax compile | pyswarms | evosax / idkit | pyswarms / idkit |\n"
-        "| --- | --- | --- | --- | --- | --- | --- | --- |"
+        "\n| PSO, f13, torque_noise, 20 particles × 300 iterations | idkit numba | idkit C extension "
+        "| idkit eager | evosax run | evosax compile | pyswarms | evosax / numba | evosax / C extension "
+        "| pyswarms / numba |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     )
     print("\n".join(peers))
+    print("\n" + no_compiler.HEADER)
+    print("\n".join(fresh))
     if gpu:
         print("\n| GPU | idkit eager |\n| --- | --- |\n" + "\n".join(gpu))
     print("\n| measurement | idkit | peer | ratio |\n| --- | --- | --- | --- |")

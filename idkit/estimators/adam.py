@@ -34,7 +34,7 @@ from idkit.estimate import Estimate
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
-from idkit.estimators.swarm import Draws, Uniform
+from idkit.optim.swarm import Draws, Uniform
 from idkit.estimators.trials import criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
