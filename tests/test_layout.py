@@ -44,3 +44,10 @@ def test_a_study_never_imports_a_report_at_module_level(path):
 def test_a_report_never_runs_a_study(path):
     """Reports import the result types of ``idkit.studies`` but never a study's ``run``."""
     assert not {name for name in _imports(path) if name.startswith("idkit.studies") and name.endswith(".run")}
+
+
+@pytest.mark.parametrize("path", _modules("optim"))
+def test_the_swarm_engine_imports_no_estimator(path):
+    """``idkit.optim`` is array-level: estimators, problems and studies build on it, not the reverse."""
+    above = ("idkit.estimators", "idkit.problem", "idkit.studies", "idkit.reports", "idkit.robots")
+    assert not {name for name in _imports(path) if name.startswith(above)}

@@ -360,12 +360,15 @@ class ParticleSwarm(Estimator):
                     group.run(min(run_chunk, settings.runs - start), settings, uniform, used)
                     for start in range(0, settings.runs, run_chunk)
                 ]
+                if group.fast:  # the threads its kernel calls used
+                    swarms = len(group.members) * trials * chunk_runs
+                    used = fast.thread_count(used, trials, swarms, settings.particles, settings.iterations)
                 slots = torch.tensor([t * count + c for t in range(trials) for c in group.members])
                 position[slots] = torch.cat([state.global_position for state, _ in chunks], dim=1)
                 run_costs[slots] = torch.cat([state.global_cost for state, _ in chunks], dim=1)
                 history[:, slots] = torch.cat([h for _, h in chunks], dim=2)
                 for c in group.members:
-                    engines[c] = {**group.details, "threads": used if group.fast else threads}
+                    engines[c] = {**group.details, "threads": used}
             mean, kept = aggregate(position, run_costs, settings.keep)
             values = [objective.exact(s, mean[s]) for s in range(objective.slots)]
         # The one-time kernel build and base-map translation are recorded apart (engine_build_s).

@@ -215,6 +215,30 @@ def refusal(spec: ProductSpec) -> str | None:
     return built if isinstance(built, str) else None
 
 
+def evaluate(spec: ProductSpec, x: Tensor) -> Tensor:
+    """The kernel's cost of positions ``x[L, K, D]`` (slot ``l`` by ``spec``'s slot ``l``) ``[L, K]``:
+    one evaluation, nothing moved. A cost that is NaN comes back as ``inf`` (the kernel never lets
+    it become a best)."""
+    built = kernel()
+    if isinstance(built, str):
+        raise RuntimeError(f"the fast kernel is unavailable: {built}")
+    slots, particles, dimension = x.shape
+    position = x.to(torch.float64).contiguous().numpy().copy()
+    pcost = np.full((slots, particles), np.inf)
+    code, parameter = factor_codes(spec.structures, spec.offset.shape[-1])
+    tape = spec.tape if spec.tape is not None else identity(0)
+    mode = codes.MAP_TAPE if spec.tape is not None else codes.MAP_GIVEN
+    given = spec.base(x).contiguous().numpy() if spec.tape is None else np.zeros((0, 0, 0))
+    built.run_trial(
+        np.random.Generator(np.random.SFC64(0)), 0, slots, np.empty(0), True, np.empty((1, slots)),
+        position, np.zeros_like(position), position.copy(), pcost, np.empty((slots, dimension)),
+        spec.linear.contiguous().numpy(), spec.offset.contiguous().numpy(), np.arange(slots, dtype=np.int64),
+        code, parameter, int(spec.joints), np.zeros(dimension), np.ones(dimension), np.array([1.0, 1.0, 0.0]),
+        np.array([codes.CLAMP, 0, mode], dtype=np.int64), tape.ops, tape.constants, tape.outputs, given,
+    )  # fmt: skip
+    return torch.from_numpy(pcost)
+
+
 @lru_cache(maxsize=64)
 def _inertias(rules: swarm.SwarmRules, moves: int) -> np.ndarray:
     """``rules.weight`` of every move ``[moves]`` (cached: 300 Python calls cost a tenth of a run)."""
@@ -297,15 +321,16 @@ def run(
     row_of = {iteration: row for row, iteration in enumerate(kept)}
     per_trial = slots // trials * runs
     weights = _inertias(rules, iterations - 1)
-    moves_per_call = max(1, EVALUATIONS_PER_CALL // (per_trial * particles))
-    if mode == codes.MAP_GIVEN:
-        moves_per_call = 1
-    blocks = [(m, min(m + moves_per_call, iterations - 1)) for m in range(0, iterations - 1, moves_per_call)]
-    blocks = blocks or [(0, 0)]
+    moves = iterations - 1
+    if mode == codes.MAP_GIVEN:  # one move per call, given its base parameters; the last evaluation apart
+        blocks = [(m, m + 1, False) for m in range(moves)] + [(moves, moves, True)]
+    else:
+        step = max(1, EVALUATIONS_PER_CALL // (per_trial * particles))
+        blocks = [(m, min(m + step, moves), m + step >= moves) for m in range(0, moves, step)]
+        blocks = blocks or [(0, 0, True)]
 
-    def call(trial: int, block: tuple[int, int], given: np.ndarray) -> None:
-        start, stop = block
-        last = stop == iterations - 1
+    def call(trial: int, block: tuple[int, int, bool], given: np.ndarray) -> None:
+        start, stop, last = block
         first = trial * per_trial
         rows = np.empty((stop - start + last, per_trial))
         built.run_trial(
@@ -316,23 +341,29 @@ def run(
             if iteration in row_of:
                 history[row_of[iteration], first : first + per_trial] = rows[offset]
 
-    empty = np.zeros((0, 0, 0))
-    evaluations = slots * runs * particles * moves_per_call
-    used = max(1, min(threads, trials, evaluations // EVALUATIONS_PER_THREAD))
-    if mode == codes.MAP_GIVEN:  # the base map in torch: every call one move, given alpha
+    if mode == codes.MAP_GIVEN:  # the base map in torch, on the positions before each call
         for block in blocks:
             given = spec.base(torch.from_numpy(x)).contiguous().numpy()
             for trial in range(trials):
                 call(trial, block, given)
     else:
+        used = thread_count(threads, trials, slots * runs, particles, iterations)
+        empty = np.zeros((0, 0, 0))
         _in_threads(used, trials, blocks, lambda trial, block: call(trial, block, empty))
     final = [torch.from_numpy(a).view(slots, runs, *a.shape[1:]) for a in (x, v, pbest, pcost, gpos)]
     state = swarm.SwarmState(*final, final[3].amin(-1))
     return state, torch.from_numpy(history).view(len(kept), slots, runs)
 
 
+def thread_count(most: int, trials: int, swarms: int, particles: int, iterations: int) -> int:
+    """Threads ``run`` uses: at most ``most``, one per trial at most (a trial's swarms share its
+    stream), and one per ``EVALUATIONS_PER_THREAD`` evaluations of a call."""
+    per_call = swarms * particles * min(iterations, max(1, EVALUATIONS_PER_CALL // max(swarms // trials * particles, 1)))
+    return max(1, min(most, trials, per_call // EVALUATIONS_PER_THREAD))
+
+
 def _in_threads(
-    threads: int, trials: int, blocks: list[tuple[int, int]], work: Callable[[int, tuple[int, int]], None]
+    threads: int, trials: int, blocks: list[tuple[int, int, bool]], work: Callable[[int, tuple[int, int, bool]], None]
 ) -> None:
     """``work(trial, block)`` for every trial and block of moves, trials in contiguous shares over
     ``threads`` threads (the caller's thread is one of them). A KeyboardInterrupt stops every
