@@ -2,11 +2,13 @@
 
 Run: ``python bench/estimators.py [--repeats 7] [--quick]``. Prints Markdown tables:
 
-1. PSO at three sizes — one run, one 10-run estimate, a batch of 10,000 runs — for idkit (both
-   engines), evosax's PSO (JAX ``jit`` + ``vmap``, float64) and pyswarms, all on the same f13
+1. PSO at three sizes — one run, one 10-run estimate, a batch of 10,000 runs — for idkit (the fast
+   and the eager engine), evosax's PSO (JAX ``jit`` + ``vmap``, float64) and pyswarms, all on the same f13
    problem (``torque_noise``, seed 0) with the same budget (20 particles, 300 iterations), with each
    peer's compile time beside its run time and the ratios; GPU rows when CUDA is present;
-2. the whole Tables II–V workload, RLS closed form vs cvxpy, and the f1 quality hit rate.
+2. the 10-run estimate in new processes, with and without a C compiler on ``PATH`` and with a fresh
+   cache (``bench/no_compiler.py``): the first fit, the one-time build recorded apart, the later fits;
+3. the whole Tables II–V workload, RLS closed form vs cvxpy, and the f1 quality hit rate.
 
 Everything runs on one thread (torch, and XLA via ``XLA_FLAGS``, set before JAX is imported).
 Times are the median of ``repeats`` calls after one warm-up (min in brackets); the 10,000-run
@@ -31,7 +33,6 @@ import torch  # noqa: E402
 
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
-from idkit.optim import fast
 from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
@@ -187,12 +188,8 @@ def evosax_pso(robot: CylindricalRobot, problem: Problem, runs: int) -> tuple[Ca
 # --- the benchmark --------------------------------------------------------------------------
 
 
-#: The fast kernel's candidates measured side by side (``idkit.optim.fast.CANDIDATE``).
-CANDIDATES = {"numba": "numba", "C extension": "c"}
-
-
 def peers_table(robot: CylindricalRobot, problem: Problem, repeats: int, quick: bool) -> list[str]:
-    """Markdown rows: the three sizes × (idkit's kernel candidates, idkit eager, evosax, pyswarms)."""
+    """Markdown rows: the three sizes × (idkit fast, idkit eager, evosax, pyswarms)."""
     cost13 = numpy_cost(robot, problem, "f13")
     big = 2_000 if quick else 10_000
     peer_runs = 10 if quick else 20
@@ -200,12 +197,9 @@ def peers_table(robot: CylindricalRobot, problem: Problem, repeats: int, quick: 
     for label, runs in (("one PSO run", 1), ("one 10-run estimate", 10), (f"batch of {big:,} runs", big)):
         timing = timed if runs <= 10 else (lambda f, _: once(f))
         idkit = {}
-        for name, candidate in CANDIDATES.items():
-            fast.CANDIDATE = candidate
-            pso = ParticleSwarm(preset="paper", runs=runs, threads=1, engine="native", history=False)
-            idkit[name] = timing(lambda pso=pso: pso.fit(problem), repeats)
-        pso = ParticleSwarm(preset="paper", runs=runs, threads=1, engine="eager", history=False)
-        idkit["eager"] = timing(lambda pso=pso: pso.fit(problem), repeats)
+        for engine in ("native", "eager"):
+            pso = ParticleSwarm(preset="paper", runs=runs, threads=1, engine=engine, history=False)
+            idkit[engine] = timing(lambda pso=pso: pso.fit(problem), repeats)
         evosax_call, evosax_compile = evosax_pso(robot, problem, runs)
         evosax = timing(evosax_call, repeats)
         if runs == 1:
@@ -218,18 +212,14 @@ def peers_table(robot: CylindricalRobot, problem: Problem, repeats: int, quick: 
             peer_text = f"{seconds * 1e3:,.0f} ms" + (
                 "" if measured == runs else f" (extrapolated from {measured} runs)"
             )
-        columns = " | ".join(ms(idkit[name]) for name in (*CANDIDATES, "eager"))
-        ratios = " | ".join(f"{evosax[0] / idkit[name][0]:.2f}×" for name in CANDIDATES)
+        best = idkit["native"][0]
         rows.append(
-            f"| {label} | {columns} | {ms(evosax)} | {evosax_compile:.2f} s | {peer_text} | {ratios} "
-            f"| {peer[0] / idkit['numba'][0]:.1f}× |"
+            f"| {label} | {ms(idkit['native'])} | {ms(idkit['eager'])} | {ms(evosax)} "
+            f"| {evosax_compile:.2f} s | {peer_text} | {evosax[0] / best:.2f}× | {peer[0] / best:.1f}× |"
         )
-    for name, candidate in CANDIDATES.items():
-        fast.CANDIDATE = candidate
-        two = ParticleSwarm(preset="paper", runs=big, threads=2, engine="native", history=False)
-        took = once(lambda two=two: two.fit(problem))
-        rows.append(f"| batch of {big:,} runs, {name} on 2 threads | {ms(took)} |" + " – |" * 7)
-    fast.CANDIDATE = "numba"
+    two = ParticleSwarm(preset="paper", runs=big, threads=2, engine="native", history=False)
+    took = once(lambda: two.fit(problem))
+    rows.append(f"| batch of {big:,} runs, idkit fast on 2 threads | {ms(took)} | – | – | – | – | – | – |")
     return rows
 
 
@@ -264,7 +254,7 @@ def main() -> None:
     peers = peers_table(robot, problem, repeats, args.quick)
     gpu = gpu_rows(robot, data["torque_noise"], repeats)
     progress("peers done", started)
-    fresh = no_compiler.rows(repeats, {name: {"IDKIT_KERNEL": c} for name, c in CANDIDATES.items()})
+    fresh = no_compiler.rows(repeats)
     progress("fresh processes done", started)
 
     # 2. Tables II–V workload.
@@ -337,9 +327,9 @@ def main() -> None:
         f"load average before {load_before[0]:.1f}, after {os.getloadavg()[0]:.1f}"
     )
     print(
-        "\n| PSO, f13, torque_noise, 20 particles × 300 iterations | idkit numba | idkit C extension "
-        "| idkit eager | evosax run | evosax compile | pyswarms | evosax / numba | evosax / C extension "
-        "| pyswarms / numba |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+        "\n| PSO, f13, torque_noise, 20 particles × 300 iterations | idkit fast (numba) | idkit eager "
+        "| evosax run | evosax compile | pyswarms | evosax / idkit | pyswarms / idkit |\n"
+        "| --- | --- | --- | --- | --- | --- | --- | --- |"
     )
     print("\n".join(peers))
     print("\n" + no_compiler.HEADER)

@@ -21,7 +21,6 @@ the build fails twice, ``kernel()`` says why and callers run the eager engine.
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 import warnings
@@ -56,28 +55,8 @@ class Build:
     seconds: float
 
 
-#: Which candidate the engine uses while both exist (``bench/estimators.py`` measures both).
-CANDIDATE = os.environ.get("IDKIT_KERNEL", "numba")
-
-
+@cache
 def kernel() -> Build | str:
-    """The kernel of ``CANDIDATE`` (``_numba_kernel`` or ``_c_kernel``)."""
-    return _c_kernel() if CANDIDATE == "c" else _numba_kernel()
-
-
-@cache
-def _c_kernel() -> Build | str:
-    """Candidate (b): the C extension built with the package."""
-    started = time.perf_counter()
-    try:
-        from idkit.optim import _ckernel
-    except ImportError as error:
-        return f"the compiled extension is missing ({error})"
-    return Build(_ckernel.run_trial, "the C extension built with the package", time.perf_counter() - started)
-
-
-@cache
-def _numba_kernel() -> Build | str:
     """The kernel (``Build``), or why there is none (a one-line reason).
 
     The first call of a process imports numba and loads the kernel from the cache, or compiles
