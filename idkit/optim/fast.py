@@ -21,6 +21,7 @@ the build fails twice, ``kernel()`` says why and callers run the eager engine.
 
 from __future__ import annotations
 
+import re
 import threading
 import time
 import warnings
@@ -78,7 +79,7 @@ def kernel() -> Build | str:
             break
         except Exception as error:
             if attempt == 2:
-                return f"the fast kernel failed to build ({type(error).__name__}: {error})"
+                return f"the fast kernel failed to build ({_one_line(error)})"
             warnings.warn(
                 f"idkit's kernel cache {compiled.FOLDER} failed to load ({type(error).__name__}); "
                 "removed it, compiling again",
@@ -92,7 +93,16 @@ def kernel() -> Build | str:
         how = f"compiled by numba in {seconds:.1f} s (once per machine; cached in {compiled.FOLDER})"
     else:
         how = f"loaded from the cache in {seconds:.2f} s"
-    return Build(compiled.run_trial, how, seconds)
+    built = Build(compiled.run_trial, how, seconds)
+    stats = getattr(compiled.run_trial, "stats", None)
+    _RECORDED[id(built)] = sum(stats.cache_misses.values()) if stats is not None else 0
+    return built
+
+
+def _one_line(error: BaseException) -> str:
+    """``Type: first line`` of an error, without the terminal colours numba adds."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(error)).strip().splitlines()
+    return f"{type(error).__name__}: {text[-1] if text else ''}"[:300]
 
 
 def _warm_up(run_trial: Callable[..., None]) -> int:
@@ -215,7 +225,23 @@ def evaluate(spec: ProductSpec, x: Tensor) -> Tensor:
         code, parameter, int(spec.joints), np.zeros(dimension), np.ones(dimension), np.array([1.0, 1.0, 0.0]),
         np.array([codes.CLAMP, 0, mode], dtype=np.int64), tape.ops, tape.constants, tape.outputs, given,
     )  # fmt: skip
+    _record_new_code(built)
     return torch.from_numpy(pcost)
+
+
+def _record_new_code(built: Build) -> None:
+    """Record the cache's files again if a call compiled code the warm-up did not (numba rewrote its
+    index): the next process would otherwise take them for damage."""
+    stats = getattr(built.run_trial, "stats", None)
+    misses = sum(stats.cache_misses.values()) if stats is not None else 0
+    if misses != _RECORDED.get(id(built), 0):
+        from idkit.optim import kernel as compiled
+
+        compiled.MANIFEST.record()
+    _RECORDED[id(built)] = misses
+
+
+_RECORDED: dict[int, int] = {}
 
 
 @lru_cache(maxsize=64)
@@ -329,6 +355,7 @@ def run(
         used = thread_count(threads, trials, slots * runs, particles, iterations)
         empty = np.zeros((0, 0, 0))
         _in_threads(used, trials, blocks, lambda trial, block: call(trial, block, empty))
+    _record_new_code(built)
     final = [torch.from_numpy(a).view(slots, runs, *a.shape[1:]) for a in (x, v, pbest, pcost, gpos)]
     state = swarm.SwarmState(*final, final[3].amin(-1))
     return state, torch.from_numpy(history).view(len(kept), slots, runs)

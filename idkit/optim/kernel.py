@@ -42,7 +42,7 @@ from idkit.optim.codes import (
     FRO,
     HUBER,
     MAP_GIVEN,
-    MAP_IDENTITY,
+    MAP_TAPE,
     MAP_MODE,
     MAX_ABS,
     OP_ADD,
@@ -75,6 +75,10 @@ numba.core.config.CACHE_DIR = str(FOLDER)
 
 jit = njit(cache=True, nogil=True, error_model="numpy")
 
+#: Particles evaluated together (the swarms of one slot side by side): long loops for the vector
+#: units, while the error matrix stays in the cache (30 entries × 256 × 8 B = 60 kB).
+TILE = 256
+
 
 @jit
 def _larger(current: float, value: float) -> float:
@@ -85,47 +89,67 @@ def _larger(current: float, value: float) -> float:
 
 
 @jit
-def _base_params(x, s, mode, tape, constants, outputs, given, registers, alpha):  # noqa: ANN001, ANN202
-    """``alpha[B, K]``: the base parameters of swarm ``s``'s positions ``x[s]``."""
-    particles, count = x.shape[1], alpha.shape[0]
-    if mode == MAP_IDENTITY:
+def _base_params(points, mode, tape, constants, outputs, registers, alpha):  # noqa: ANN001, ANN202
+    """``alpha[B, n]``: the base parameters of ``points[n, P]`` — the points themselves (a base-space
+    search, or base parameters given by the caller), or the tape run one operation at a time over
+    all points (the dispatch outside the loops, so every loop vectorises)."""
+    count, n = alpha.shape
+    if mode != MAP_TAPE:
         for b in range(count):
-            for k in range(particles):
-                alpha[b, k] = x[s, k, b]
-        return
-    if mode == MAP_GIVEN:
-        for b in range(count):
-            for k in range(particles):
-                alpha[b, k] = given[s, k, b]
+            for k in range(n):
+                alpha[b, k] = points[k, b]
         return
     for row in range(tape.shape[0]):
         op, out, a, b = tape[row, 0], tape[row, 1], tape[row, 2], tape[row, 3]
-        for k in range(particles):
-            if op == OP_X:
-                registers[out, k] = x[s, k, a]
-            elif op == OP_CONST:
-                registers[out, k] = constants[row]
-            elif op == OP_ADD:
-                registers[out, k] = registers[a, k] + registers[b, k]
-            elif op == OP_SUB:
-                registers[out, k] = registers[a, k] - registers[b, k]
-            elif op == OP_MUL:
-                registers[out, k] = registers[a, k] * registers[b, k]
-            elif op == OP_DIV:
-                registers[out, k] = registers[a, k] / registers[b, k]
-            elif op == OP_NEG:
-                registers[out, k] = -registers[a, k]
-            elif op == OP_SIN:
-                registers[out, k] = math.sin(registers[a, k])
-            elif op == OP_COS:
-                registers[out, k] = math.cos(registers[a, k])
-            elif op == OP_SQRT:
-                registers[out, k] = math.sqrt(registers[a, k])
-            else:  # OP_SQUARE
-                registers[out, k] = registers[a, k] * registers[a, k]
+        target, left, right = registers[out, :n], registers[a, :n], registers[b, :n]
+        if op == OP_X:
+            for k in range(n):
+                target[k] = points[k, a]
+        elif op == OP_CONST:
+            target[:] = constants[row]
+        elif op == OP_ADD:
+            for k in range(n):
+                target[k] = left[k] + right[k]
+        elif op == OP_SUB:
+            for k in range(n):
+                target[k] = left[k] - right[k]
+        elif op == OP_MUL:
+            for k in range(n):
+                target[k] = left[k] * right[k]
+        elif op == OP_DIV:
+            for k in range(n):
+                target[k] = left[k] / right[k]
+        elif op == OP_NEG:
+            for k in range(n):
+                target[k] = -left[k]
+        elif op == OP_SIN:
+            for k in range(n):
+                target[k] = math.sin(left[k])
+        elif op == OP_COS:
+            for k in range(n):
+                target[k] = math.cos(left[k])
+        elif op == OP_SQRT:
+            for k in range(n):
+                target[k] = math.sqrt(left[k])
+        else:  # OP_SQUARE
+            for k in range(n):
+                target[k] = left[k] * left[k]
     for b in range(count):
-        for k in range(particles):
-            alpha[b, k] = registers[outputs[b], k]
+        alpha[b, :] = registers[outputs[b], :n]
+
+
+@jit
+def _errors(alpha, linear, offset, e):  # noqa: ANN001, ANN202
+    """``e[M, n] = offset[M] + alpha[B, n] · linear[B, M]``, summed in the eager engine's order."""
+    count, n = alpha.shape
+    for m in range(offset.shape[0]):
+        row, first = e[m], linear[0, m]
+        for k in range(n):
+            row[k] = offset[m] + alpha[0, k] * first
+        for b in range(1, count):
+            factor, weights = linear[b, m], alpha[b]
+            for k in range(n):
+                row[k] += weights[k] * factor
 
 
 @jit
@@ -156,13 +180,14 @@ def _spectral3(e, k: int, samples: int) -> float:  # noqa: ANN001
 
 
 @jit
-def _factor(code, parameter, e, joints, out, squares):  # noqa: ANN001, ANN202
-    """``out[K]``: factor ``code`` of each particle's error matrix ``e[M, K]`` (joint-major rows)."""
+def _factor(code, parameter, e, joints, out, sums):  # noqa: ANN001, ANN202
+    """``out[K]``: factor ``code`` of each particle's error matrix ``e[M, K]`` (joint-major rows);
+    ``sums`` is scratch of at least ``max(M, K)``. Every loop over particles is innermost."""
     entries, particles = e.shape
     samples = entries // joints
+    row = sums[:particles]
     if code == FRO:
-        for k in range(particles):
-            out[k] = 0.0
+        out[:] = 0.0
         for m in range(entries):
             for k in range(particles):
                 out[k] += e[m, k] * e[m, k]
@@ -171,28 +196,40 @@ def _factor(code, parameter, e, joints, out, squares):  # noqa: ANN001, ANN202
     elif code == SPECTRAL:
         for k in range(particles):
             out[k] = _spectral3(e, k, samples)
-    elif code == COLUMN_SUM or code == ROW_SUM or code == ROW_SQUARES:
-        outer, inner = (samples, joints) if code == COLUMN_SUM else (joints, samples)
-        for k in range(particles):
-            out[k] = -math.inf
-        for o in range(outer):
-            for k in range(particles):
-                squares[k] = 0.0
-            for i in range(inner):
-                m = i * samples + o if code == COLUMN_SUM else o * samples + i
+    elif code == COLUMN_SUM:  # the largest column (sample) absolute sum
+        out[:] = -math.inf
+        for j in range(samples):
+            row[:] = 0.0
+            for i in range(joints):
                 for k in range(particles):
-                    squares[k] += e[m, k] * e[m, k] if code == ROW_SQUARES else abs(e[m, k])
+                    row[k] += abs(e[i * samples + j, k])
             for k in range(particles):
-                out[k] = _larger(out[k], squares[k])
+                out[k] = _larger(out[k], row[k])
+    elif code == ROW_SUM:  # the largest row (joint) absolute sum
+        out[:] = -math.inf
+        for i in range(joints):
+            row[:] = 0.0
+            for j in range(samples):
+                for k in range(particles):
+                    row[k] += abs(e[i * samples + j, k])
+            for k in range(particles):
+                out[k] = _larger(out[k], row[k])
+    elif code == ROW_SQUARES:  # the largest row square sum
+        out[:] = -math.inf
+        for i in range(joints):
+            row[:] = 0.0
+            for j in range(samples):
+                for k in range(particles):
+                    row[k] += e[i * samples + j, k] * e[i * samples + j, k]
+            for k in range(particles):
+                out[k] = _larger(out[k], row[k])
     elif code == MAX_ABS:
-        for k in range(particles):
-            out[k] = -math.inf
+        out[:] = -math.inf
         for m in range(entries):
             for k in range(particles):
                 out[k] = _larger(out[k], abs(e[m, k]))
-    elif code == HUBER:
-        for k in range(particles):
-            out[k] = 0.0
+    elif code == HUBER:  # as idkit.costs.reductions.huber_mean
+        out[:] = 0.0
         for m in range(entries):
             for k in range(particles):
                 a = abs(e[m, k])
@@ -202,7 +239,7 @@ def _factor(code, parameter, e, joints, out, squares):  # noqa: ANN001, ANN202
             out[k] /= entries
     else:  # TRIMMED: the parameter is the number of smallest squares kept
         keep = int(parameter)
-        column = squares[:entries]
+        column = sums[:entries]
         for k in range(particles):
             for m in range(entries):
                 column[m] = e[m, k] * e[m, k]
@@ -214,79 +251,113 @@ def _factor(code, parameter, e, joints, out, squares):  # noqa: ANN001, ANN202
 
 
 @jit
-def _evaluate(s, x, pbest, pcost, gpos, linear, offset, slot_of, codes, params, joints, alpha, e, values, squares):  # noqa: ANN001, ANN202, E501
-    """Cost of every particle of swarm ``s``; personal bests where strictly lower; the swarm's best
-    (the first particle with the lowest personal best) into ``gpos[s]``. Returns its cost."""
+def _evaluate(x, first, count, pbest, pcost, gpos, history, linear, offset, slot_of, codes, params, joints,
+              mode, tape, constants, outputs, given, work):  # noqa: ANN001, ANN202
+    """Evaluate swarms ``[first, first + count)``: personal bests where strictly lower, each swarm's
+    best (the first particle with the lowest personal best) into ``gpos`` and its cost into
+    ``history[s − first]``. Swarms of one slot are evaluated side by side, up to ``TILE`` particles
+    at a time: long loops for the vector units, an error matrix that stays in the cache."""
     particles, dimension = x.shape[1], x.shape[2]
-    slot = slot_of[s]
-    entries, count = offset.shape[1], alpha.shape[0]
-    for m in range(entries):  # E = offset + alpha · linear, summed in the eager engine's order
-        for k in range(particles):
-            e[m, k] = offset[slot, m] + alpha[0, k] * linear[slot, 0, m]
-        for b in range(1, count):
+    entries, count_base = offset.shape[1], linear.shape[1]
+    per_tile = max(1, TILE // particles)  # swarms per tile (a swarm larger than TILE: one alone)
+    s = first
+    while s < first + count:
+        slot, stop = slot_of[s], min(s + per_tile, first + count)
+        while stop > s + 1 and slot_of[stop - 1] != slot:
+            stop -= 1
+        n = (stop - s) * particles
+        source = x[s:stop] if mode != MAP_GIVEN else given[s:stop]
+        points = source.reshape((n, source.shape[2]))
+        # the work arrays as C-contiguous [rows, n] (a slice [:, :n] would not be, and its loops
+        # would not vectorise)
+        registers = work[0][: max(tape.shape[0], 1) * n].reshape((max(tape.shape[0], 1), n))
+        alpha = work[1][: count_base * n].reshape((count_base, n))
+        e = work[2][: entries * n].reshape((entries, n))
+        cost, value = work[3][:n], work[3][n : 2 * n]
+        _base_params(points, mode, tape, constants, outputs, registers, alpha)
+        _errors(alpha, linear[slot], offset[slot], e)
+        for f in range(codes.shape[1]):
+            if codes[slot, f] == 0:
+                break
+            _factor(codes[slot, f], params[slot, f], e, joints, cost if f == 0 else value, work[4])
+            if f > 0:
+                for k in range(n):
+                    cost[k] = cost[k] * value[k]
+        for t in range(s, stop):
+            base = (t - s) * particles
             for k in range(particles):
-                e[m, k] += alpha[b, k] * linear[slot, b, m]
-    for k in range(particles):
-        values[0, k] = 1.0
-    for f in range(codes.shape[1]):
-        if codes[slot, f] == 0:
-            break
-        _factor(codes[slot, f], params[slot, f], e, joints, values[1], squares)
-        for k in range(particles):
-            values[0, k] = values[1, k] if f == 0 else values[0, k] * values[1, k]
-    for k in range(particles):
-        if values[0, k] < pcost[s, k]:  # strictly; NaN never is
-            pcost[s, k] = values[0, k]
+                if cost[base + k] < pcost[t, k]:  # strictly; NaN never is
+                    pcost[t, k] = cost[base + k]
+                    for p in range(dimension):
+                        pbest[t, k, p] = x[t, k, p]
+            best, low = 0, pcost[t, 0]
+            for k in range(1, particles):
+                if pcost[t, k] < low:
+                    best, low = k, pcost[t, k]
             for p in range(dimension):
-                pbest[s, k, p] = x[s, k, p]
-    best, low = 0, pcost[s, 0]
-    for k in range(1, particles):
-        if pcost[s, k] < low:
-            best, low = k, pcost[s, k]
-    for p in range(dimension):
-        gpos[s, p] = pbest[s, best, p]
-    return low
+                gpos[t, p] = pbest[t, best, p]
+            history[t - first] = low
+        s = stop
 
 
 @jit
-def _move(s, weight, r1, r2, u3, x, v, pbest, gpos, lower, upper, c1, c2, vmax, boundary, per_particle):  # noqa: ANN001, ANN202, E501
-    """Move swarm ``s`` with inertia ``weight`` and its uniform numbers ``r1``, ``r2`` (``u3`` for
-    the random wall rule), each ``[K, P or 1]``, then apply the boundary rule: ``swarm.step``."""
-    particles, dimension = x.shape[1], x.shape[2]
-    for k in range(particles):
-        for p in range(dimension):
-            w = 0 if per_particle else p
-            position = x[s, k, p]
-            velocity = v[s, k, p] * weight + (c1 * r1[k, w]) * (pbest[s, k, p] - position)
-            velocity = velocity + (c2 * r2[k, w]) * (gpos[s, p] - position)
-            velocity = -vmax[p] if velocity < -vmax[p] else velocity
-            velocity = vmax[p] if velocity > vmax[p] else velocity
-            moved = position + velocity
-            low, high = lower[p], upper[p]
-            if boundary == CLAMP:
-                clamped = low if moved < low else moved
-                clamped = high if clamped > high else clamped
-                v[s, k, p] = velocity * (1.0 if clamped == moved else 0.0)
-                x[s, k, p] = clamped
-            elif boundary == REFLECT:
-                # t = (x − lower) mod 2·width (as torch.remainder), folded onto the box
-                width = high - low
-                t = moved - low
-                if not (t >= -2 * width and t < 2 * width):
-                    t = np.fmod(t, 2 * width)
-                if t < 0:
-                    t = t + 2 * width
-                folded = width - t
-                x[s, k, p] = high - abs(folded)
-                v[s, k, p] = velocity * ((1.0 if folded > 0 else 0.0) - (1.0 if folded < 0 else 0.0))
-            else:  # RANDOM: between the previous position and the wall it crossed
-                u = u3[k, w]
-                if moved < low:
-                    x[s, k, p], v[s, k, p] = low + (position - low) * u, 0.0
-                elif moved > high:
-                    x[s, k, p], v[s, k, p] = high - (high - position) * u, 0.0
-                else:
-                    x[s, k, p], v[s, k, p] = moved, velocity
+def _move(xs, vs, best, g, r1, r2, u3, weight, box, boundary, per_particle, scratch):  # noqa: ANN001, ANN202
+    """Move one swarm (its positions ``xs``, velocities ``vs`` and personal bests ``best``, flat
+    ``[K·P]``; its best ``g[P]``) with inertia ``weight`` and uniform numbers ``r1``, ``r2`` (``u3``
+    for random walls), flat ``[K·P]`` (``[K]`` per particle), then apply the boundary rule: what
+    ``swarm.step`` does, operation by operation, in flat loops over the coordinates.
+
+    ``box``: per coordinate ``[c1, c2, lower, upper, width, v_max]`` rows ``[6, K·P]``."""
+    n, dimension = xs.shape[0], g.shape[0]
+    lower, upper, width, vmax = box[2], box[3], box[4], box[5]
+    scaled1, scaled2, gbest, moved = scratch[0], scratch[1], scratch[2], scratch[3]
+    for k in range(n // dimension):
+        gbest[k * dimension : (k + 1) * dimension] = g
+    if per_particle:
+        for k in range(n // dimension):
+            for p in range(dimension):
+                scaled1[k * dimension + p] = box[0, k * dimension + p] * r1[k]
+                scaled2[k * dimension + p] = box[1, k * dimension + p] * r2[k]
+    else:
+        for i in range(n):
+            scaled1[i] = box[0, i] * r1[i]
+            scaled2[i] = box[1, i] * r2[i]
+    for i in range(n):
+        velocity = vs[i] * weight + scaled1[i] * (best[i] - xs[i])
+        velocity = velocity + scaled2[i] * (gbest[i] - xs[i])
+        velocity = -vmax[i] if velocity < -vmax[i] else velocity
+        velocity = vmax[i] if velocity > vmax[i] else velocity
+        vs[i] = velocity
+        moved[i] = xs[i] + velocity
+    if boundary == CLAMP:
+        for i in range(n):
+            low = lower[i] if moved[i] < lower[i] else moved[i]
+            clamped = upper[i] if low > upper[i] else low
+            vs[i] = vs[i] * (1.0 if clamped == moved[i] else 0.0)
+            xs[i] = clamped
+    elif boundary == REFLECT:
+        # t = (x − lower) mod 2·width, as torch.remainder: t itself on [0, 2 width), t + 2 width on
+        # [−2 width, 0) (exact); farther out (rare) the full remainder. Then folded onto the box.
+        far = False
+        for i in range(n):
+            moved[i] = moved[i] - lower[i]
+            far |= not (moved[i] >= -2 * width[i] and moved[i] < 2 * width[i])
+        if far:
+            for i in range(n):
+                if not (moved[i] >= -2 * width[i] and moved[i] < 2 * width[i]):
+                    moved[i] = np.fmod(moved[i], 2 * width[i])
+        for i in range(n):
+            t = moved[i] + 2 * width[i] if moved[i] < 0 else moved[i]
+            folded = width[i] - t
+            xs[i] = upper[i] - abs(folded)
+            vs[i] = vs[i] * ((1.0 if folded > 0 else 0.0) - (1.0 if folded < 0 else 0.0))
+    else:  # RANDOM: between the previous position and the wall it crossed
+        for i in range(n):
+            u = u3[i // dimension] if per_particle else u3[i]
+            out_low, out_high = moved[i] < lower[i], moved[i] > upper[i]
+            position = lower[i] + (xs[i] - lower[i]) * u if out_low else moved[i]
+            xs[i] = upper[i] - (upper[i] - xs[i]) * u if out_high else position
+            vs[i] = 0.0 if out_low or out_high else vs[i]
 
 
 @jit
@@ -327,54 +398,48 @@ def run_trial(  # noqa: ANN201, PLR0913
     (``[count, K, 1]`` per particle), swarm-major: the eager engine's blocks.
     """
     particles, dimension = x.shape[1], x.shape[2]
-    entries, base = offset.shape[1], linear.shape[1]
-    c1, c2, limit = constants[C1], constants[C2], constants[VELOCITY_LIMIT]
+    entries, base, coordinates = offset.shape[1], linear.shape[1], particles * dimension
+    limit = constants[VELOCITY_LIMIT]
     boundary, per_particle, mode = flags[BOUNDARY], flags[PER_PARTICLE], flags[MAP_MODE]
     width = 1 if per_particle else dimension
     kinds = 3 if boundary == RANDOM else 2
-    random = np.empty((kinds, count, particles, width))
-    vmax = np.empty(dimension)
-    for p in range(dimension):
-        vmax[p] = limit * (upper[p] - lower[p]) if limit > 0 else math.inf
-    registers = np.empty((max(tape.shape[0], 1), particles))
-    alpha = np.empty((base, particles))
-    e = np.empty((entries, particles))
-    values = np.empty((2, particles))
-    squares = np.empty(max(entries, particles))
+    block = count * particles * width
+    random = np.empty(kinds * block)
+    box = np.empty((6, coordinates))
+    for i in range(coordinates):
+        p = i % dimension
+        box[0, i], box[1, i], box[2, i], box[3, i] = constants[C1], constants[C2], lower[p], upper[p]
+        box[4, i] = upper[p] - lower[p]
+        box[5, i] = limit * box[4, i] if limit > 0 else math.inf
+    scratch = np.empty((4, coordinates))
+    # flat work arrays for a tile of up to TILE particles (``_evaluate`` shapes them per tile):
+    # registers of the base-map tape, base parameters, error matrix, costs, per-factor sums
+    tile = max(TILE // particles, 1) * particles
+    work = (
+        np.empty(max(tape.shape[0], 1) * tile),
+        np.empty(base * tile),
+        np.empty(entries * tile),
+        np.empty(2 * tile),
+        np.empty(max(entries, tile)),
+    )
     moves = weights.shape[0]
     for m in range(moves + (1 if last else 0)):
-        moving = m < moves
-        if moving:
-            for kind in range(kinds):
-                for c in range(count):
-                    for k in range(particles):
-                        for w in range(width):
-                            random[kind, c, k, w] = rng.random()
+        _evaluate(
+            x, first, count, pbest, pcost, gpos, history[m], linear, offset, slot_of, codes, params, joints,
+            mode, tape, tape_constants, outputs, given, work,
+        )  # fmt: skip
+        if m == moves:
+            break
+        for i in range(kinds * block):
+            random[i] = rng.random()
         for s in range(first, first + count):
-            _base_params(x, s, mode, tape, tape_constants, outputs, given, registers, alpha)
-            history[m, s - first] = _evaluate(
-                s, x, pbest, pcost, gpos, linear, offset, slot_of, codes, params, joints, alpha, e, values, squares
-            )
-            if moving:
-                c = s - first
-                _move(
-                    s,
-                    weights[m],
-                    random[0, c],
-                    random[1, c],
-                    random[kinds - 1, c],
-                    x,
-                    v,
-                    pbest,
-                    gpos,
-                    lower,
-                    upper,
-                    c1,
-                    c2,
-                    vmax,
-                    boundary,
-                    per_particle,
-                )
+            c = (s - first) * particles * width
+            _move(
+                x[s].reshape(coordinates), v[s].reshape(coordinates), pbest[s].reshape(coordinates), gpos[s],
+                random[c : c + particles * width], random[block + c : block + c + particles * width],
+                random[(kinds - 1) * block + c : (kinds - 1) * block + c + particles * width],
+                weights[m], box, boundary, per_particle, scratch,
+            )  # fmt: skip
 
 
 numba.core.config.CACHE_DIR = _previous_cache_dir
