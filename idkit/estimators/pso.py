@@ -40,16 +40,15 @@ When ``"auto"`` has to take the slower eager engine, a ``SlowEngineWarning`` say
 reason and process. Both engines draw the same random numbers; their trajectories agree to
 rounding, and the same seed gives identical numbers for a given engine.
 
-Sizes. ``runs × particles × iterations`` is capped at ``MAX_EVALUATIONS`` per cost and trial (a
-bigger request is refused when the estimator is built), the memory a batch needs is checked
-against the machine's before anything is allocated (``idkit.optim.sizes``), and the history kept
-in ``details["history"]`` has at most ``HISTORY_ROWS`` rows per run: every
+Sizes (``idkit.optim.sizes``). ``runs × particles × iterations`` is capped at ``MAX_EVALUATIONS``
+per cost and trial (a bigger request is refused when the estimator is built), the memory a batch
+needs is checked against the machine's before anything is allocated, and the history kept in
+``details["history"]`` has at most ``HISTORY_ROWS`` + 1 rows per run: every
 ``details["history_stride"]``-th iteration from the first, and the last.
 """
 
 from __future__ import annotations
 
-import math
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -73,12 +72,6 @@ from idkit.runtime import available_cores, resolve_threads, torch_threads
 Preset = Literal["default", "paper"]
 Engine = Literal["auto", "eager", "native"]
 Space = Literal["physical", "base"]
-
-#: Most cost evaluations (``runs × particles × iterations``) per cost and trial: about a minute of
-#: one core on the fast kernel, many on the eager engine.
-MAX_EVALUATIONS = 10**9
-#: Most rows of ``details["history"]`` per run (``HISTORY_ROWS`` + the last iteration).
-HISTORY_ROWS = 1000
 
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {
@@ -127,7 +120,7 @@ class SwarmSettings:
         rules: the update rule (``swarm.SwarmRules``).
         keep: the rule for omitting runs (``KeepRule``).
         engine: ``"auto"``, ``"eager"`` or ``"native"``.
-        stride: the history keeps every ``stride``-th iteration (``HISTORY_ROWS``).
+        stride: the history keeps every ``stride``-th iteration (``sizes.history_stride``).
     """
 
     preset: Preset
@@ -171,7 +164,7 @@ class ParticleSwarm(Estimator):
             kernel; ``None``: by problem size (``idkit.runtime``) for torch, every core for the
             kernel, which uses a thread only when a call has enough evaluations.
         history: keep each run's best cost per iteration in ``details["history"]`` (at most
-            ``HISTORY_ROWS`` rows; module docstring).
+            ``sizes.HISTORY_ROWS`` + 1 rows; module docstring).
         label: estimator label; default ``"PSO-<cost>"`` (e.g. ``PSO-f13``).
         engine: ``"auto"`` (the fast kernel where it applies, else eager torch), ``"eager"`` or
             ``"native"`` (an error where it does not apply); see the module docstring.
@@ -232,13 +225,9 @@ class ParticleSwarm(Estimator):
         for name, value in (("runs", self.runs), ("particles", values["particles"]), ("iterations", values["iterations"])):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"pso option {name} must be an integer >= 1, got {value!r}")
-        evaluations = self.runs * values["particles"] * values["iterations"]
-        if evaluations > MAX_EVALUATIONS:
-            raise ValueError(
-                f"pso: runs × particles × iterations = {self.runs} × {values['particles']} × "
-                f"{values['iterations']} = {evaluations:.1e} cost evaluations per cost, above idkit's cap of "
-                f"{MAX_EVALUATIONS:.0e} (about a minute of one core on the fast kernel); lower one of them"
-            )
+        sizes.check_evaluations(
+            "pso", {"runs": self.runs, "particles": values["particles"], "iterations": values["iterations"]}
+        )
         inertia = tuple(values["inertia"])
         if len(inertia) != 3:
             raise ValueError(f"pso option inertia must be (w_start, w_end, ramp), got {values['inertia']!r}")
@@ -258,7 +247,7 @@ class ParticleSwarm(Estimator):
             rules=rules,
             keep=KeepRule.parse(self.keep),
             engine=self.engine,
-            stride=max(1, math.ceil(values["iterations"] / HISTORY_ROWS)),
+            stride=sizes.history_stride(values["iterations"]),
         )
 
     def fit(self, problem: Problem) -> Estimate:

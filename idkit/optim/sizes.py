@@ -8,12 +8,39 @@ exceed ``SHARE`` of the machine's physical memory, with the estimate and the mac
 
 from __future__ import annotations
 
+import math
 import os
 
+#: Most cost evaluations one search may plan per cost and trial (``runs × particles × iterations``,
+#: ``starts × steps``): about a minute of one core on the fast kernel, many on the eager engine. A
+#: bigger request is refused when the estimator is built, rather than running for hours unasked.
+MAX_EVALUATIONS = 10**9
+#: Most rows a search's history keeps per run (``history_stride``).
+HISTORY_ROWS = 1000
 #: The share of physical memory one batch may plan to use.
 SHARE = 0.8
 #: Bytes per float64.
 FLOAT = 8
+
+
+def check_evaluations(who: str, sizes: dict[str, int]) -> int:
+    """The product of ``sizes`` (evaluations per cost and trial), or ``ValueError`` (one line) above
+    ``MAX_EVALUATIONS``; ``sizes`` maps option names to values, e.g. ``{"runs": 10, ...}``."""
+    evaluations = math.prod(sizes.values())
+    if evaluations > MAX_EVALUATIONS:
+        product = " × ".join(sizes)
+        values = " × ".join(str(v) for v in sizes.values())
+        raise ValueError(
+            f"{who}: {product} = {values} = {evaluations:.1e} cost evaluations per cost, above idkit's "
+            f"cap of {MAX_EVALUATIONS:.0e} (about a minute of one core on the fast kernel); lower one of them"
+        )
+    return evaluations
+
+
+def history_stride(iterations: int) -> int:
+    """Keep every ``stride``-th iteration (and the last) so a history has at most ``HISTORY_ROWS``
+    rows (+ 1): 1 up to ``HISTORY_ROWS`` iterations."""
+    return max(1, math.ceil(iterations / HISTORY_ROWS))
 
 
 def machine_memory() -> int | None:
