@@ -16,9 +16,9 @@ import torch
 
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
-from idkit.optim import swarm
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
+from idkit.optim import swarm
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 

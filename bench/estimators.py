@@ -24,9 +24,8 @@ import sys
 import time
 from collections.abc import Callable
 
-import numpy as np
-
 import no_compiler  # noqa: E402  (bench/ is the script's folder)
+import numpy as np
 
 os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
 import torch  # noqa: E402
@@ -34,7 +33,6 @@ import torch  # noqa: E402
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
 from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares
-from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
 from idkit.estimators.robust_ls import RobustLeastSquares
 from idkit.problem import Problem

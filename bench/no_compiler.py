@@ -82,7 +82,9 @@ def rows(repeats: int, candidates: dict[str, dict[str, str]] | None = None) -> l
             child("native", 0, normal)  # warm the normal cache
             base = child("native", repeats, normal)
             bare = {k: v for k, v in normal.items() if k != "CC"}
-            bare.update(PATH=empty, IDKIT_CACHE_DIR=str(Path(caches) / hashlib.md5(name.encode()).hexdigest()))
+            bare.update(
+                PATH=empty, IDKIT_CACHE_DIR=str(Path(caches) / hashlib.md5(name.encode()).hexdigest())
+            )
             fresh = child("native", repeats, bare)
             if any(fresh["compiler"]):
                 raise RuntimeError(f"the no-compiler child still finds a compiler: {fresh['compiler']}")

@@ -13,9 +13,9 @@ from conftest import REPO
 
 def test_package_list_covers_every_subpackage():
     listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
-    on_disk = {
-        ".".join(p.parent.relative_to(REPO).parts) for p in (REPO / "idkit").rglob("__init__.py")
-    } | {"idkit.conf"}
+    on_disk = {".".join(p.parent.relative_to(REPO).parts) for p in (REPO / "idkit").rglob("__init__.py")} | {
+        "idkit.conf"
+    }
     assert on_disk == listed
 
 

@@ -176,7 +176,8 @@ class AdamMultiStart(Estimator):
             sizes.swarm_bytes(slots, settings.starts, 1, dimension, len(kept_steps))
             # an evaluation's error, its autograd copies and their gradients
             + sizes.error_bytes(slots * settings.starts, problems[0].samples.tau.numel(), copies=8),
-            f"{trials} trial(s) × {count} cost(s) × {settings.starts} starts ({len(kept_steps)} history rows)",
+            f"{trials} trial(s) × {count} cost(s) × {settings.starts} starts "
+            f"({len(kept_steps)} history rows)",
         )
         started = time.perf_counter()
         objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)

@@ -33,9 +33,9 @@ from torch import Tensor
 from idkit.costs.factors import FACTORS, factor_parameters
 from idkit.estimators.trials import check_same_setting
 from idkit.interfaces import Cost, NormStructure, Robot
-from idkit.optim.fused import NormProducts, selector
 from idkit.optim.base_map import cached_tape, identity
 from idkit.optim.fast import ProductSpec
+from idkit.optim.fused import NormProducts, selector
 from idkit.problem import Problem, Samples
 from idkit.relative import relative_denominator
 

@@ -222,7 +222,11 @@ class ParticleSwarm(Estimator):
         for name in values:
             if getattr(self, name) is not None:
                 values[name] = getattr(self, name)
-        for name, value in (("runs", self.runs), ("particles", values["particles"]), ("iterations", values["iterations"])):
+        for name, value in (
+            ("runs", self.runs),
+            ("particles", values["particles"]),
+            ("iterations", values["iterations"]),
+        ):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"pso option {name} must be an integer >= 1, got {value!r}")
         sizes.check_evaluations(
@@ -324,14 +328,18 @@ class ParticleSwarm(Estimator):
         sizes.check_memory(
             "pso",
             sizes.swarm_bytes(trials * count, settings.runs, settings.particles, dimension, rows)
-            + sizes.error_bytes(trials * count * chunk_runs * settings.particles, problems[0].samples.tau.numel()),
+            + sizes.error_bytes(
+                trials * count * chunk_runs * settings.particles, problems[0].samples.tau.numel()
+            ),
             f"{trials} trial(s) × {count} cost(s) × {settings.runs} runs of {settings.particles} particles "
             f"({rows} history rows)",
         )
         started = time.perf_counter()
         objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
         n, samples = objective.shape
-        threads = resolve_threads(self.threads, objective.slots * chunk_runs * settings.particles * n * samples)
+        threads = resolve_threads(
+            self.threads, objective.slots * chunk_runs * settings.particles * n * samples
+        )
         # torch's pool pays only for big tensors (resolve_threads); the kernel uses a thread only
         # for enough evaluations (fast.EVALUATIONS_PER_THREAD), so it may use every core.
         kernel_threads = self.threads if self.threads is not None else available_cores()
@@ -430,11 +438,17 @@ class ParticleSwarm(Estimator):
             build_seconds = time.perf_counter() - started
         if reason is not None:
             if self.engine == "native":
-                raise ValueError(f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'")
+                raise ValueError(
+                    f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'"
+                )
             return [eager(everything, reason)]
         built = fast.kernel()
         where = "base map in the kernel" if spec.tape is not None else "base map in torch (not translatable)"
-        details = {"engine": "native", "engine_build": f"{built.how}; {where}", "engine_build_s": build_seconds}
+        details = {
+            "engine": "native",
+            "engine_build": f"{built.how}; {where}",
+            "engine_build_s": build_seconds,
+        }
         groups = [EngineGroup(chosen, details, partial(_run_fast, part, spec), fast=True)]
         rest = [c for c in everything if c not in chosen]
         if rest:

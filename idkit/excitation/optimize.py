@@ -30,12 +30,12 @@ import torch
 from torch import Tensor
 
 from idkit.data.trajectory import sample_times
-from idkit.optim import swarm
 from idkit.excitation.criterion import check_criterion, criterion_value, loss, observation_matrix
 from idkit.excitation.feasible import fit_into_limits
 from idkit.excitation.spec import build_excitation
 from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
+from idkit.optim import swarm
 from idkit.runtime import resolve_threads, torch_threads
 
 METHODS = ("pso", "adam", "pso+adam")

@@ -15,6 +15,7 @@ the trace (seconds, for torch's tracer import) without loading anything executab
 
 from __future__ import annotations
 
+import contextlib
 import json
 import operator
 import time
@@ -25,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from torch import Tensor
 
 from idkit.optim import cache
 from idkit.optim.codes import (
@@ -43,7 +45,12 @@ from idkit.optim.codes import (
 
 aten = torch.ops.aten
 BINARY = {aten.add.Tensor: OP_ADD, aten.sub.Tensor: OP_SUB, aten.mul.Tensor: OP_MUL, aten.div.Tensor: OP_DIV}
-UNARY = {aten.neg.default: OP_NEG, aten.sin.default: OP_SIN, aten.cos.default: OP_COS, aten.sqrt.default: OP_SQRT}
+UNARY = {
+    aten.neg.default: OP_NEG,
+    aten.sin.default: OP_SIN,
+    aten.cos.default: OP_COS,
+    aten.sqrt.default: OP_SQRT,
+}
 
 
 @dataclass(frozen=True)
@@ -75,7 +82,7 @@ class Tape:
             np.array(data["outputs"], dtype=np.int64),
         )
         rows = len(tape.ops)
-        if len(tape.constants) != rows or not ((0 <= tape.outputs) & (tape.outputs < rows)).all():
+        if len(tape.constants) != rows or not ((tape.outputs >= 0) & (tape.outputs < rows)).all():
             raise ValueError("a tape whose outputs or constants do not fit its rows")
         return tape
 
@@ -83,28 +90,19 @@ class Tape:
         """The map in numpy on ``x[..., P]`` (tests compare it with the traced function)."""
         values = np.asarray(x, dtype=np.float64)
         registers: list[np.ndarray] = []
+        binary = {OP_ADD: np.add, OP_SUB: np.subtract, OP_MUL: np.multiply, OP_DIV: np.divide}
+        unary = {OP_NEG: np.negative, OP_SIN: np.sin, OP_COS: np.cos, OP_SQRT: np.sqrt, OP_SQUARE: np.square}
         for (op, _, a, b), constant in zip(self.ops.tolist(), self.constants.tolist(), strict=True):
-            left = registers[a] if op not in (OP_X, OP_CONST) else None
-            right = registers[b] if op in (OP_ADD, OP_SUB, OP_MUL, OP_DIV) else None
-            registers.append(
-                {
-                    OP_X: lambda: values[..., a],
-                    OP_CONST: lambda: np.full(values.shape[:-1], constant),
-                    OP_ADD: lambda: left + right,
-                    OP_SUB: lambda: left - right,
-                    OP_MUL: lambda: left * right,
-                    OP_DIV: lambda: left / right,
-                    OP_NEG: lambda: -left,
-                    OP_SIN: lambda: np.sin(left),
-                    OP_COS: lambda: np.cos(left),
-                    OP_SQRT: lambda: np.sqrt(left),
-                    OP_SQUARE: lambda: left * left,
-                }[op]()
-            )
+            if op == OP_X:
+                registers.append(values[..., a])
+            elif op == OP_CONST:
+                registers.append(np.full(values.shape[:-1], constant))
+            elif op in binary:
+                registers.append(binary[op](registers[a], registers[b]))
+            else:
+                registers.append(unary[op](registers[a]))
         return torch.from_numpy(np.stack([registers[r] for r in self.outputs.tolist()], axis=-1))
 
-
-Tensor = torch.Tensor
 
 
 def identity(parameters: int) -> Tape:
@@ -157,7 +155,9 @@ def trace(function: Callable[[Tensor], Tensor], parameters: int) -> Tape | None:
             outputs = names.get(result.name)
             if not isinstance(outputs, list):
                 return None
-            ops = np.array([[op, r, a, b] for r, (op, a, b) in enumerate(rows)], dtype=np.int64).reshape(-1, 4)
+            ops = np.array([[op, r, a, b] for r, (op, a, b) in enumerate(rows)], dtype=np.int64).reshape(
+                -1, 4
+            )
             return Tape(ops, np.array(constants, dtype=np.float64), np.array(outputs, dtype=np.int64))
         if node.op != "call_function":
             return None
@@ -227,10 +227,8 @@ def cached_tape(
             cache.write_atomically(file, (tape.to_json() if tape is not None else "null").encode())
             manifest.record()
     seconds = time.perf_counter() - started
-    try:
+    with contextlib.suppress(TypeError):  # not weak-referenceable: traced (or read) again next time
         _KNOWN[id(owner)] = (weakref.ref(owner), tape, seconds)
-    except TypeError:  # not weak-referenceable: traced (or read) again next time
-        pass
     return tape, seconds
 
 

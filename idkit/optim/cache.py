@@ -60,7 +60,8 @@ def refusal(path: Path) -> str | None:
     if hasattr(os, "getuid") and info.st_uid != os.getuid():
         return f"{path} is owned by another user (uid {info.st_uid})"
     if os.name == "posix" and info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-        return f"{path} is writable by {'everyone' if info.st_mode & stat.S_IWOTH else 'its group'} (mode {stat.S_IMODE(info.st_mode):o})"
+        who = "everyone" if info.st_mode & stat.S_IWOTH else "its group"
+        return f"{path} is writable by {who} (mode {stat.S_IMODE(info.st_mode):o})"
     return None
 
 
@@ -132,7 +133,9 @@ class Manifest:
 
     def _entries(self) -> list[Path]:
         return [
-            p for p in sorted(self.folder.rglob("*")) if p.is_file() and p != self.file and ".tmp" not in p.name
+            p
+            for p in sorted(self.folder.rglob("*"))
+            if p.is_file() and p != self.file and ".tmp" not in p.name
         ]
 
     def check(self) -> list[str]:

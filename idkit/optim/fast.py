@@ -184,7 +184,9 @@ def factor_codes(structures: Sequence[NormStructure], entries: int) -> tuple[np.
         unknown = [name for name in names if name not in codes.FORMS]
         if unknown:
             raise ValueError(f"the fast kernel has no form for {', '.join(unknown)}")
-        for f, (name, value) in enumerate(zip(names, factor_parameters(names, structure.parameters), strict=True)):
+        for f, (name, value) in enumerate(
+            zip(names, factor_parameters(names, structure.parameters), strict=True)
+        ):
             found[slot, f] = codes.FORMS[name]
             values[slot, f] = kept_entries(entries, value) if name == "trimmed" else value
     return found, values
@@ -314,9 +316,7 @@ def run(
         lower.contiguous().numpy(),
         upper.contiguous().numpy(),
         np.array([rules.c1, rules.c2, rules.velocity_limit or 0.0]),
-        np.array(
-            [swarm.BOUNDARIES.index(rules.boundary), int(rules.per_particle), mode], dtype=np.int64
-        ),
+        np.array([swarm.BOUNDARIES.index(rules.boundary), int(rules.per_particle), mode], dtype=np.int64),
         tape.ops,
         tape.constants,
         tape.outputs,
@@ -364,12 +364,19 @@ def run(
 def thread_count(most: int, trials: int, swarms: int, particles: int, iterations: int) -> int:
     """Threads ``run`` uses: at most ``most``, one per trial at most (a trial's swarms share its
     stream), and one per ``EVALUATIONS_PER_THREAD`` evaluations of a call."""
-    per_call = swarms * particles * min(iterations, max(1, EVALUATIONS_PER_CALL // max(swarms // trials * particles, 1)))
+    per_call = (
+        swarms
+        * particles
+        * min(iterations, max(1, EVALUATIONS_PER_CALL // max(swarms // trials * particles, 1)))
+    )
     return max(1, min(most, trials, per_call // EVALUATIONS_PER_THREAD))
 
 
 def _in_threads(
-    threads: int, trials: int, blocks: list[tuple[int, int, bool]], work: Callable[[int, tuple[int, int, bool]], None]
+    threads: int,
+    trials: int,
+    blocks: list[tuple[int, int, bool]],
+    work: Callable[[int, tuple[int, int, bool]], None],
 ) -> None:
     """``work(trial, block)`` for every trial and block of moves, trials in contiguous shares over
     ``threads`` threads (the caller's thread is one of them). A KeyboardInterrupt stops every

@@ -42,8 +42,8 @@ from idkit.optim.codes import (
     FRO,
     HUBER,
     MAP_GIVEN,
-    MAP_TAPE,
     MAP_MODE,
+    MAP_TAPE,
     MAX_ABS,
     OP_ADD,
     OP_CONST,
@@ -251,8 +251,27 @@ def _factor(code, parameter, e, joints, out, sums):  # noqa: ANN001, ANN202
 
 
 @jit
-def _evaluate(x, first, count, pbest, pcost, gpos, history, linear, offset, slot_of, codes, params, joints,
-              mode, tape, constants, outputs, given, work):  # noqa: ANN001, ANN202
+def _evaluate(
+    x,
+    first,
+    count,
+    pbest,
+    pcost,
+    gpos,
+    history,
+    linear,
+    offset,
+    slot_of,
+    codes,
+    params,
+    joints,
+    mode,
+    tape,
+    constants,
+    outputs,
+    given,
+    work,
+):  # noqa: ANN001, ANN202
     """Evaluate swarms ``[first, first + count)``: personal bests where strictly lower, each swarm's
     best (the first particle with the lowest personal best) into ``gpos`` and its cost into
     ``history[s − first]``. Swarms of one slot are evaluated side by side, up to ``TILE`` particles

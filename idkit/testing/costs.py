@@ -14,8 +14,8 @@ from torch import Tensor
 
 from idkit.costs.factors import FACTORS
 from idkit.estimators.objective import fast_structure
-from idkit.optim.fused import NormProducts
 from idkit.interfaces import Cost
+from idkit.optim.fused import NormProducts
 from idkit.relative import relative_denominator
 from idkit.testing._common import (
     BATCH_SHAPES,

@@ -13,10 +13,10 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from idkit.costs import paper
+from idkit.costs.factors import factor_parameters
 from idkit.costs.norms import NORMS
 from idkit.costs.reductions import huber_mean, trimmed_mean_square
 from idkit.data.scenarios import simulate
-from idkit.costs.factors import factor_parameters
 from idkit.estimators.objective import Objective, fast_structure
 from idkit.estimators.pso import ParticleSwarm
 from idkit.interfaces import Cost, NormStructure

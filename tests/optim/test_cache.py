@@ -56,7 +56,9 @@ def test_a_world_writable_cache_is_refused_and_never_read(root, tmp_path):
     assert stat.S_IMODE(folder.stat().st_mode) == 0o700 and not any(folder.iterdir())
 
 
-@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="needs root to give the cache away")
+@pytest.mark.skipif(
+    not hasattr(os, "geteuid") or os.geteuid() != 0, reason="needs root to give the cache away"
+)
 def test_a_cache_owned_by_someone_else_is_refused(root):
     root.mkdir(mode=0o700)
     os.chown(root, 12345, 12345)
@@ -77,7 +79,11 @@ def test_damaged_files_are_removed_with_a_warning_and_unknown_ones_quietly(root)
     (folder / "stray.bin").write_bytes(b"from a crash before record")
     with pytest.warns(cache.CacheWarning, match="1 damaged file"):
         cache.prepared("part", "sources-1")
-    assert sorted(p.name for p in folder.rglob("*") if p.is_file()) == ["a.bin", "c.tmp.1234", "manifest.json"]
+    assert sorted(p.name for p in folder.rglob("*") if p.is_file()) == [
+        "a.bin",
+        "c.tmp.1234",
+        "manifest.json",
+    ]
 
 
 def test_a_cache_overwritten_with_garbage_is_emptied_once(root):
@@ -103,12 +109,17 @@ def test_entries_of_other_sources_are_cleared_without_a_warning(root, recwarn):
 
 # --- the kernel's own cache, end to end (each compiles the kernel: tens of seconds) ----------------
 
-CHILD = "import warnings; warnings.simplefilter('always'); from idkit.optim import fast; b = fast.kernel(); print(type(b).__name__, getattr(b, 'how', b))"
+CHILD = (
+    "import warnings; warnings.simplefilter('always'); from idkit.optim import fast; "
+    "b = fast.kernel(); print(type(b).__name__, getattr(b, 'how', b))"
+)
 
 
 def _child(cache_root: Path) -> subprocess.CompletedProcess:
     environment = {**os.environ, cache.ENVIRONMENT: str(cache_root)}
-    return subprocess.run([sys.executable, "-c", CHILD], env=environment, capture_output=True, text=True, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-c", CHILD], env=environment, capture_output=True, text=True, timeout=600
+    )
 
 
 @pytest.mark.slow

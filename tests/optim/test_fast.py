@@ -113,7 +113,9 @@ def test_without_the_kernel_the_eager_engine_runs_and_says_why_once(problem, mon
         estimate = pso.fit(problem)
         pso.fit(problem)
     assert len([w for w in caught if issubclass(w.category, SlowEngineWarning)]) == 1
-    assert estimate.details["engine"] == "eager" and "numba is not installed" in estimate.details["engine_build"]
+    assert (
+        estimate.details["engine"] == "eager" and "numba is not installed" in estimate.details["engine_build"]
+    )
 
 
 def test_threads_split_trials_without_changing_numbers(problem, monkeypatch):
@@ -137,14 +139,32 @@ def test_threads_split_trials_without_changing_numbers(problem, monkeypatch):
 def test_history_keeps_every_stride_th_iteration_and_the_last(problem):
     objective = Objective(problem, [paper.f1()])
     rules = RULES["paper (clamp)"]
-    full_state, full = fast.run(objective.spec(), objective.lower, objective.upper, 2, 4, 11, rules, _draws(1, objective.lower))
+    full_state, full = fast.run(
+        objective.spec(), objective.lower, objective.upper, 2, 4, 11, rules, _draws(1, objective.lower)
+    )
     state, thinned = fast.run(
-        objective.spec(), objective.lower, objective.upper, 2, 4, 11, rules, _draws(1, objective.lower), stride=4
+        objective.spec(),
+        objective.lower,
+        objective.upper,
+        2,
+        4,
+        11,
+        rules,
+        _draws(1, objective.lower),
+        stride=4,
     )
     assert swarm.history_rows(11, 4) == [0, 4, 8, 10]
     assert torch.equal(thinned, full[[0, 4, 8, 10]]) and torch.equal(state.position, full_state.position)
     eager_state, eager = swarm.run(
-        objective, objective.lower, objective.upper, (1, 2), 4, 11, rules, _draws(1, objective.lower), stride=4
+        objective,
+        objective.lower,
+        objective.upper,
+        (1, 2),
+        4,
+        11,
+        rules,
+        _draws(1, objective.lower),
+        stride=4,
     )
     np.testing.assert_allclose(eager.numpy(), thinned.numpy(), rtol=1e-9)
 
@@ -176,7 +196,14 @@ def test_a_map_that_is_not_translated_gives_the_same_run(problem):
     assert spec.tape is not None
     by_tape = fast.run(spec, objective.lower, objective.upper, 3, 6, 15, rules, _draws(2, objective.lower))
     given = fast.run(
-        replace(spec, tape=None), objective.lower, objective.upper, 3, 6, 15, rules, _draws(2, objective.lower)
+        replace(spec, tape=None),
+        objective.lower,
+        objective.upper,
+        3,
+        6,
+        15,
+        rules,
+        _draws(2, objective.lower),
     )
     for got, expected in zip((*given[0], given[1]), (*by_tape[0], by_tape[1]), strict=True):
         np.testing.assert_allclose(got.numpy(), expected.numpy(), rtol=1e-12, atol=1e-14)

@@ -28,7 +28,9 @@ def problem():
     ids=["iterations=1e9", "runs=1e9", "iterations=1e8", "particles=1e9"],
 )
 def test_huge_search_budgets_are_refused_in_one_line_where_config_is_checked(options):
-    with pytest.raises(ValueError, match=r"pso: runs × particles × iterations = .* above idkit's cap") as error:
+    with pytest.raises(
+        ValueError, match=r"pso: runs × particles × iterations = .* above idkit's cap"
+    ) as error:
         registry.create("estimator", "pso", **options)
     assert "\n" not in str(error.value)
 
@@ -56,7 +58,10 @@ def test_the_history_is_thinned_to_a_bounded_number_of_rows(problem):
     estimate = ParticleSwarm(runs=2, particles=3, iterations=4321).fit(problem)
     history = np.array(estimate.details["history"])
     stride = estimate.details["history_stride"]
-    assert stride == 5 and history.shape == (2, len(swarm.history_rows(4321, 5))) == (2, 865)  # 0, 5, …, 4320: the last is on the stride
+    assert stride == 5 and history.shape == (2, len(swarm.history_rows(4321, 5))) == (
+        2,
+        865,
+    )  # 0, 5, …, 4320: the last is on the stride
     assert (np.diff(history, axis=1) <= 0).all()  # still the best so far
     np.testing.assert_allclose(history[:, -1], estimate.details["run_costs"])  # the last iteration kept
     assert sizes.history_stride(3_000_000) == 3000 and len(swarm.history_rows(3_000_000, 3000)) == 1001
