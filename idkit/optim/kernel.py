@@ -140,16 +140,29 @@ def _base_params(points, mode, tape, constants, outputs, registers, alpha):  # n
 
 @jit
 def _errors(alpha, linear, offset, e):  # noqa: ANN001, ANN202
-    """``e[M, n] = offset[M] + alpha[B, n] · linear[B, M]``, summed in the eager engine's order."""
+    """``e[M, n] = offset[M] + alpha[B, n] · linear[B, M]``, summed in the eager engine's order
+    (``offset``, then each base parameter's term in turn), four terms per pass over a row so the
+    row stays in registers (a missing fifth, sixth… term adds ``0 · alpha``, which changes nothing
+    of a finite sum)."""
     count, n = alpha.shape
     for m in range(offset.shape[0]):
-        row, first = e[m], linear[0, m]
+        row = e[m]
         for k in range(n):
-            row[k] = offset[m] + alpha[0, k] * first
-        for b in range(1, count):
-            factor, weights = linear[b, m], alpha[b]
+            row[k] = offset[m]
+        for b in range(0, count, 4):
+            last = count - 1
+            w0 = linear[b, m]
+            w1 = linear[b + 1, m] if b + 1 <= last else 0.0
+            w2 = linear[b + 2, m] if b + 2 <= last else 0.0
+            w3 = linear[b + 3, m] if b + 3 <= last else 0.0
+            a0, a1, a2, a3 = (
+                alpha[b],
+                alpha[min(b + 1, last)],
+                alpha[min(b + 2, last)],
+                alpha[min(b + 3, last)],
+            )
             for k in range(n):
-                row[k] += weights[k] * factor
+                row[k] = row[k] + a0[k] * w0 + a1[k] * w1 + a2[k] * w2 + a3[k] * w3
 
 
 @jit
@@ -320,30 +333,25 @@ def _evaluate(
 
 
 @jit
-def _move(xs, vs, best, g, r1, r2, u3, weight, box, boundary, per_particle, scratch):  # noqa: ANN001, ANN202
-    """Move one swarm (its positions ``xs``, velocities ``vs`` and personal bests ``best``, flat
-    ``[K·P]``; its best ``g[P]``) with inertia ``weight`` and uniform numbers ``r1``, ``r2`` (``u3``
-    for random walls), flat ``[K·P]`` (``[K]`` per particle), then apply the boundary rule: what
-    ``swarm.step`` does, operation by operation, in flat loops over the coordinates.
+def _move(xs, vs, best, gbest, r1, r2, u3, weight, box, boundary, per_particle, dimension, scratch):  # noqa: ANN001, ANN202
+    """Move a tile of swarms (their positions ``xs``, velocities ``vs``, personal bests ``best``
+    and each coordinate's swarm best ``gbest``, flat ``[n]``) with inertia ``weight`` and uniform
+    numbers ``r1``, ``r2`` (``u3`` for random walls), flat ``[n]`` (``[n / P]`` per particle), then
+    apply the boundary rule: what ``swarm.step`` does, operation by operation, in flat loops.
 
-    ``box``: per coordinate ``[c1, c2, lower, upper, width, v_max]`` rows ``[6, K·P]``."""
-    n, dimension = xs.shape[0], g.shape[0]
+    ``box``: per coordinate ``[c1, c2, lower, upper, width, v_max]``, rows ``[6, ≥ n]``."""
+    n = xs.shape[0]
     lower, upper, width, vmax = box[2], box[3], box[4], box[5]
-    scaled1, scaled2, gbest, moved = scratch[0], scratch[1], scratch[2], scratch[3]
-    for k in range(n // dimension):
-        gbest[k * dimension : (k + 1) * dimension] = g
-    if per_particle:
+    scaled1, scaled2, moved = scratch[0], scratch[1], scratch[2]
+    if per_particle:  # one number per particle: spread over its coordinates
         for k in range(n // dimension):
             for p in range(dimension):
-                scaled1[k * dimension + p] = box[0, k * dimension + p] * r1[k]
-                scaled2[k * dimension + p] = box[1, k * dimension + p] * r2[k]
-    else:
-        for i in range(n):
-            scaled1[i] = box[0, i] * r1[i]
-            scaled2[i] = box[1, i] * r2[i]
+                scaled1[k * dimension + p] = r1[k]
+                scaled2[k * dimension + p] = r2[k]
+        r1, r2 = scaled1[:n], scaled2[:n]
     for i in range(n):
-        velocity = vs[i] * weight + scaled1[i] * (best[i] - xs[i])
-        velocity = velocity + scaled2[i] * (gbest[i] - xs[i])
+        velocity = vs[i] * weight + (box[0, i] * r1[i]) * (best[i] - xs[i])
+        velocity = velocity + (box[1, i] * r2[i]) * (gbest[i] - xs[i])
         velocity = -vmax[i] if velocity < -vmax[i] else velocity
         velocity = vmax[i] if velocity > vmax[i] else velocity
         vs[i] = velocity
@@ -424,16 +432,18 @@ def run_trial(  # noqa: ANN201, PLR0913
     kinds = 3 if boundary == RANDOM else 2
     block = count * particles * width
     random = np.empty(kinds * block)
-    box = np.empty((6, coordinates))
-    for i in range(coordinates):
+    per_tile = max(TILE // particles, 1)  # swarms moved (and evaluated) together
+    span = per_tile * coordinates
+    box = np.empty((6, span))  # c1, c2, the box and the velocity limit of every coordinate of a tile
+    for i in range(span):
         p = i % dimension
         box[0, i], box[1, i], box[2, i], box[3, i] = constants[C1], constants[C2], lower[p], upper[p]
         box[4, i] = upper[p] - lower[p]
         box[5, i] = limit * box[4, i] if limit > 0 else math.inf
-    scratch = np.empty((4, coordinates))
-    # flat work arrays for a tile of up to TILE particles (``_evaluate`` shapes them per tile):
-    # registers of the base-map tape, base parameters, error matrix, costs, per-factor sums
-    tile = max(TILE // particles, 1) * particles
+    scratch = np.empty((4, span))  # scaled numbers, moved positions, the swarms' bests per coordinate
+    tile = per_tile * particles
+    # flat work arrays for a tile of particles (``_evaluate`` shapes them per tile): registers of
+    # the base-map tape, base parameters, error matrix, costs, per-factor sums
     work = (
         np.empty(max(tape.shape[0], 1) * tile),
         np.empty(base * tile),
@@ -451,13 +461,19 @@ def run_trial(  # noqa: ANN201, PLR0913
             break
         for i in range(kinds * block):
             random[i] = rng.random()
-        for s in range(first, first + count):
-            c = (s - first) * particles * width
+        for s in range(first, first + count, per_tile):
+            stop = min(s + per_tile, first + count)
+            n, gbest = (stop - s) * coordinates, scratch[3]
+            for t in range(s, stop):
+                for k in range(particles):
+                    start = ((t - s) * particles + k) * dimension
+                    gbest[start : start + dimension] = gpos[t]
+            c0, c1 = (s - first) * particles * width, (stop - first) * particles * width
             _move(
-                x[s].reshape(coordinates), v[s].reshape(coordinates), pbest[s].reshape(coordinates), gpos[s],
-                random[c : c + particles * width], random[block + c : block + c + particles * width],
-                random[(kinds - 1) * block + c : (kinds - 1) * block + c + particles * width],
-                weights[m], box, boundary, per_particle, scratch,
+                x[s:stop].reshape(n), v[s:stop].reshape(n), pbest[s:stop].reshape(n), gbest[:n],
+                random[c0:c1], random[block + c0 : block + c1],
+                random[(kinds - 1) * block + c0 : (kinds - 1) * block + c1],
+                weights[m], box, boundary, per_particle, dimension, scratch,
             )  # fmt: skip
 
 

@@ -11,11 +11,16 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from idkit import registry
 from idkit.costs.factors import FACTORS
+from idkit.data.scenarios import simulate
+from idkit.estimators.objective import Objective, fast_structure
 from idkit.interfaces import NormStructure
 from idkit.optim import codes, fast
 from idkit.optim.base_map import identity
 from idkit.optim.fused import NormProducts
+from idkit.problem import Problem
+from idkit.robots.cylindrical import CylindricalRobot
 
 #: A few parameters per factor: 0 for a norm; for the reductions, values that exercise each branch.
 PARAMETERS = {
@@ -81,3 +86,23 @@ def test_a_nan_entry_never_makes_a_best(name):
     e[0, 0, 1, 3] = math.nan
     value = 0.5 if name == "trimmed" else PARAMETERS.get(name, (0.0,))[-1]
     assert _kernel_costs([NormStructure((name,), parameters=(value,))], e)[0, 0] == math.inf
+
+
+@pytest.mark.parametrize("name", registry.available("cost"))
+def test_every_registered_cost_gives_the_same_value_on_the_kernel_as_its_own_call(name):
+    """The whole chain for each registered cost that declares a structure: the objective's spec
+    (relative denominators, regressor, base map) on the kernel = the cost's ``__call__``."""
+    cost = registry.create("cost", name)
+    if fast_structure(cost) is None:
+        pytest.skip(f"{name} declares no structure: it is called as it is")
+    robot = CylindricalRobot()
+    problem = Problem(robot, simulate(robot, "outliers", seed=2), cost, seed=0)
+    objective = Objective(problem, [cost])
+    lower, upper = objective.lower, objective.upper
+    x = lower + (upper - lower) * torch.rand(
+        1, 9, 4, generator=torch.Generator().manual_seed(1), dtype=torch.float64
+    )
+    kernel = fast.evaluate(objective.spec(), x)[0]
+    own = torch.stack([cost(problem.error(point), problem.samples.measured_matrix()) for point in x[0]])
+    rtol = 1e-8 if "2" in fast_structure(cost).norms else 1e-12  # the spectral norm's closed form
+    np.testing.assert_allclose(kernel, own, rtol=rtol)
