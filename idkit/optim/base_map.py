@@ -104,7 +104,6 @@ class Tape:
         return torch.from_numpy(np.stack([registers[r] for r in self.outputs.tolist()], axis=-1))
 
 
-
 def identity(parameters: int) -> Tape:
     """The tape of a search in base space (``alpha = x``)."""
     ops = np.array([[OP_X, r, r, 0] for r in range(parameters)], dtype=np.int64).reshape(-1, 4)

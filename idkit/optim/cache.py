@@ -120,14 +120,10 @@ class Manifest:
     def _read(self) -> dict | None:
         """The manifest's content; ``None`` if it is missing; ``{}`` if it is unreadable."""
         try:
-            text = self.file.read_text()
+            known = json.loads(self.file.read_bytes())
         except FileNotFoundError:
             return None
-        except OSError:
-            return {}
-        try:
-            known = json.loads(text)
-        except ValueError:
+        except (OSError, ValueError):  # unreadable, not UTF-8, not JSON: damaged
             return {}
         return known if isinstance(known, dict) and isinstance(known.get("files"), dict) else {}
 
@@ -186,7 +182,12 @@ def prepared(part: str, sources: str = "") -> tuple[Path, Manifest]:
     and calls ``Manifest.record``."""
     folder = directory(part)
     manifest = Manifest(folder, sources)
-    damaged = manifest.check()
+    try:
+        damaged = manifest.check()
+    except OSError as error:  # a folder that cannot even be listed: use a private one
+        folder = _private(part, f"cannot read {folder}: {error.strerror or error}")
+        manifest = Manifest(folder, sources)
+        damaged = []
     if damaged:
         warnings.warn(
             f"idkit's cache {folder} had {len(damaged)} damaged file(s) ({', '.join(damaged[:3])}"

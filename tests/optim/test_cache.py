@@ -91,7 +91,7 @@ def test_a_cache_overwritten_with_garbage_is_emptied_once(root):
     (folder / "a.bin").write_bytes(b"built")
     manifest.record()
     for path in folder.rglob("*"):
-        path.write_bytes(b"\x00garbage")
+        path.write_bytes(b"\xff\xfe garbage, not even UTF-8")
     with pytest.warns(cache.CacheWarning, match="damaged"):
         folder, manifest = cache.prepared("part", "s")
     assert not list(folder.iterdir())
