@@ -323,7 +323,6 @@ def run(
     )
     kept = swarm.history_rows(iterations, stride)
     history = np.empty((len(kept), slots * runs))
-    row_of = {iteration: row for row, iteration in enumerate(kept)}
     per_trial = slots // trials * runs
     weights = _inertias(rules, iterations - 1)
     moves = iterations - 1
@@ -342,9 +341,11 @@ def run(
             draws.streams[trial].numpy, first, per_trial, weights[start:stop], last, rows,
             x, v, pbest, pcost, gpos, *fixed, given,
         )  # fmt: skip
-        for offset, iteration in enumerate(range(start, start + len(rows))):
-            if iteration in row_of:
-                history[row_of[iteration], first : first + per_trial] = rows[offset]
+        # the kept iterations of this block (every stride-th, and the last) into their history rows
+        iteration = np.arange(start, start + len(rows))
+        keep = (iteration % stride == 0) | (iteration == iterations - 1)
+        row = np.where(iteration == iterations - 1, len(kept) - 1, iteration // stride)
+        history[row[keep], first : first + per_trial] = rows[keep]
 
     if mode == codes.MAP_GIVEN:  # the base map in torch, on the positions before each call
         for block in blocks:

@@ -3,24 +3,26 @@
 Why: an eager PyTorch move of a paper-sized swarm (20 particles × 4 parameters × a 3 × 10 error
 matrix) is ~120 tensor ops of a few microseconds of dispatch each, while the work is a few thousand
 flops. Here a whole block of moves is one call of loops that LLVM compiles for this CPU — through
-numba, so no C compiler is needed on the user's machine (``idkit.optim.fast`` imports this module
-with numba's cache pointed at idkit's checked cache directory; ``docs/speed.md`` has the
-measurements behind the choice).
+numba, so no C compiler is needed on the user's machine (this module points numba's cache at
+idkit's checked cache directory, ``idkit.optim.cache``; ``docs/speed.md`` has the measurements
+behind the choice of numba over a C extension).
 
-What one call does, for the swarms ``[first, first + count)`` of one trial: ``moves`` times, draw
-the move's uniform numbers from the trial's generator (``rng.random()``: numpy's bit generator,
-through numba's documented support for ``np.random.Generator`` arguments), evaluate every
-particle (base parameters, error ``E = offset + alpha · linear``, the product of the slot's
-factors), update the personal and global bests and move the particles (velocity, boundary rule);
-then, if ``last``, one more evaluation. The same numbers in the same order as the eager engine
+What one call does, for the swarms ``[first, first + count)`` of one trial, ``moves`` times:
+evaluate every particle (base parameters, error ``E = offset + alpha · linear``, the product of
+the slot's factors; the swarms of one slot side by side, ``TILE`` particles at a time), update the
+personal and global bests, draw the move's uniform numbers from the trial's generator
+(``rng.random()``: numpy's bit generator, through numba's documented support for
+``np.random.Generator`` arguments) and move the particles (velocity, boundary rule); then, if
+``last``, one more evaluation. The same numbers in the same order as the eager engine
 (``idkit.optim.swarm``), the same operations in the same order, IEEE arithmetic (no fast-math):
 the two engines agree to rounding.
 
 Array conventions (float64 unless said): positions ``x``, velocities ``v``, personal bests
 ``pbest`` ``[S, K, P]``; ``pcost`` ``[S, K]``; ``gpos`` ``[S, P]``; per slot ``linear[L, B, M]``
 and ``offset[L, M]`` with ``M = joints × samples`` joint-major; ``slot_of[S]`` (int64);
-``codes``/``params`` ``[L, F]`` (int64 factor codes, ``0`` = none, and their parameters). Inside,
-an error matrix is ``e[M, K]``: particles innermost, so every loop over particles vectorises.
+``codes``/``params`` ``[L, F]`` (int64 factor codes, ``0`` = none, and their parameters; the codes
+and array layouts are ``idkit.optim.codes``). Inside, an error matrix is ``e[M, n]`` for a tile of
+``n`` particles, particles innermost and C-contiguous, so every loop over them vectorises.
 """
 
 from __future__ import annotations
@@ -64,9 +66,10 @@ from idkit.optim.codes import (
     VELOCITY_LIMIT,
 )
 
-# numba binds a function's disk cache when it is decorated: point it at idkit's checked directory
-# (``cache.kernel_folder``: owner-only, damaged files removed) for these functions only.
-#: The kernel cache's folder and manifest, keyed by this file's and the calling convention's source.
+#: The kernel cache's folder and manifest (``cache.prepared``: owner-only, damaged files removed),
+#: keyed by this file's and the calling convention's source. numba binds a function's disk cache
+#: when it is decorated, so its cache directory points there while these functions are defined,
+#: and only then.
 FOLDER, MANIFEST = cache.prepared(
     "kernel", cache.digest(Path(__file__).read_bytes() + Path(codes.__file__).read_bytes())
 )
