@@ -1,20 +1,27 @@
 # Two entry points for a fresh machine; each sets itself up (a venv in .venv, torch pinned to the
-# CPU wheel) before it runs.
-#   make paper   reproduce the paper's Tables II-V      make test   build the docs (strict), run the fast tests
-#   make test-all  the docs and every test (slow, statistical, integration too): what CI runs
-#   make docs    build the documentation site into site/ (mkdocs.yml); `.venv/bin/mkdocs serve` previews it
+# CPU build, every other package at the version in constraints.txt) before it runs.
+#   make paper     reproduce the paper's Tables II-V     make test   lint, build the docs (strict), run the fast tests
+#   make test-all  lint, the docs and every test (slow, statistical, integration too): what CI runs
+#   make docs      build the documentation site into site/ (mkdocs.yml); `.venv/bin/mkdocs serve` previews it
+#   make lock      re-resolve every dependency to its newest release, run the whole suite on it, and
+#                  rewrite constraints.txt only if it passes (the scheduled check for dependency drift)
 VENV   ?= .venv
 PYTHON ?= python3
 STAMP  := $(VENV)/.installed
+EXTRAS := test,docs,mjcf,logs
+# pyproject.toml keeps ranges for users' environments; set-up and CI install the locked versions.
+PIP    := $(VENV)/bin/python -m pip install -q -c constraints.txt
 
-.PHONY: setup paper test test-all bench docs
+.PHONY: setup paper test test-all bench docs lint lock
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml plugins/idkit-robust/pyproject.toml
+# torch first, on its own: its CPU build where PyTorch's CPU index is reachable (.ci/torch-index);
+# pip would otherwise take the multi-GB CUDA build of an ordinary Linux machine.
+$(STAMP): pyproject.toml plugins/idkit-robust/pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
-	$(VENV)/bin/python -m pip install -q --upgrade pip
-	$(VENV)/bin/python -m pip install -q torch==2.13.0
-	$(VENV)/bin/python -m pip install -q -e ".[test,docs]" -e ./plugins/idkit-robust
+	$(PIP) --upgrade pip
+	$(PIP) torch==2.13.0 $$($(PYTHON) .ci/torch-index)
+	$(PIP) -e ".[$(EXTRAS)]" -e ./plugins/idkit-robust
 	touch $@
 
 # The peers the benchmarks measure (JAX + evosax, pyswarms: ~0.7 GB) only when benchmarking.
@@ -26,11 +33,14 @@ $(BENCH_STAMP): $(STAMP)
 paper: $(STAMP)
 	$(VENV)/bin/idkit +experiment=paper
 
-# The docs build first: a broken page or docstring fails CI (`.ci/run` is `make test-all`).
-test: docs
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+
+# Lint and the docs first: a lint finding, a broken page or docstring fails CI (`.ci/run` is `make test-all`).
+test: lint docs
 	$(VENV)/bin/pytest
 
-test-all: docs
+test-all: lint docs
 	$(VENV)/bin/pytest -m ""
 
 # Not --quiet: it keeps griffe's docstring warnings from failing the strict build. The variable
@@ -41,3 +51,6 @@ docs: $(STAMP)
 bench: $(BENCH_STAMP)
 	$(VENV)/bin/python bench/estimators.py
 	$(VENV)/bin/python bench/rnea.py
+
+lock:
+	PYTHON=$(PYTHON) .ci/lock $(EXTRAS)

@@ -9,47 +9,53 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+#: How a non-finite float is written in JSON (strict JSON has no token for it). The spellings are
+#: JavaScript's and Python's ``float()`` reads them back; ``from_json_numbers`` restores them.
+NON_FINITE_JSON = {"Infinity": math.inf, "-Infinity": -math.inf, "NaN": math.nan}
 
-def jsonable(value: Any) -> Any:
-    """Convert tensors, numpy arrays and scalars nested in dicts/lists to JSON-ready Python.
 
-    Non-finite floats become ``None`` so that the output is strict JSON (no ``NaN`` tokens).
+def to_python(value: Any) -> Any:
+    """Tensors, numpy arrays and numpy scalars nested in dicts/lists as plain Python.
+
+    Floats stay floats, infinities and NaN included: an ``Estimate`` keeps its numbers typed in
+    memory (a link's divergence at the PSD boundary is ``inf``, a sum of them too), and only the
+    JSON writers encode the non-finite ones (``json_safe``).
     """
     if hasattr(value, "tolist"):  # torch.Tensor, numpy arrays and numpy scalars
-        if _all_finite(value):  # nested lists of finite floats are JSON already: no walk
-            return value.tolist()
-        value = value.tolist()
-    # Leaves that are JSON already are kept in place, not recursed into (estimates of a big study
+        return value.tolist()
+    # Leaves that are plain already are kept in place, not recursed into (estimates of a big study
     # hold many short lists).
     if isinstance(value, dict):
-        return {str(k): v if _is_json_leaf(v) else jsonable(v) for k, v in value.items()}
+        return {str(k): v if type(v) in _ATOMS else to_python(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [v if _is_json_leaf(v) else jsonable(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
+        return [v if type(v) in _ATOMS else to_python(v) for v in value]
     return value
 
 
-_JSON_ATOMS = frozenset((int, bool, str, type(None)))
+def json_safe(value: Any) -> Any:
+    """``to_python``, with each non-finite float written as ``"Infinity"``, ``"-Infinity"`` or ``"NaN"``."""
+    value = to_python(value)
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return "NaN" if math.isnan(value) else ("Infinity" if value > 0 else "-Infinity")
+    return value
 
 
-def _is_json_leaf(value: Any) -> bool:
-    """A value JSON takes as it is: ``int``, ``bool``, ``str``, ``None`` or a finite ``float``."""
-    kind = type(value)
-    return kind in _JSON_ATOMS or (kind is float and math.isfinite(value))
+def from_json_numbers(value: Any) -> Any:
+    """Undo ``json_safe``'s encoding: the strings of ``NON_FINITE_JSON`` become floats again."""
+    if isinstance(value, dict):
+        return {k: from_json_numbers(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [from_json_numbers(v) for v in value]
+    if isinstance(value, str):
+        return NON_FINITE_JSON.get(value, value)
+    return value
 
 
-def _all_finite(array: Any) -> bool:
-    """Whether a float tensor or array holds only finite numbers (``False`` for other kinds)."""
-    import numpy as np
-
-    if isinstance(array, np.ndarray) and array.dtype.kind == "f":
-        return bool(np.isfinite(array).all())
-    if type(array).__module__.startswith("torch") and getattr(array, "is_floating_point", lambda: False)():
-        import torch
-
-        return bool(torch.isfinite(array).all())
-    return False
+_ATOMS = frozenset((int, bool, str, float, type(None)))
 
 
 @dataclass
@@ -74,14 +80,17 @@ class Estimate:
         return list(self.params.values())
 
     def to_dict(self) -> dict[str, Any]:
-        return jsonable(asdict(self))
+        """Plain Python (floats stay typed, non-finite ones included); ``to_json`` encodes those."""
+        return to_python(asdict(self))
 
     def to_json(self, **kwargs: Any) -> str:
-        return json.dumps(self.to_dict(), allow_nan=False, **kwargs)
+        """Strict JSON; a non-finite number is written as a string (``NON_FINITE_JSON``)."""
+        return json.dumps(json_safe(self.to_dict()), allow_nan=False, **kwargs)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Estimate:
-        return cls(**data)
+        """From ``to_dict`` or parsed ``to_json`` output (the non-finite strings become floats)."""
+        return cls(**from_json_numbers(data))
 
     @classmethod
     def from_json(cls, text: str) -> Estimate:
@@ -101,7 +110,7 @@ def history_table(history: Any) -> tuple[list[str], list[list[Any]]] | None:
     - a list of equal-length lists ``[runs][iterations]`` → ``iteration, run_0, run_1, …``;
     - a mapping of names to equal-length lists of numbers → ``iteration, <name>, …``.
 
-    Numbers are ints or floats; ``None`` stands for a non-finite value (as ``jsonable`` writes it).
+    Numbers are ints or floats (non-finite ones included); ``None`` marks a missing value.
     Validated here, before a file is written, so a bad history is reported as one message instead
     of breaking a run's output after the fit.
 
@@ -109,7 +118,7 @@ def history_table(history: Any) -> tuple[list[str], list[list[Any]]] | None:
         HistoryError: another shape (runs of unequal length, nested deeper, non-numbers), naming
             the run or column and the iteration.
     """
-    history = jsonable(history)
+    history = to_python(history)
     if history is None or (isinstance(history, (list, dict)) and not history):
         return None
     # (header name, what to call it in a message, values)

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
-import zipfile
-
+import tempfile
 import tomllib
+import zipfile
+from pathlib import Path
+
 from conftest import REPO
 
 
@@ -39,6 +42,7 @@ def test_wheel_ships_configs_and_assets(tmp_path):
     assert yaml_on_disk and yaml_on_disk <= set(names)
     assert "idkit/py.typed" in names
     assert "idkit/robots/assets/cylindrical.urdf" in names
+    assert "idkit/robots/assets/arm.xml" in names
     assert "idkit/studies/data/paper-tables.csv" in names
     assert not [n for n in names if n.endswith((".c", ".so", ".pyd"))]  # nothing compiled, nothing to compile
 
@@ -54,3 +58,12 @@ def test_single_fit_path_does_not_import_scipy():
     code = "import sys, idkit.studies.single, idkit.cli.app; print('scipy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", "the single-fit path must import scipy lazily"
+
+
+def test_the_suite_never_uses_the_real_cache_directory():
+    """The root conftest points every cache at a per-session temporary folder."""
+    home_cache = Path.home() / ".cache"
+    for name in ("XDG_CACHE_HOME", "IDKIT_CACHE_DIR", "MPLCONFIGDIR"):
+        where = Path(os.environ[name]).resolve()
+        assert not where.is_relative_to(home_cache.resolve()), name
+        assert where.is_relative_to(Path(tempfile.gettempdir()).resolve()), name

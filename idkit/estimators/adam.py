@@ -42,6 +42,7 @@ from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
 from idkit.estimators.trials import criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
+from idkit.memory import check_memory
 from idkit.optim import sizes
 from idkit.optim.swarm import Draws, Uniform, history_rows
 from idkit.problem import Problem
@@ -171,13 +172,13 @@ class AdamMultiStart(Estimator):
         kept_steps = history_rows(settings.steps, settings.stride) if self.history else []
         dimension = max(len(robot.param_names), len(robot.base_param_names))
         slots = trials * count
-        sizes.check_memory(
-            "adam",
+        check_memory(
+            f"adam: {trials} trial(s) × {count} cost(s) × starts={settings.starts} "
+            f"({len(kept_steps)} history rows)",
             sizes.swarm_bytes(slots, settings.starts, 1, dimension, len(kept_steps))
             # an evaluation's error, its autograd copies and their gradients
             + sizes.error_bytes(slots * settings.starts, problems[0].samples.tau.numel(), copies=8),
-            f"{trials} trial(s) × {count} cost(s) × {settings.starts} starts "
-            f"({len(kept_steps)} history rows)",
+            "lower starts, or fit the trials in smaller chunks",
         )
         started = time.perf_counter()
         objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)

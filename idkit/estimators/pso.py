@@ -65,6 +65,7 @@ from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
 from idkit.estimators.trials import CHUNK_ELEMENTS, check_chunk, criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
+from idkit.memory import check_memory
 from idkit.optim import fast, sizes, swarm
 from idkit.problem import Problem
 from idkit.runtime import available_cores, resolve_threads, torch_threads
@@ -325,14 +326,14 @@ class ParticleSwarm(Estimator):
         rows = len(swarm.history_rows(settings.iterations, settings.stride))
         chunk_runs = min(run_chunk, settings.runs)
         dimension = max(len(robot.param_names), len(robot.base_param_names))
-        sizes.check_memory(
-            "pso",
+        check_memory(
+            f"pso: {trials} trial(s) × {count} cost(s) × runs={settings.runs} of "
+            f"particles={settings.particles} ({rows} history rows)",
             sizes.swarm_bytes(trials * count, settings.runs, settings.particles, dimension, rows)
             + sizes.error_bytes(
                 trials * count * chunk_runs * settings.particles, problems[0].samples.tau.numel()
             ),
-            f"{trials} trial(s) × {count} cost(s) × {settings.runs} runs of {settings.particles} particles "
-            f"({rows} history rows)",
+            "lower runs or particles, or fit the trials in smaller chunks",
         )
         started = time.perf_counter()
         objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)

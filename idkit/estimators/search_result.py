@@ -13,7 +13,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from idkit.estimate import Estimate, jsonable
+from idkit.estimate import Estimate, to_python
 from idkit.estimators.aggregate import KeepRule
 from idkit.estimators.objective import Objective, cost_label
 from idkit.interfaces import Cost
@@ -101,5 +101,5 @@ def make_estimate(
         cost=cost,
         wall_time_s=wall_time_s,
         base_params=base,
-        details=jsonable(details),
+        details=to_python(details),
     )

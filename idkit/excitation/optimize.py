@@ -37,6 +37,7 @@ from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
 from idkit.optim import swarm
 from idkit.runtime import resolve_threads, torch_threads
+from idkit.seeds import torch_generator
 
 METHODS = ("pso", "adam", "pso+adam")
 
@@ -159,7 +160,7 @@ def optimize_excitation(
         value = loss(criterion, torch.where(finite, w, 0.0))  # a non-finite W scores as unexcited
         return torch.nan_to_num(value, nan=math.inf)
 
-    generator = torch.Generator().manual_seed(int(seed))
+    generator = torch_generator(seed)
     budget = {
         "swarms": swarms,
         "particles": particles,

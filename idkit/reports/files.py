@@ -16,7 +16,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from idkit.estimate import jsonable
+from idkit.estimate import json_safe
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -34,8 +34,9 @@ def write_text(path: str | Path, text: str) -> Path:
 
 
 def write_json(path: str | Path, data: Any) -> Path:
-    """Strict JSON (non-finite floats become ``null``), indented, written atomically."""
-    return write_text(path, json.dumps(jsonable(data), indent=2, allow_nan=False) + "\n")
+    """Strict JSON (a non-finite float becomes ``"Infinity"``, ``"-Infinity"`` or ``"NaN"``), indented,
+    written atomically."""
+    return write_text(path, json.dumps(json_safe(data), indent=2, allow_nan=False) + "\n")
 
 
 def write_csv(path: str | Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:

@@ -46,7 +46,7 @@ def document(provenance: Provenance, payload: dict[str, Any], written: dict[str,
     return {
         **provenance.envelope(),
         "idkit_version": idkit.__version__,
-        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "files": written,
         "payload": payload,
     }

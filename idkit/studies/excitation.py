@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from idkit.data.presets import Scenario
+from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
 
@@ -121,7 +122,7 @@ def run(
     learning_rate: float = 0.01,
     grid_points: int = 1001,
     check_points: int = 10001,
-    seed: int = 0,
+    seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
 ) -> ExcitationStudy:

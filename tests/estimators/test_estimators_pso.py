@@ -16,7 +16,7 @@ from idkit.costs import paper
 from idkit.data.scenarios import simulate
 from idkit.estimators import pso as pso_module
 from idkit.estimators.aggregate import KeepRule, aggregate
-from idkit.estimators.least_squares import LeastSquares
+from idkit.estimators.linear.least_squares import LeastSquares
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
 from idkit.interfaces import Cost

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from idkit import registry
+from idkit import memory, registry
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
 from idkit.estimators.adam import AdamMultiStart
@@ -41,17 +41,16 @@ def test_adam_budget_is_capped_too():
 
 
 def test_a_batch_that_does_not_fit_in_memory_is_refused_before_allocation(problem, monkeypatch):
-    monkeypatch.setattr(sizes, "machine_memory", lambda: 10**6)  # a 1 MB machine
-    with pytest.raises(ValueError, match=r"pso: .* need about .* of memory; this machine has 1 MB") as error:
+    monkeypatch.setattr(memory, "available_memory", lambda: 10**6)  # a machine with 1 MB free
+    with pytest.raises(
+        memory.SizeError, match=r"pso: .*runs=1000 .* needs about .* this machine has 1 MB"
+    ) as error:
         ParticleSwarm(runs=1000).fit(problem)
     assert "\n" not in str(error.value)
-    with pytest.raises(ValueError, match=r"adam: .* need about .* this machine has 1 MB"):
+    with pytest.raises(
+        memory.SizeError, match=r"adam: .*starts=1000 .* needs about .* this machine has 1 MB"
+    ):
         AdamMultiStart(starts=1000, steps=2).fit(problem)
-
-
-def test_the_machine_memory_is_known_here():
-    memory = sizes.machine_memory()
-    assert memory is None or memory > 10**8
 
 
 def test_the_history_is_thinned_to_a_bounded_number_of_rows(problem):

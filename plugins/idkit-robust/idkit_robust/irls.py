@@ -37,8 +37,8 @@ import warnings
 from collections.abc import Callable, Sequence
 
 import torch
-from idkit.estimate import Estimate, jsonable
-from idkit.estimators.observation import stacked_system
+from idkit.estimate import Estimate, to_python
+from idkit.estimators.linear.observation import stacked_system
 from idkit.estimators.trials import fit_stacked_systems, in_trial
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
@@ -292,7 +292,7 @@ class IRLS(Estimator):
                     cost=costs[i],
                     wall_time_s=wall / len(problems),
                     base_params=dict(zip(robot.base_param_names, alphas[i], strict=True)),
-                    details=jsonable(
+                    details=to_python(
                         {
                             "criterion": "weighted sum of squared residuals at the final weights",
                             "criterion_value": criterion[i],
