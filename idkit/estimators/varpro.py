@@ -33,10 +33,10 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
-from idkit.optim import swarm
 from idkit.estimators.linear.observation import IdentificationError
 from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
+from idkit.optim import swarm
 from idkit.problem import Problem
 from idkit.robots.drives import sigmoid_friction
 from idkit.runtime import resolve_threads, torch_threads
