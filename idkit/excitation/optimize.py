@@ -12,7 +12,7 @@ box (candidates already inside are unchanged). The search therefore needs no pen
 never returns an infeasible motion. The optimiser sees a ``grid_points`` grid; the result is
 scaled once more on the ``check_points`` grid, on which it is checked (``excess_after`` is 0).
 
-Search, seeded: the batched particle swarm of ``idkit.estimators.swarm`` (``swarms`` independent
+Search, seeded: the batched particle swarm of ``idkit.optim.swarm`` (``swarms`` independent
 swarms of ``particles`` candidates: every candidate of an iteration is one tensor computation),
 then Adam through autograd from each swarm's best (``method="pso+adam"``, the default), or either
 alone. Both work in the unit cube of the family's ``coefficient_box``.
@@ -30,12 +30,12 @@ import torch
 from torch import Tensor
 
 from idkit.data.trajectory import sample_times
-from idkit.estimators import swarm
 from idkit.excitation.criterion import check_criterion, criterion_value, loss, observation_matrix
 from idkit.excitation.feasible import fit_into_limits
 from idkit.excitation.spec import build_excitation
 from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
+from idkit.optim import swarm
 from idkit.runtime import resolve_threads, torch_threads
 from idkit.seeds import torch_generator
 
