@@ -81,6 +81,9 @@ TIE_BREAK = 1e-6
 PHYSICAL_UNITS = np.array([1.0, *[0.1] * 3, *[0.01] * 6])
 #: A column below this fraction of the largest (both in physical units) is round-off, not data.
 ZERO_COLUMN = 1e-10
+#: The status of a fit whose unconstrained least-squares solution already satisfies the constraints:
+#: it is then the program's minimiser (the tie-break pulls towards it), so no conic solve is needed.
+INSIDE = "least squares inside the constraints"
 #: Suffix of the recorded low-speed friction scale (a shape of the model, not a parameter).
 STRIBECK = "stribeck_velocity"
 
@@ -164,6 +167,10 @@ def attachment(robot: Any, link: str | None) -> Attachment:
     if link in bodies:
         return Attachment(link, bodies[link], np.eye(10))
     welded = {name: body.link for body in tree.bodies for name in body.welded}
+    if link not in welded and link in {own.name for own in tree.links}:
+        raise ValueError(
+            f"payload: link {link!r} of {tree.source} never moves (it is the root or welded to it)"
+        )
     if link not in welded:
         listed = ", ".join(
             body.link + (f" (welded: {', '.join(body.welded)})" if body.welded else "")
@@ -301,7 +308,7 @@ def payload_block(
         block.update(com=None, com_std=None, inertia=None, inertia_std=None, sdk=None)
         return block
     mass, com, inertia = centroidal(phi)
-    finite = np.isfinite(covariance).all(0) & np.isfinite(covariance).all(1)
+    finite = np.isfinite(np.diag(covariance))
     jac = centroidal_jacobian(phi)
     safe = np.where(np.outer(finite, finite), covariance, 0.0)
     std = np.sqrt(np.maximum(np.diag(jac @ safe @ jac.T), 0.0))
@@ -598,18 +605,20 @@ def _solve(
     c = _compressed(A * weights[:, None], b * weights, units)
     sigma2 = max(c.rest, NOISE_FLOOR * float((measured * weights).square().sum())) / (M - k)
     unit, kept, Vh, S = c.unit, c.kept, c.Vh, c.S
-    z = cp.Variable(k)
-    phi = cp.multiply(unit[:10], z[:10])
-    objective = (cp.sum_squares(c.R @ z - c.rhs) + TIE_BREAK * cp.sum_squares(z - c.z_ls)) / sigma2
-    constraints = [pseudo_inertia_expression(phi, cp) >> 0, phi[0] >= settings.min_mass]
-    infeasible = (
-        f"no payload mass >= min_mass={settings.min_mass:g} kg with a positive semidefinite pseudo-inertia"
-    )
-    started = time.perf_counter()
-    used, status = solve_program(
-        cp.Problem(cp.Minimize(objective), constraints), settings.conic_solvers, "payload", infeasible
-    )
-    elapsed = time.perf_counter() - started
+    x_ls = unit * c.z_ls
+    lowest = float(np.linalg.eigvalsh(pseudo_inertia(torch.as_tensor(x_ls[:10]))).min())
+    if lowest >= 0 and x_ls[0] >= settings.min_mass:  # the program's minimiser, exactly
+        x, used, status, elapsed = x_ls, "none", INSIDE, 0.0
+    else:
+        z = cp.Variable(k)
+        phi = cp.multiply(unit[:10], z[:10])
+        objective = (cp.sum_squares(c.R @ z - c.rhs) + TIE_BREAK * cp.sum_squares(z - c.z_ls)) / sigma2
+        constraints = [pseudo_inertia_expression(phi, cp) >> 0, phi[0] >= settings.min_mass]
+        infeasible = f"no payload mass >= min_mass={settings.min_mass:g} kg with a positive semidefinite pseudo-inertia"
+        started = time.perf_counter()
+        program = cp.Problem(cp.Minimize(objective), constraints)
+        used, status = solve_program(program, settings.conic_solvers, "payload", infeasible)
+        x, elapsed = unit * z.value, time.perf_counter() - started
     covariance_z = sigma2 * (Vh[kept].T / S[kept] ** 2) @ Vh[kept]
     touched = (np.abs(Vh[~kept]) > 1e-8).any(0)
     covariance = covariance_z * np.outer(unit, unit)
@@ -617,7 +626,7 @@ def _solve(
     covariance[:, touched] = np.inf
     free = tuple(_null_directions(torch.as_tensor(Vh), torch.as_tensor(S), float(c.tol), tuple(names)))
     return Solution(
-        x=unit * z.value,
+        x=x,
         covariance=covariance,
         sigma2=sigma2,
         rank=int(kept.sum()),
