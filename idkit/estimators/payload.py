@@ -13,6 +13,15 @@ carries ``F`` and ``T`` the frame change from ``F`` to that body's frame
 ``pcls`` on one body with the rest fixed: the same QR-compressed data term in χ² units, the same
 pseudo-inertia LMI ``J(phi) ⪰ 0`` (here the payload's own, so that it is a real body), ``m ≥
 min_mass``, solved by the same cvxpy/Clarabel machinery (:func:`~idkit.estimators.physical.solve_program`).
+When the unconstrained least-squares solution already satisfies the constraints it is the program's
+minimiser and is taken as it is (``status`` says so): no solver tolerance on the common case.
+
+**Weights.** Joints differ in noise (a torque sensor's noise grows with its range), and one variance
+for all rows makes the fit inefficient and its standard deviations wrong (on the KUKA test with 1 %
+of each joint's RMS torque as noise, the unweighted mass and inertia were off by 3.5–4 of their
+standard deviations; weighted, the mass and centre-of-mass errors of 12 noise draws were 1.1–1.4
+standard deviations RMS). Rows are weighted per joint (and recording) by the inverse residual standard deviation
+of an unweighted fit (:func:`group_weights`; Gautier's weighted least squares), so ``s² ≈ 1``.
 
 **The arm model** is the robot as configured: its URDF inertials (every body, welded links merged)
 and, for the friction and offset parameters the robot holds (``robot.friction=true``,
@@ -59,8 +68,8 @@ from torch import Tensor
 from idkit.estimate import Estimate, to_python
 from idkit.estimators.linear.observation import IdentificationError, _null_directions
 from idkit.estimators.physical import (
-    AUTO_SOLVERS,
     NOISE_FLOOR,
+    ConsistentSettings,
     Solver,
     compress,
     cone_violations,
@@ -106,17 +115,11 @@ class PayloadSettings:
 
     @classmethod
     def checked(
-        cls, link: str | None, reference: str | None, min_mass: float, solver: str
+        cls, link: str | None, reference: str | None, min_mass: float, solver: Solver
     ) -> PayloadSettings:
-        if not (math.isfinite(min_mass) and min_mass >= 0):
-            raise ValueError(f"payload: min_mass must be a finite number >= 0 (kg), got {min_mass!r}")
-        choices = ("auto", "clarabel", "scs")
-        if solver not in choices:
-            raise ValueError(
-                f"payload: solver must be one of {', '.join(map(repr, choices))}, got {solver!r}"
-            )
-        conic = AUTO_SOLVERS if solver == "auto" else (solver.upper(),)
-        return cls(link or None, reference or None, float(min_mass), conic)
+        """The settings; ``min_mass`` and ``solver`` checked as ``pcls`` checks them (``ValueError``)."""
+        conic = ConsistentSettings.checked("payload", min_mass=min_mass, solver=solver)
+        return cls(link or None, reference or None, float(min_mass), conic.conic_solvers)
 
 
 @dataclass(frozen=True)
@@ -614,7 +617,7 @@ def _solve(
         phi = cp.multiply(unit[:10], z[:10])
         objective = (cp.sum_squares(c.R @ z - c.rhs) + TIE_BREAK * cp.sum_squares(z - c.z_ls)) / sigma2
         constraints = [pseudo_inertia_expression(phi, cp) >> 0, phi[0] >= settings.min_mass]
-        infeasible = f"no payload mass >= min_mass={settings.min_mass:g} kg with a positive semidefinite pseudo-inertia"
+        infeasible = f"no payload mass >= min_mass={settings.min_mass:g} kg with a PSD pseudo-inertia"
         started = time.perf_counter()
         program = cp.Problem(cp.Minimize(objective), constraints)
         used, status = solve_program(program, settings.conic_solvers, "payload", infeasible)

@@ -262,3 +262,28 @@ def test_bad_input_is_refused_in_one_line(tree, tmp_path, cylindrical):
         )
     with pytest.raises(ValueError, match=r"min_mass must be a finite number >= 0"):
         PayloadIdentification(min_mass=-1.0)
+
+
+def test_a_non_physical_truth_is_fitted_on_the_boundary_of_the_cone(tree):
+    """Principal moments that break the triangle inequality: least squares leaves the cone, the conic
+    program returns the closest real body (smallest pseudo-inertia eigenvalue 0), and both solvers agree."""
+    model = pin_model(TREE_URDF)
+    wrong = np.diag([0.001, 0.001, 0.003])  # 0.001 + 0.001 < 0.003: no rigid body has it
+    model.appendBodyToJoint(model.getJointId("j3"), pin.Inertia(MASS, COM, wrong), pin.SE3.Identity())
+    q, qd, qdd = random_states(tree, 200, seed=12)
+    torques, _ = pin_torques_and_regressor(tree, model, q, qd, qdd)
+    rows = [model.joints[model.getJointId(name)].idx_v for name in tree.joint_names]
+    samples = Samples(q, qd, qdd, torch.as_tensor(torques[:, rows]))
+    fits = {
+        solver: PayloadIdentification(link="c", solver=solver).fit(Problem(tree, samples))
+        for solver in ("clarabel", "scs")
+    }
+    found = fits["clarabel"].details
+    assert found["status"] == "optimal" and found["solver"] == "CLARABEL"
+    assert -1e-9 < found["payload"]["min_eigenvalue"] < 1e-6
+    assert found["payload"]["rel_error"] > 1e-6  # the real body fits worse (least squares: ~1e-15)
+    assert found["payload"]["mass"] == pytest.approx(MASS, rel=0.05)
+    for key in ("mass", "com", "inertia"):
+        np.testing.assert_allclose(
+            fits["scs"].details["payload"][key], found["payload"][key], rtol=0, atol=1e-3
+        )
