@@ -260,7 +260,7 @@ def test_bad_input_is_refused_in_one_line(tree, tmp_path, cylindrical):
         PayloadIdentification(link="c", reference=str(tmp_path / "three_joints.npz")).fit(
             Problem(tree, samples)
         )
-    with pytest.raises(ValueError, match=r"min_mass must be a finite number >= 0"):
+    with pytest.raises(ValueError, match=r"^payload: min_mass must be .*a finite number >= 0 \(kg\), got -1.0$"):
         PayloadIdentification(min_mass=-1.0)
 
 
