@@ -20,8 +20,9 @@ minimiser and is taken as it is (``status`` says so): no solver tolerance on the
 for all rows makes the fit inefficient and its standard deviations wrong (on the KUKA test with 1 %
 of each joint's RMS torque as noise, the unweighted mass and inertia were off by 3.5–4 of their
 standard deviations; weighted, the mass and centre-of-mass errors of 12 noise draws were 1.1–1.4
-standard deviations RMS). Rows are weighted per joint (and recording) by the inverse residual standard deviation
-of an unweighted fit (:func:`group_weights`; Gautier's weighted least squares), so ``s² ≈ 1``.
+standard deviations RMS). Rows are weighted per joint (and recording) by the inverse residual
+standard deviation of an unweighted fit (:func:`group_weights`; Gautier's weighted least squares),
+so ``s² ≈ 1``.
 
 **The arm model** is the robot as configured: its URDF inertials (every body, welded links merged)
 and, for the friction and offset parameters the robot holds (``robot.friction=true``,
@@ -30,18 +31,32 @@ and, for the friction and offset parameters the robot holds (``robot.friction=tr
 ``robot=urdf`` itself reads as 0). Recorded terms the robot does not hold are not used, and listed.
 
 **With a reference recording** (``reference=<file>``, the same arm without the payload) the arm's
-own errors cancel instead of leaking into the payload. A correction ``delta`` of every base
-parameter of the robot (the identifiable combinations of the links' inertials and the robot's
-friction and offsets) is fitted together with the payload::
+own errors cancel instead of leaking into the payload. Two ways (``correction``):
 
-    reference rows:   tau_ref − W_ref alpha_arm  = W_ref delta
-    payload rows:     tau − W alpha_arm          = W delta + Y_body T phi
+* ``model`` (default, any trajectory): a correction ``delta`` of every base parameter of the robot
+  (the identifiable combinations of the links' inertials and the robot's friction and offsets) is
+  fitted together with the payload::
 
-The reference rows fix ``delta``; the payload rows then see the arm as the reference recording
-showed it, and only the difference between the recordings is left for ``phi``. Any error of the arm
-model that is linear in its parameters (wrong masses, inertias, friction, offsets) cancels; the
-price is the reference recording's noise, which the covariance below carries. ``delta`` is a
-nuisance: the identified model (``params``, ``identified.urdf``) keeps the arm as given.
+      reference rows:   tau_ref − W_ref alpha_arm  = W_ref delta
+      payload rows:     tau − W alpha_arm          = W delta + Y_body T phi
+
+  The reference rows fix ``delta``; the payload rows then see the arm as the reference recording
+  showed it, and only the difference is left for ``phi``. Any error of the arm model that is linear
+  in its parameters (wrong masses, inertias, friction, offsets) cancels. When both recordings run
+  the same trajectory, every repeatable error cancels, in the model or not: the payload's columns
+  lie in the span of the arm's (``Y_body = W K_body``), so ``delta`` absorbs the recordings' common
+  part and only their difference determines ``phi``.
+* ``samples`` (the same trajectory replayed with and without the payload, sample for sample): the
+  reference's residual ``r_ref(t) = tau_ref(t) − Y(t_ref) p_arm`` is subtracted from the payload
+  rows, ``tau(t) − Y(t) p_arm − r_ref(t) = Y_body T phi``. Unweighted this equals ``model`` on the
+  same trajectory; it needs no base regressor (10 unknowns instead of ``10 + B``), and its weights
+  come from how well the two recordings repeat each other, which is what limits the payload (on
+  the KUKA's repeated recordings with a simulated tool added to one, the centre of mass came out
+  1.5 mm off against 4.0 mm with ``model``: docs/payload.md). Refused when the positions differ by
+  more than ``MAX_MISMATCH``.
+
+Either way the reference's noise enters the covariance below. The identified model (``params``,
+``identified.urdf``) keeps the arm as given: the correction is a nuisance, reported in ``details``.
 
 **Unidentified directions.** Columns are scaled to unit norm (``z = x / u``). A tie-break
 ``TIE_BREAK ‖z − z_LS‖²`` towards the unconstrained minimum-norm least-squares solution makes the
@@ -59,7 +74,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal, get_args
 
 import numpy as np
 import torch
@@ -93,8 +108,16 @@ ZERO_COLUMN = 1e-10
 #: The status of a fit whose unconstrained least-squares solution already satisfies the constraints:
 #: it is then the program's minimiser (the tie-break pulls towards it), so no conic solve is needed.
 INSIDE = "least squares inside the constraints"
+#: ``correction=samples``: the largest position difference (rad or m) between the data and the
+#: reference recording that still counts as the same trajectory (the KUKA's repeated recordings
+#: differ by up to 0.0062 rad).
+MAX_MISMATCH = 0.05
 #: Suffix of the recorded low-speed friction scale (a shape of the model, not a parameter).
 STRIBECK = "stribeck_velocity"
+
+
+#: How a reference recording enters (``PayloadIdentification``'s ``correction``).
+Correction = Literal["model", "samples"]
 
 
 @dataclass(frozen=True)
@@ -103,23 +126,28 @@ class PayloadSettings:
 
     Attributes:
         link: the link the payload is fixed to and reported in (``None``: the tree's end link).
-        reference: a recording of the same motion(s) without the payload, or ``None``.
+        reference: a recording of the arm without the payload, or ``None``.
+        correction: how the reference is used (``"model"`` or ``"samples"``).
         min_mass: lower bound on the payload mass (kg, ``>= 0``).
         conic_solvers: the cvxpy solvers ``solver`` stands for, tried in order.
     """
 
     link: str | None
     reference: str | None
+    correction: Correction
     min_mass: float
     conic_solvers: tuple[str, ...]
 
     @classmethod
     def checked(
-        cls, link: str | None, reference: str | None, min_mass: float, solver: Solver
+        cls, link: str | None, reference: str | None, correction: Correction, min_mass: float, solver: Solver
     ) -> PayloadSettings:
         """The settings; ``min_mass`` and ``solver`` checked as ``pcls`` checks them (``ValueError``)."""
         conic = ConsistentSettings.checked("payload", min_mass=min_mass, solver=solver)
-        return cls(link or None, reference or None, float(min_mass), conic.conic_solvers)
+        if correction not in get_args(Correction):
+            choices = ", ".join(map(repr, get_args(Correction)))
+            raise ValueError(f"payload: correction must be one of {choices}, got {correction!r}")
+        return cls(link or None, reference or None, correction, float(min_mass), conic.conic_solvers)
 
 
 @dataclass(frozen=True)
@@ -371,6 +399,55 @@ def load_reference(robot: Any, path: str, like: Samples) -> tuple[Samples, bool]
     return samples.to(device=like.q.device, dtype=like.q.dtype), preprocessed
 
 
+@dataclass(frozen=True)
+class System:
+    """The equations of one fit, ``A x ≈ b`` (float64, CPU), and how to read them.
+
+    Attributes:
+        A: ``[M, k]``: the payload's columns ``Y_body T`` (then the correction's, ``correction=model``).
+        b: ``[M]``: measured torques minus the arm model's (minus the reference's residual,
+            ``correction=samples``).
+        measured: ``[M]``: the measured torques of each row (the floor of noise-free data).
+        groups: ``[M]``: the weight group of each row (a joint of a recording).
+        names, units: ``[k]`` the unknowns' names and physical scales.
+        fitted_rows: the first rows, those of the data (not the reference).
+        reference: what the reference did, for ``details["reference"]`` (``None``: no reference).
+    """
+
+    A: Tensor
+    b: Tensor
+    measured: Tensor
+    groups: Tensor
+    names: tuple[str, ...]
+    units: np.ndarray
+    fitted_rows: int
+    reference: dict[str, Any] | None
+
+
+def same_trajectory(data: Samples, reference: Samples, path: str, joints: Sequence[str]) -> float:
+    """The largest position difference (rad or m) between two recordings of one trajectory.
+
+    Raises:
+        ValueError: other sample counts, or positions further apart than ``MAX_MISMATCH`` (naming the
+            sample and joint): ``correction=samples`` subtracts the reference sample by sample.
+    """
+    if reference.n_samples != data.n_samples:
+        raise ValueError(
+            f"payload: correction=samples needs a reference of the same trajectory, sample for sample; "
+            f"{path} has {reference.n_samples} samples, the data {data.n_samples} (use correction=model)"
+        )
+    gap = (reference.q - data.q).abs().to("cpu", torch.float64)
+    worst = int(gap.argmax())
+    sample, joint = divmod(worst, data.n_joints)
+    if float(gap.max()) > MAX_MISMATCH:
+        raise ValueError(
+            f"payload: correction=samples needs the same trajectory, but {path} differs from the data by "
+            f"{float(gap.max()):.3g} at sample {sample}, joint {joints[joint]} (more than {MAX_MISMATCH:g}); "
+            "use correction=model"
+        )
+    return float(gap.max())
+
+
 class PayloadIdentification(Estimator):
     """``payload``: the mass, centre of mass and inertia of a body fixed to a link (module doc).
 
@@ -379,14 +456,15 @@ class PayloadIdentification(Estimator):
             and written to ``identified.urdf`` on. A moving link or a link welded to one (e.g. a
             flange, URDF only). ``None``: the tree's end link (refused if it has several).
         reference: a data file of the arm without the payload (same joints; raw recordings are
-            preprocessed with the default options): fits a correction of the arm's base
-            parameters together with the payload, so that the arm's model errors cancel.
+            preprocessed with the default options), so that the arm's model errors cancel.
+        correction: how the reference is used (module doc): ``"model"`` fits a correction of the
+            arm's base parameters together with the payload (any trajectory); ``"samples"``
+            subtracts the reference's residual sample by sample (the same trajectory, time-aligned).
         min_mass: lower bound on the payload mass (kg).
         solver: ``"auto"`` (Clarabel, then SCS), ``"clarabel"`` or ``"scs"``.
 
-    ``details["payload"]``: :func:`payload_block`; ``details["arm_model"]``: which joint terms came
-    from the file; ``details["reference"]``: the correction and how much of the reference
-    recording it explains.
+    ``details["payload"]``: :func:`payload_block` with the fit's numbers; ``details["arm_model"]``:
+    which joint terms came from the file; ``details["reference"]``: what the reference did.
     """
 
     conformance_robot: ClassVar[tuple[str, dict[str, Any]]] = ("urdf", {"urdf": "cylindrical"})
@@ -395,18 +473,63 @@ class PayloadIdentification(Estimator):
         self,
         link: str | None = None,
         reference: str | None = None,
+        correction: Correction = "model",
         min_mass: float = 0.0,
         solver: Solver = "auto",
     ) -> None:
         self.link = link
         self.reference = reference
+        self.correction = correction
         self.min_mass = min_mass
         self.solver = solver
-        self.settings = PayloadSettings.checked(link, reference, min_mass, solver)
+        self.settings = PayloadSettings.checked(link, reference, correction, min_mass, solver)
 
     @property
     def name(self) -> str:
-        return "payload" + ("+reference" if self.settings.reference else "")
+        return "payload" + (f"+reference-{self.settings.correction}" if self.settings.reference else "")
+
+    def system(self, robot: Any, samples: Samples, arm: ArmModel, where: Attachment) -> System:
+        """The equations of the fit on ``samples`` (the problem's), with the reference if any."""
+        settings = self.settings
+        model = settings.reference is not None and settings.correction == "model"
+        rows = _rows(robot, samples, base=model)
+        arm_params = torch.as_tensor(arm.params)
+        body = slice(10 * where.body, 10 * where.body + 10)
+        A = rows.Y[:, body] @ torch.as_tensor(where.transform)  # [M, 10]: Y_body T
+        b = rows.tau - rows.Y @ arm_params
+        n = robot.n_joints
+        groups = torch.arange(len(b)) % n  # rows are sample-major: one weight per joint
+        names, units = tuple(f"payload.{k}" for k in INERTIAL_NAMES), PHYSICAL_UNITS
+        plain = System(A, b, rows.tau, groups, names, units, len(b), None)
+        if settings.reference is None:
+            return plain
+        ref_samples, preprocessed = load_reference(robot, settings.reference, samples)
+        ref = _rows(robot, ref_samples, base=model)
+        ref_residual = ref.tau - ref.Y @ arm_params
+        about = {
+            "file": settings.reference,
+            "samples": ref_samples.n_samples,
+            "preprocessed": preprocessed,
+            "correction": settings.correction,
+            "rel_error_arm": float(ref_residual.norm() / ref.tau.norm()),
+        }
+        if settings.correction == "samples":
+            about["max_mismatch"] = same_trajectory(
+                samples, ref_samples, settings.reference, robot.joint_names
+            )
+            return System(A, b - ref_residual, rows.tau, groups, names, units, len(b), about)
+        top = torch.cat([A, rows.W], 1)
+        bottom = torch.cat([torch.zeros(ref.W.shape[0], 10, dtype=torch.float64), ref.W], 1)
+        return System(
+            torch.cat([top, bottom]),
+            torch.cat([b, ref_residual]),
+            torch.cat([rows.tau, ref.tau]),
+            torch.cat([groups, n + torch.arange(len(ref_residual)) % n]),
+            names + tuple(f"correction.{k}" for k in robot.base_param_names),
+            np.concatenate([units, base_units(robot)]),
+            len(b),
+            {**about, "rows": (ref.W, ref_residual, ref.tau)},
+        )
 
     def fit(self, problem: Problem) -> Estimate:
         start = time.perf_counter()
@@ -416,32 +539,8 @@ class PayloadIdentification(Estimator):
         where = attachment(robot, self.settings.link)
         arm = arm_model(robot)
         s = problem.tensors()
-        with_reference = self.settings.reference is not None
-        rows = _rows(robot, s, base=with_reference)
-        arm_params = torch.as_tensor(arm.params)
-        body = slice(10 * where.body, 10 * where.body + 10)
-        columns = rows.Y[:, body] @ torch.as_tensor(where.transform)  # [M, 10]: Y_body T
-        residual = rows.tau - rows.Y @ arm_params
-        A, b, measured = columns, residual, rows.tau
-        n = robot.n_joints
-        groups = torch.arange(len(b)) % n  # rows are sample-major: one weight per joint
-        names = tuple(f"payload.{k}" for k in INERTIAL_NAMES)
-        units = PHYSICAL_UNITS
-        details: dict[str, Any] = {}
-        if with_reference:
-            ref_samples, preprocessed = load_reference(robot, self.settings.reference, s)
-            ref = _rows(robot, ref_samples, base=True)
-            ref_residual = ref.tau - ref.Y @ arm_params
-            top = torch.cat([columns, rows.W], 1)
-            bottom = torch.cat([torch.zeros(ref.W.shape[0], 10, dtype=torch.float64), ref.W], 1)
-            A, b = torch.cat([top, bottom]), torch.cat([residual, ref_residual])
-            measured = torch.cat([rows.tau, ref.tau])
-            groups = torch.cat([groups, n + torch.arange(len(ref_residual)) % n])
-            names += tuple(f"correction.{k}" for k in robot.base_param_names)
-            units = np.concatenate([units, base_units(robot)])
-            details["reference"] = {"file": self.settings.reference, "samples": ref_samples.n_samples}
-            details["reference"]["preprocessed"] = preprocessed
-        solution = _solve(A, b, measured, groups, names, units, self.settings)
+        system = self.system(robot, s, arm, where)
+        solution = _solve(system, self.settings)
         phi = solution.x[:10]
         lowest, outside = cone_violations(["payload"], pseudo_inertia(torch.as_tensor(phi)[None]).numpy())
         if outside:
@@ -450,38 +549,36 @@ class PayloadIdentification(Estimator):
                 f"pseudo-inertia not positive semidefinite for {outside[0]}; try solver=clarabel or scs"
             )
         params = arm.params.copy()
-        params[body] += where.transform @ phi
-        fitted = A[: len(residual)] @ torch.as_tensor(solution.x)
-        norm = float(rows.tau.square().sum().sqrt())
-        if with_reference:
-            delta = solution.x[10:]
-            corrected = ref_residual - ref.W @ torch.as_tensor(delta)
-            ref_norm = float(ref.tau.square().sum().sqrt())
-            details["reference"].update(
-                correction=dict(zip(robot.base_param_names, delta.tolist(), strict=True)),
-                rel_error_arm=float(ref_residual.norm()) / ref_norm,
-                rel_error_corrected=float(corrected.norm()) / ref_norm,
+        params[10 * where.body : 10 * where.body + 10] += where.transform @ phi
+        rows = slice(0, system.fitted_rows)
+        before = system.b[rows]
+        after = before - system.A[rows] @ torch.as_tensor(solution.x)
+        norm = float(system.measured[rows].norm())
+        details: dict[str, Any] = {}
+        if system.reference is not None:
+            details["reference"] = _reference_details(
+                system.reference, solution.x[10:], robot.base_param_names
             )
         block = payload_block(
             phi, solution.covariance[:10, :10], where.link, tree.bodies[where.body].link, lowest[0]
         )
         block.update(
-            equations=int(A.shape[0]),
+            equations=int(system.A.shape[0]),
             rank=solution.rank,
-            unknowns=len(names),
+            unknowns=len(system.names),
             cond=solution.cond,
             sigma2=solution.sigma2,
             unidentifiable=list(solution.unidentifiable),
-            rel_error_arm_only=float(residual.norm()) / norm,
-            rel_error=float((residual - fitted).norm()) / norm,
+            rel_error_arm_only=float(before.norm()) / norm,
+            rel_error=float(after.norm()) / norm,
         )
         p = torch.as_tensor(params, dtype=s.q.dtype, device=s.q.device)
-        cost = float((residual - fitted).norm()) if problem.cost is None else float(problem.evaluate(p))
+        cost = float(after.norm()) if problem.cost is None else float(problem.evaluate(p))
         details.update(
             payload=block,
             arm_model=arm.to_details(tree.source),
             criterion="||tau - Y p_arm - Y_link T phi||_2 s.t. J(phi) PSD",
-            criterion_value=float((residual - fitted).norm()),
+            criterion_value=float(after.norm()),
             rel_error_train=block["rel_error"],
             solver=solution.solver,
             status=solution.status,
@@ -497,6 +594,18 @@ class PayloadIdentification(Estimator):
             ),
             details=to_python(details),
         )
+
+
+def _reference_details(about: dict[str, Any], delta: np.ndarray, base_names: Sequence[str]) -> dict[str, Any]:
+    """``details["reference"]``: the file and, for ``correction=model``, the fitted correction of each
+    base parameter and the reference's ‖E‖/‖T‖ with it."""
+    out = {key: value for key, value in about.items() if key != "rows"}
+    if "rows" in about:
+        W, residual, tau = about["rows"]
+        corrected = residual - W @ torch.as_tensor(delta)
+        out["correction_values"] = dict(zip(base_names, delta.tolist(), strict=True))
+        out["rel_error_corrected"] = float(corrected.norm() / tau.norm())
+    return out
 
 
 @dataclass(frozen=True)
@@ -573,29 +682,22 @@ def group_weights(residual: Tensor, measured: Tensor, groups: Tensor, unknowns: 
     return torch.maximum(variance, floor).clamp_min(torch.finfo(torch.float64).tiny).rsqrt()[groups]
 
 
-def _solve(
-    A: Tensor,
-    b: Tensor,
-    measured: Tensor,
-    groups: Tensor,
-    names: Sequence[str],
-    units: np.ndarray,
-    settings: PayloadSettings,
-) -> Solution:
+def _solve(system: System, settings: PayloadSettings) -> Solution:
     """Weighted least squares ``A x ≈ b`` under the payload's LMI on ``x[:10]`` (module doc).
-
-    Args:
-        A, b: the equations ``[M, k]`` and right-hand side ``[M]`` (float64).
-        measured: ``[M]`` the measured torques (the floor of noise-free data).
-        groups: ``[M]`` the weight group of each row (:func:`group_weights`).
-        names: ``[k]`` the unknowns' names, for messages.
-        units: ``[k]`` the unknowns' physical scales (:func:`_compressed`).
 
     Raises:
         IdentificationError: no more equations than unknowns, no torque, a failed solver.
     """
     import cvxpy as cp
 
+    A, b, measured, groups, names, units = (
+        system.A,
+        system.b,
+        system.measured,
+        system.groups,
+        system.names,
+        system.units,
+    )
     M, k = A.shape
     if k >= M:
         raise IdentificationError(

@@ -85,12 +85,17 @@ def _arm_lines(arm: Mapping[str, Any]) -> list[str]:
 def _reference_lines(reference: Mapping[str, Any] | None) -> list[str]:
     if not reference:
         return []
-    return [
+    head = (
         f"reference {reference['file']} ({reference['samples']} samples"
         + (", preprocessed" if reference.get("preprocessed") else "")
-        + f"): arm model ‖E‖/‖T‖ {100 * reference['rel_error_arm']:.2f} % → "
-        f"{100 * reference['rel_error_corrected']:.2f} % with the fitted correction"
-    ]
+        + f"; arm model ‖E‖/‖T‖ {100 * reference['rel_error_arm']:.2f} % on it): "
+    )
+    if reference["correction"] == "samples":
+        return [
+            head + f"its residual subtracted sample by sample (positions within "
+            f"{reference['max_mismatch']:.3g} of the data)"
+        ]
+    return [head + f"{100 * reference['rel_error_corrected']:.2f} % with the fitted correction of the arm"]
 
 
 def _sdk_lines(link: str, sdk: Mapping[str, Any]) -> list[str]:

@@ -40,15 +40,16 @@ def simulate(
     seed: int,
     noise: float = 0.0,
     placement: pin.SE3 | None = None,
+    states: tuple[torch.Tensor, ...] | None = None,
 ) -> Samples:
     """Random states; pinocchio's torques of ``urdf`` with the payload appended to ``joint`` (at
     ``placement`` in its frame; none for ``joint=None``), plus Gaussian noise of ``noise`` × each
-    joint's RMS torque."""
+    joint's RMS torque. ``states`` replace the random ones."""
     model = pin_model(urdf)
     if joint is not None:
         inertia = pin.Inertia(MASS, COM, INERTIA)
         model.appendBodyToJoint(model.getJointId(joint), inertia, placement or pin.SE3.Identity())
-    q, qd, qdd = random_states(robot, n, seed)
+    q, qd, qdd = random_states(robot, n, seed) if states is None else states
     torques, _ = pin_torques_and_regressor(robot, model, q, qd, qdd)
     rows = [model.joints[model.getJointId(name)].idx_v for name in robot.joint_names]
     tau = torch.as_tensor(torques[:, rows])
@@ -260,7 +261,9 @@ def test_bad_input_is_refused_in_one_line(tree, tmp_path, cylindrical):
         PayloadIdentification(link="c", reference=str(tmp_path / "three_joints.npz")).fit(
             Problem(tree, samples)
         )
-    with pytest.raises(ValueError, match=r"^payload: min_mass must be .*a finite number >= 0 \(kg\), got -1.0$"):
+    with pytest.raises(
+        ValueError, match=r"^payload: min_mass must be .*a finite number >= 0 \(kg\), got -1.0$"
+    ):
         PayloadIdentification(min_mass=-1.0)
 
 
@@ -287,3 +290,76 @@ def test_a_non_physical_truth_is_fitted_on_the_boundary_of_the_cone(tree):
         np.testing.assert_allclose(
             fits["scs"].details["payload"][key], found["payload"][key], rtol=0, atol=1e-3
         )
+
+
+def _unmodelled(samples: Samples) -> Samples:
+    """Repeatable torques outside the rigid-body model: cogging 0.3 N·m sin(6 q) and a friction
+    0.4 N·m tanh(q̇ / 0.05) on every joint."""
+    extra = 0.3 * torch.sin(6 * samples.q) + 0.4 * torch.tanh(samples.qd / 0.05)
+    return Samples(samples.q, samples.qd, samples.qdd, samples.tau + extra)
+
+
+def smooth_states(n: int) -> tuple[torch.Tensor, ...]:
+    """A smooth 20 s motion of the test robot (sines; the prismatic j2 inside its 0–0.5 m)."""
+    t = torch.linspace(0, 20, n, dtype=torch.float64)[:, None]
+    omega = 2 * torch.pi * torch.tensor([0.11, 0.17, 0.23, 0.31], dtype=torch.float64)
+    amplitude = torch.tensor([1.5, 0.2, 2.5, 0.8], dtype=torch.float64)
+    centre = torch.tensor([0.0, 0.25, 0.0, 0.0], dtype=torch.float64)
+    phase = omega * t + torch.tensor([0.0, 1.0, 2.0, 3.0], dtype=torch.float64)
+    return (
+        centre + amplitude * torch.sin(phase),
+        amplitude * omega * torch.cos(phase),
+        -amplitude * omega**2 * torch.sin(phase),
+    )
+
+
+def test_the_same_trajectory_replayed_cancels_what_the_model_cannot(tree, tmp_path):
+    """Noise-free, so that what is left is the method's: with the reference on the same states both
+    corrections cancel the arm's 10 % error and torques outside the model exactly (``model``: the
+    payload's columns lie in the span of the arm's, so only the difference of the recordings
+    determines them); without a reference the payload absorbs both."""
+    wrong = tree.nominal_params().clone()
+    for i, scale in enumerate([1.1, 0.9, 1.1, 0.9]):
+        wrong[10 * i : 10 * i + 10] *= scale
+    (tmp_path / "arm.urdf").write_text(identified_urdf(tree, wrong))
+    model = URDFRobot(str(tmp_path / "arm.urdf"))
+    states = smooth_states(400)
+    data = _unmodelled(simulate(tree, TREE_URDF, "j3", 400, seed=13, states=states))
+    save_samples(
+        _unmodelled(simulate(tree, TREE_URDF, None, 400, seed=13, states=states)), tmp_path / "bare.npz"
+    )
+    reference = str(tmp_path / "bare.npz")
+    for correction in ("model", "samples"):
+        details = (
+            PayloadIdentification(link="c", reference=reference, correction=correction)
+            .fit(Problem(model, data))
+            .details
+        )
+        assert details["payload"]["mass"] == pytest.approx(MASS, rel=1e-8), correction
+        np.testing.assert_allclose(details["payload"]["com"], COM, atol=1e-9)
+    assert details["reference"]["max_mismatch"] == 0.0
+    assert any("subtracted sample by sample" in line for line in payload_report.lines(details))
+    alone = PayloadIdentification(link="c").fit(Problem(model, data)).details["payload"]
+    assert abs(alone["mass"] - MASS) > 0.05 * MASS
+
+
+def test_correction_by_samples_refuses_another_trajectory(tree, tmp_path):
+    data = simulate(tree, TREE_URDF, "j3", 100, seed=15)
+    save_samples(simulate(tree, TREE_URDF, None, 90, seed=15), tmp_path / "shorter.npz")
+    with pytest.raises(
+        ValueError, match=r"shorter.npz has 90 samples, the data 100 \(use correction=model\)$"
+    ):
+        PayloadIdentification(link="c", reference=str(tmp_path / "shorter.npz"), correction="samples").fit(
+            Problem(tree, data)
+        )
+    moved = Samples(data.q.clone(), data.qd, data.qdd, data.tau)
+    moved.q[17, 2] += 0.2
+    save_samples(moved, tmp_path / "moved.npz")
+    with pytest.raises(ValueError, match=r"moved.npz differs from the data by 0.2 at sample 17, joint j3"):
+        PayloadIdentification(link="c", reference=str(tmp_path / "moved.npz"), correction="samples").fit(
+            Problem(tree, data)
+        )
+    with pytest.raises(
+        ValueError, match=r"^payload: correction must be one of 'model', 'samples', got 'both'$"
+    ):
+        PayloadIdentification(correction="both")
