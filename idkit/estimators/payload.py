@@ -52,7 +52,7 @@ own errors cancel instead of leaking into the payload. Two ways (``correction``)
   same trajectory; it needs no base regressor (10 unknowns instead of ``10 + B``), and its weights
   come from how well the two recordings repeat each other, which is what limits the payload (on
   the KUKA's repeated recordings with a simulated tool added to one, the centre of mass came out
-  1.5 mm off against 4.0 mm with ``model``: docs/payload.md). Refused when the positions differ by
+  1.8 mm off against 4.0 mm with ``model``: docs/payload.md). Refused when the positions differ by
   more than ``MAX_MISMATCH``.
 
 Either way the reference's noise enters the covariance below. The identified model (``params``,
