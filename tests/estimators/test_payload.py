@@ -13,6 +13,7 @@ from idkit.data.io import save_samples
 from idkit.estimators.payload import PayloadIdentification
 from idkit.problem import IdentificationError, Problem, Samples
 from idkit.reports import payload as payload_report
+from idkit.robots.inertia import standard_parameters
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_export import identified_urdf
 
@@ -363,3 +364,33 @@ def test_correction_by_samples_refuses_another_trajectory(tree, tmp_path):
         ValueError, match=r"^payload: correction must be one of 'model', 'samples', got 'both'$"
     ):
         PayloadIdentification(correction="both")
+
+
+def test_an_mjcf_arm_gives_its_damping_frictionloss_and_offsets(tmp_path):
+    pytest.importorskip("mujoco")
+    from idkit.robots.joint_terms import recorded_joint_terms
+    from idkit.robots.mjcf import MJCFRobot
+    from idkit.robots.mjcf_export import identified_mjcf
+
+    robot = MJCFRobot("arm", friction=True, offset=True)
+    params = robot.nominal_params().clone()
+    params[-9:] = torch.tensor(
+        [0.1, 0.1, 0.5, 0.2, 0.2, 1.0, 0.05, -0.1, 0.2], dtype=torch.float64
+    )  # fc fv offset
+    (tmp_path / "identified.xml").write_text(identified_mjcf(robot, params))
+    written = MJCFRobot(str(tmp_path / "identified.xml"), friction=True, offset=True)
+    terms = recorded_joint_terms(written)  # frictionloss, damping and the idkit numerics
+    assert [terms[name] for name in written.param_names[-9:]] == pytest.approx(
+        params[-9:].tolist(), abs=1e-12
+    )
+    # a payload on link3 (the slide's body), the arm's drive terms subtracted as the file records them
+    truth = written.nominal_params().clone()
+    truth[20:30] += torch.as_tensor(
+        standard_parameters(0.4, np.array([0.05, 0.0, 0.02]), np.diag([1e-3, 2e-3, 2e-3]))
+    )
+    truth[-9:] = params[-9:]
+    q, qd, qdd = written.random_states(300, torch.Generator().manual_seed(16))
+    samples = Samples(q, qd, qdd, written.inverse_dynamics(truth, q, qd, qdd))
+    found = PayloadIdentification().fit(Problem(written, samples)).details
+    assert found["payload"]["link"] == "link3" and found["arm_model"]["not_recorded"] == []
+    assert found["payload"]["mass"] == pytest.approx(0.4, rel=1e-6)
