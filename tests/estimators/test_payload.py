@@ -99,6 +99,10 @@ def test_a_payload_on_a_welded_mount_is_reported_in_the_mount_frame():
     np.testing.assert_allclose(found["inertia"], INERTIA, atol=1e-10)
 
 
+#: Coulomb and viscous friction and offsets of the test robot's four joints.
+DRIVE = (np.array([0.3, 0.2, 0.1, 0.25]), np.array([0.5, 0.4, 0.2, 0.3]), np.array([0.1, -0.2, 0.05, 0.3]))
+
+
 def _with_drive_terms(robot: URDFRobot, samples: Samples, fc, fv, offset) -> Samples:
     """``samples`` with Coulomb, viscous friction and offsets added (numpy: pinocchio has none)."""
     qd = samples.qd.numpy()
@@ -108,11 +112,7 @@ def _with_drive_terms(robot: URDFRobot, samples: Samples, fc, fv, offset) -> Sam
 
 def test_the_reference_recording_cancels_a_ten_percent_error_of_the_arm_model(tree, tmp_path):
     truth = URDFRobot(TREE_URDF, friction=True, offset=True)
-    fc, fv, offset = (
-        np.array([0.3, 0.2, 0.1, 0.25]),
-        np.array([0.5, 0.4, 0.2, 0.3]),
-        np.array([0.1, -0.2, 0.05, 0.0]),
-    )
+    fc, fv, offset = DRIVE
     nb = len(truth.link_names)
     wrong = truth.nominal_params().clone()
     scales = np.random.default_rng(3).choice([0.9, 1.1], nb)  # each link 10 % off (scaled: still physical)
@@ -136,11 +136,7 @@ def test_the_reference_recording_cancels_a_ten_percent_error_of_the_arm_model(tr
 
 def test_the_arm_model_takes_the_friction_and_offsets_the_file_records(tree, tmp_path):
     truth = URDFRobot(TREE_URDF, friction=True, offset=True)
-    fc, fv, offset = (
-        np.array([0.3, 0.2, 0.1, 0.25]),
-        np.array([0.5, 0.4, 0.2, 0.3]),
-        np.array([0.1, -0.2, 0.05, 0.3]),
-    )
+    fc, fv, offset = DRIVE
     params = truth.nominal_params().clone()
     params[10 * len(truth.link_names) :] = torch.as_tensor(np.concatenate([fc, fv, offset]))
     (tmp_path / "identified.urdf").write_text(identified_urdf(truth, params))
