@@ -29,7 +29,7 @@ def _vector(values: Sequence[float], sep: str = ", ") -> str:
 def lines(details: Mapping[str, Any]) -> list[str]:
     """The report lines of a payload fit's ``details`` (``[]`` for other estimates)."""
     block = details.get("payload")
-    if not block:
+    if not isinstance(block, Mapping) or "sdk" not in block:  # not estimator=payload's block
         return []
     link = block["link"]
     out = ["", f"payload on {link}" + (f" (welded to {block['body']})" if block["body"] != link else "")]

@@ -131,6 +131,8 @@ def _payload_parameters(robot: URDFRobot, payload: Mapping[str, Any] | None) -> 
     """The payload block's parameters and placement, or ``None`` (no block, or a mass ``<= 0``)."""
     if not payload:
         return None
+    if not isinstance(payload, Mapping) or not {"link", "standard"} <= set(payload):
+        raise ValueError("urdf export: a payload needs 'link' and 'standard' (estimator=payload's block)")
     standard = np.array([float(payload["standard"][name]) for name in INERTIAL_NAMES])
     if not standard[0] > 0:
         warnings.warn(
