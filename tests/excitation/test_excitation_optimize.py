@@ -15,7 +15,7 @@ from idkit.excitation.collision import self_collision
 from idkit.excitation.effort import nominal_torques
 from idkit.excitation.feasible import fit_into_limits, largest_feasible_scale, scale_motion
 from idkit.excitation.fourier import FourierExcitation
-from idkit.excitation.optimize import optimize_excitation
+from idkit.excitation.optimize import _adam_search, optimize_excitation
 from idkit.interfaces import Robot
 from idkit.robots.cylindrical import CylindricalRobot
 from idkit.robots.urdf import URDFRobot
@@ -242,3 +242,31 @@ def test_a_shrunk_motion_says_why_and_what_it_cost(arm_result):
     # Shrinking cost conditioning (here a lot: the table leaves little room); the reported value is
     # the shrunk motion's.
     assert details["criterion_before_shrink"] < result.after
+
+
+def test_the_written_out_adam_is_torch_adam():
+    """Same points as ``torch.optim.Adam`` (projected on the cube) on a function with a known gradient."""
+    target = torch.tensor([[0.2, 0.9, 0.5], [1.3, -0.4, 0.7]], dtype=torch.float64)
+
+    def objective(unit):
+        return ((unit - target) ** 2 * torch.tensor([1.0, 10.0, 0.1])).sum(-1) + unit[..., 0] ** 4
+
+    starts = torch.tensor([[0.5, 0.5, 0.5], [0.1, 0.8, 0.3]], dtype=torch.float64)
+    found = _adam_search(objective, starts, 40, 0.05)
+    unit = starts.clone().requires_grad_(True)
+    reference = torch.optim.Adam([unit], lr=0.05)
+    best, best_loss = starts.clone(), torch.full((2,), math.inf, dtype=torch.float64)
+    for step in range(41):
+        value = objective(unit)
+        improved = value.detach() < best_loss
+        best = torch.where(improved[:, None], unit.detach(), best)
+        best_loss = torch.where(improved, value.detach(), best_loss)
+        if step == 40:
+            break
+        reference.zero_grad()
+        value.sum().backward()
+        reference.step()
+        with torch.no_grad():
+            unit.clamp_(0.0, 1.0)
+    torch.testing.assert_close(found, best, rtol=0, atol=1e-14)
+    assert found[1, 1] == 0.0  # its target is outside the cube: the wall binds
