@@ -204,8 +204,6 @@ def _rest(trajectory: Trajectory, tolerance: float) -> tuple[dict[str, dict[str,
 
 
 def _rate(t: np.ndarray) -> tuple[float, list[Violation]]:
-    if len(t) < 2:
-        return float("nan"), [Violation("t", "sample rate", float(t[0]), 0.0, 0.0)]
     steps = np.diff(t)
     step = float(np.median(steps))
     irregular = np.flatnonzero((np.abs(steps - step) > RATE_TOLERANCE * abs(step)) | (steps <= 0))

@@ -123,8 +123,8 @@ def _read_csv(path: Path, joints: tuple[str, ...]) -> Trajectory:
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path}: cannot read it as UTF-8 CSV text: {exc}") from None
     table = [row for row in table if row]
-    if len(table) < 2:
-        raise ValueError(f"{path}: expected a header line and at least one sample")
+    if len(table) < 3:
+        raise ValueError(f"{path}: expected a header line and at least two samples, got {len(table) - 1}")
     header = [name.strip() for name in table[0]]
     named = sorted({name.rpartition(".")[0] for name in header if name.rpartition(".")[2] in QUANTITIES})
     _by_joint(path, joints, named)
@@ -180,6 +180,8 @@ def _read_npz(path: Path, joints: tuple[str, ...]) -> Trajectory:
     if t.dtype.kind not in "iuf" or t.ndim != 1:
         raise ValueError(f"{path}: t must be one-dimensional numbers, got {t.dtype} {list(t.shape)}")
     t = t.astype(np.float64)
+    if len(t) < 2:
+        raise ValueError(f"{path}: expected at least two samples, got {len(t)}")
     order = [named.index(joint) for joint in joints]
     matrices = []
     for name in QUANTITIES:

@@ -90,7 +90,7 @@ def test_csv_refusals_name_file_line_and_column(tmp_path):
     )
     with pytest.raises(ValueError, match=r"bad.csv line 3, column d2.q: 'abc' is not a number"):
         read_trajectory(bad, JOINTS)
-    bad.write_text("\n".join([lines[0], lines[1].replace(lines[1].split(",")[3], "nan", 1)]))
+    bad.write_text("\n".join([lines[0], lines[1].replace(lines[1].split(",")[3], "nan", 1), lines[2]]))
     with pytest.raises(ValueError, match=r"theta1.qdd is not finite at sample 0"):
         read_trajectory(bad, JOINTS)
     bad.write_text(
@@ -116,4 +116,12 @@ def test_other_files_are_refused(tmp_path, name, match):
     if name.endswith(".txt"):
         path.write_text("t\n0\n")
     with pytest.raises((ValueError, FileNotFoundError), match=match):
+        read_trajectory(path, JOINTS)
+
+
+def test_one_sample_is_not_a_trajectory(tmp_path):
+    path = write(tmp_path / "m.csv", trajectory(3))
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(lines[:2]))
+    with pytest.raises(ValueError, match="at least two samples, got 1"):
         read_trajectory(path, JOINTS)
