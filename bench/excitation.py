@@ -72,10 +72,10 @@ def timed(run):
 
 def speed(result, wall: float, cpu: float) -> str:
     d = result.details
-    search = d.get("pso_seconds", 0.0) + d.get("adam_seconds", 0.0)
+    search = sum(d.get(f"{stage}_cpu_seconds", 0.0) for stage in ("pso", "adam"))
     return (
-        f"{wall:.1f} s wall, {cpu:.1f} s CPU; {d['evaluations']} criterion evaluations, "
-        f"{d['evaluations'] / search:.0f} per second of search"
+        f"{wall:.1f} s wall, {cpu:.1f} s CPU (search {search:.1f} s CPU); {d['evaluations']} criterion "
+        f"evaluations, {d['evaluations'] / search:.0f} per CPU second of search"
     )
 
 

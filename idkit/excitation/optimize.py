@@ -78,7 +78,7 @@ class ExcitationResult:
         excess_before, excess_after: worst excursion beyond each limit on ``grid`` ``[3, n]``
             (rows position, velocity, acceleration; 0 inside).
         effort: the effort limits ``[n]`` kept, or ``None`` (the robot declares none, or ``effort=False``).
-        details: method, budget, seed, the best loss and wall time of each stage, the number of
+        details: method, budget, seed, the best loss, wall and CPU time of each stage, the number of
             candidate ``evaluations`` of the criterion, and ``shrunk_by`` (the common scale of the
             final stage, 1 if none was needed) with ``shrunk_for`` and ``criterion_before_shrink``.
     """
@@ -338,19 +338,25 @@ def _search(
         budget: ``swarms``, ``particles``, ``iterations``, ``adam_steps``, ``learning_rate``.
     """
     details: dict[str, Any] = {"method": method, **budget}
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     if method == "adam":
         best = torch.rand(budget["swarms"], dims, generator=generator, dtype=torch.float64).to(**like)
     else:
         best = _swarm_search(
             objective, dims, budget["swarms"], budget["particles"], budget["iterations"], generator, like
         )
-        details.update(pso_best_loss=float(objective(best).min()), pso_seconds=time.perf_counter() - started)
+        details.update(
+            pso_best_loss=float(objective(best).min()),
+            pso_seconds=time.perf_counter() - started,
+            pso_cpu_seconds=time.process_time() - cpu,
+        )
     if method != "pso":
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         best = _adam_search(objective, best, budget["adam_steps"], budget["learning_rate"])
         details.update(
-            adam_best_loss=float(objective(best).min()), adam_seconds=time.perf_counter() - started
+            adam_best_loss=float(objective(best).min()),
+            adam_seconds=time.perf_counter() - started,
+            adam_cpu_seconds=time.process_time() - cpu,
         )
     with torch.no_grad():
         return best[objective(best).argmin()], details
