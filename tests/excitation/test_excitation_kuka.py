@@ -75,4 +75,4 @@ def test_better_conditioned_than_measurements_1_computed_the_same_way(kuka_run):
     r = found.result
     optimised_all = float(excitation_criterion(robot, "cond", *r.excitation(r.grid)))
     assert r.after < recorded_100 / 5 and optimised_all < recorded_all / 5
-    assert recorded_100 == pytest.approx(76.6, abs=0.5)  # the number the docs quote
+    assert recorded_100 == pytest.approx(77.24, abs=0.01)  # 76.58 with every 50th sample (the bench)
