@@ -302,8 +302,9 @@ def check_file(
     from idkit.robots.urdf import URDFRobot
 
     robot = URDFRobot(urdf)
-    limit = None if not acceleration_limit else list(acceleration_limit)
-    limits, source = acceleration_bounded_limits(robot, limit[0] if limit and len(limit) == 1 else limit)
+    limits, source = acceleration_bounded_limits(
+        robot, list(acceleration_limit) if acceleration_limit else None
+    )
     trajectory = read_trajectory(path, robot.joint_names)
     effort = effort_limits(robot)
     torques = None

@@ -53,6 +53,13 @@ def _largest_scale(motion: Tensor, lower: Tensor, upper: Tensor) -> Tensor:
     return torch.minimum(by_upper, by_lower)
 
 
+def offset_indices(excitation: Excitation) -> Tensor:
+    """``[n]``: the index of joint ``j``'s offset among the coefficients (the pose at zero motion)."""
+    joints, is_offset = excitation.coefficient_joints()
+    n = excitation.n_joints
+    return joints.masked_fill(~is_offset, n).argsort(stable=True)[:n]
+
+
 def fit_into_limits(
     excitation: Excitation, coefficients: Tensor, limits: MotionLimits, grid: Tensor
 ) -> Tensor:
@@ -61,10 +68,7 @@ def fit_into_limits(
     Offsets are never changed: one outside the joint's position range cannot be fixed by scaling
     (``coefficient_box`` keeps an optimiser's offsets inside).
     """
-    joints, is_offset = (x.to(coefficients.device) for x in excitation.coefficient_joints())
-    n = excitation.n_joints
-    order = joints.masked_fill(~is_offset, n).argsort(stable=True)[:n]  # offset coefficient of joint j
-    offset = coefficients[..., order]  # [..., n]
+    offset = coefficients[..., offset_indices(excitation).to(coefficients.device)]  # [..., n]
     q, qd, qdd = excitation.evaluate(coefficients, grid.to(coefficients))
     lower, upper = limits.lower.to(coefficients), limits.upper.to(coefficients)
     scale = torch.stack(

@@ -45,7 +45,7 @@ from idkit.estimators import swarm
 from idkit.excitation.collision import SelfCollision
 from idkit.excitation.criterion import Criterion, NoiseModel, make_criterion, observation_matrix
 from idkit.excitation.effort import effort_limits, nominal_torques
-from idkit.excitation.feasible import fit_into_limits, largest_feasible_scale, scale_motion
+from idkit.excitation.feasible import fit_into_limits, largest_feasible_scale, offset_indices, scale_motion
 from idkit.excitation.spec import build_excitation
 from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
@@ -247,8 +247,7 @@ class _Objective:
     ) -> None:
         self.robot, self.family, self.criterion, self.limits = robot, family, criterion, limits
         self.collision = collision
-        joints, is_offset = family.coefficient_joints()
-        self.offsets = joints.masked_fill(~is_offset, family.n_joints).argsort(stable=True)[: family.n_joints]
+        self.offsets = offset_indices(family)
         self.t, self.grid = t.to(**like), grid.to(**like)
         self.lower, self.upper = (x.to(**like) for x in family.coefficient_box(limits))
         self.dims = self.lower.numel()
