@@ -31,10 +31,10 @@ import torch  # noqa: E402
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
 from idkit.estimators import native
-from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares
+from idkit.estimators.linear.least_squares import LeastSquares, TotalLeastSquares
+from idkit.estimators.linear.robust_ls import RobustLeastSquares
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
-from idkit.estimators.robust_ls import RobustLeastSquares
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 

@@ -14,8 +14,9 @@ from pathlib import Path
 
 import torch
 
-from idkit.estimators.physical import PhysicallyConsistentLS, min_pseudo_inertia_eigenvalues
+from idkit.estimators.physical import PhysicallyConsistentLS
 from idkit.problem import Problem
+from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
 from idkit.studies.recordings import load_files
 from idkit.studies.validation import validate

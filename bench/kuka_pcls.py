@@ -21,12 +21,9 @@ import torch
 
 from idkit import registry
 from idkit.data.load import load_data_file
-from idkit.estimators.physical import (
-    PhysicallyConsistentLS,
-    min_pseudo_inertia_eigenvalues,
-    nearest_consistent,
-)
+from idkit.estimators.physical import PhysicallyConsistentLS, nearest_consistent
 from idkit.problem import Problem, Samples
+from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
 from idkit.studies.validation import validate
 
@@ -58,7 +55,7 @@ def main() -> None:
     parser.add_argument("--adam", action="store_true", help="add Adam (4 starts) and its projections")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    data = {k: load_data_file(KUKA / f"measurements_{k}.npz")[0] for k in (1, 2, 3)}
+    data = {k: load_data_file(KUKA / f"measurements_{k}.npz").samples for k in (1, 2, 3)}
     print(
         "| model | meas. 1 (train) | meas. 2 | meas. 2 NRMS/limit | meas. 3 | meas. 3 NRMS/limit "
         "| min eig (links < 0) | time |"

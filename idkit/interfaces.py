@@ -1,4 +1,5 @@
-"""The plugin contract: ``Robot``, ``Cost``, ``Estimator`` and ``Excitation``.
+"""The plugin contract: ``Robot``, ``Cost``, ``Estimator`` and ``Excitation``, and the optional
+capabilities an estimator may add (``BatchedEstimator``, ``CostSearcher``).
 
 Shapes are part of the contract. ``...`` is any batch of leading dimensions (swarm particles,
 independent runs, several costs); ``N`` is the number of samples, ``n`` the number of joints, ``P``
@@ -15,7 +16,7 @@ import numbers
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 from idkit.registry import create
 
@@ -43,6 +44,9 @@ class Robot(ABC):
     #: ``bounds()`` (the paper's way), or the base parameters within ``base_bounds()`` (robots
     #: with many unidentifiable physical parameters, e.g. a URDF arm).
     search_space: ClassVar[str] = "physical"
+    #: Parameters the model carries but no data can separate (e.g. a rotor inertia that merges with
+    #: a link inertia), one readable statement each; the uncertainty report lists them.
+    unidentifiable: tuple[str, ...] = ()
 
     @property
     def n_joints(self) -> int:
@@ -81,6 +85,11 @@ class Robot(ABC):
                 raise ValueError(
                     f"{name}: {label} must be [N, {self.n_joints}] like q, got shape {tuple(state.shape)}"
                 )
+
+    def joint_torques(self, effort: Tensor) -> Tensor:
+        """Joint torques ``[N, n]`` of a recording's efforts ``[N, n]`` (identity here; a robot whose
+        drives record something else, e.g. a motor current, converts it)."""
+        return effort
 
     @abstractmethod
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
@@ -219,6 +228,32 @@ class Estimator(ABC):
     @abstractmethod
     def fit(self, problem: Problem) -> Estimate:
         """Estimate the physical parameters (and base parameters where defined)."""
+
+
+@runtime_checkable
+class BatchedEstimator(Protocol):
+    """An estimator that fits many trials (a study's noise draws) in batched computations.
+
+    ``idkit.estimators.trials.fit_trials`` calls ``fit_trials`` on an estimator that has it and
+    falls back to one ``fit`` per trial (and cost) otherwise. Each trial's estimates must be the
+    ones its own ``fit`` gives — whatever ``chunk`` and whatever the other trials — so batching
+    changes the speed, never a number.
+    """
+
+    def fit_trials(
+        self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None
+    ) -> list[list[Estimate]]:
+        """``T`` lists of estimates, one per cost (``costs=None``: each problem's own cost, or the
+        estimator's fixed criterion), fitting at most ``chunk`` trials per batch."""
+
+
+@runtime_checkable
+class CostSearcher(Protocol):
+    """An estimator that minimises whichever cost it is given (PSO, Adam), so its estimates are
+    labelled by the cost (``PSO-f13``) and a study fits all its costs in one call."""
+
+    def fit_costs(self, problem: Problem, costs: Sequence[Cost]) -> list[Estimate]:
+        """One estimate per cost, each minimising that cost on ``problem``'s samples."""
 
 
 class Excitation(ABC):

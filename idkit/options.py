@@ -23,6 +23,8 @@ annotation                accepted
 ``str``                   a string; an int or float is written as its string (a command line
                           reads ``label=2024`` as a number; pydantic's ``coerce_numbers_to_str``).
                           A bool: error.
+``idkit.seeds.Seed``      an integer in [0, 2**64) (numpy integers too); a string of digits.
+                          A bool, any float (``1e3`` is not rounded), ``-1``, ``2**64``: error.
 ``Literal[a, b]``         one of the choices, exactly (the message lists them closest first).
 ``X | None``, ``X | Y``   a value already of a member's type wins (``"1"`` stays a str in
                           ``int | str``); else the first member it converts to.

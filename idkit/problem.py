@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
 import torch
 from torch import Tensor
+
+from idkit.seeds import check_seed, torch_generator
 
 if TYPE_CHECKING:
     from idkit.interfaces import Cost, Robot
@@ -165,8 +166,7 @@ class Problem:
                 f"samples have {self.samples.n_joints} joints but robot "
                 f"{type(self.robot).__name__} has {self.robot.n_joints} ({', '.join(self.robot.joint_names)})"
             )
-        if isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral):
-            raise ValueError(f"seed must be an int, got {self.seed!r} ({type(self.seed).__name__})")
+        object.__setattr__(self, "seed", check_seed(self.seed))
         resolve_dtype(self.dtype)
         check_device(self.device)
 
@@ -184,7 +184,7 @@ class Problem:
         with an arbitrary estimate (the least-squares family would meet a rank-deficient system;
         PSO and Adam would return a random point of the solution set), so every estimator calls this
         at the top of ``fit``. It checks counts only: whether the trajectory excites every base
-        parameter is the rank test of ``idkit.estimators.observation``.
+        parameter is the rank test of ``idkit.estimators.linear.observation``.
         """
         n_samples, n_joints = self.samples.n_samples, self.samples.n_joints
         equations, needed = n_samples * n_joints, self.n_identifiable
@@ -221,5 +221,5 @@ class Problem:
         return self.cost(self.error(params), self.tensors().measured_matrix())
 
     def generator(self) -> torch.Generator:
-        """A fresh generator seeded from ``seed``, on the problem's device."""
-        return torch.Generator(device=self.device).manual_seed(int(self.seed))
+        """A fresh generator on the problem's device whose whole state comes from ``seed``."""
+        return torch_generator(self.seed, self.device)

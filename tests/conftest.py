@@ -51,3 +51,28 @@ def hydra_compose():
 
         yield _compose
     GlobalHydra.instance().clear()
+
+
+@pytest.fixture
+def run_idkit(monkeypatch, capsys):
+    """``run(*overrides) -> (exit status, stderr lines)`` of the ``idkit`` command, in process."""
+    import sys
+
+    from hydra.core.global_hydra import GlobalHydra
+
+    from idkit.cli import app
+
+    def _run(*overrides: str) -> tuple[int, list[str]]:
+        monkeypatch.setattr(sys, "argv", ["idkit", *overrides])
+        monkeypatch.delenv(app.FULL_ERROR, raising=False)
+        GlobalHydra.instance().clear()
+        try:
+            app.main()
+            status = 0
+        except SystemExit as exit_:
+            status = exit_.code
+        finally:
+            GlobalHydra.instance().clear()
+        return status, capsys.readouterr().err.strip().splitlines()
+
+    return _run

@@ -1,4 +1,5 @@
-"""The direction of the arrows: core <- plugins <- studies <- reports <- command line.
+"""The direction of the arrows: core <- plugins <- studies <- reports <- command line; within the
+plugins, robots <- estimators, and the linear family beside (not on top of) the search estimators.
 
 Checked on the source (every import statement, nested ones included), so a new module that breaks
 the layout fails here rather than in review.
@@ -44,3 +45,20 @@ def test_a_study_never_imports_a_report_at_module_level(path):
 def test_a_report_never_runs_a_study(path):
     """Reports import the result types of ``idkit.studies`` but never a study's ``run``."""
     assert not {name for name in _imports(path) if name.startswith("idkit.studies") and name.endswith(".run")}
+
+
+@pytest.mark.parametrize("path", _modules("robots"))
+def test_a_robot_imports_no_estimator(path):
+    """Robots, and the URDF reader and writer, take rigid-body physics from ``idkit.robots.inertia``."""
+    assert not {name for name in _imports(path) if name.startswith("idkit.estimators")}
+
+
+#: All the least-squares family (and ``pcls``, which solves the same system under constraints) may
+#: take from the rest of ``idkit.estimators``: itself and the trial-batching helpers.
+LINEAR_MAY_IMPORT = ("idkit.estimators.linear", "idkit.estimators.trials")
+
+
+@pytest.mark.parametrize("path", [*_modules("estimators", "linear"), PACKAGE / "estimators" / "physical.py"])
+def test_the_linear_family_imports_no_search_estimator(path):
+    found = {name for name in _imports(path) if name.startswith("idkit.estimators.")}
+    assert not {name for name in found if not name.startswith(LINEAR_MAY_IMPORT)}

@@ -42,6 +42,7 @@ def test_wheel_ships_configs_and_assets(tmp_path):
     assert yaml_on_disk and yaml_on_disk <= set(names)
     assert "idkit/py.typed" in names
     assert "idkit/robots/assets/cylindrical.urdf" in names
+    assert "idkit/robots/assets/arm.xml" in names
     assert "idkit/studies/data/paper-tables.csv" in names
     assert "idkit/estimators/pso_kernel.c" in names  # the native engine compiles it at run time
 

@@ -2,28 +2,36 @@
 preprocessed (the command line's ``data=`` and ``validate=`` files).
 
 A file holds either **samples** (``q, qd, qdd, tau``: :mod:`idkit.data.io`) or a **raw recording**
-(``t, q, tau`` and maybe ``qd``, no accelerations: :mod:`idkit.data.recording`). The FloBaRoID names
-(``times, positions, velocities, accelerations, torques``, e.g. the KUKA files) are recognised in an
-``.npz``. ``apply`` says when :func:`idkit.data.preprocess.preprocess` runs:
+(``t, q, tau`` and maybe ``qd``, no accelerations: :mod:`idkit.data.recording`). Both are read by
+the one table reader, :mod:`idkit.data.table`. The FloBaRoID names (``times, positions, velocities,
+accelerations, torques``, e.g. the KUKA files) are recognised in an ``.npz``. ``apply`` says when
+:func:`idkit.data.preprocess.preprocess` runs:
 
 * ``"auto"`` (default): only for raw recordings — samples keep their own derivatives;
 * ``"on"``: always; a samples file is read as a recording (its ``t``/``times``, positions, torques,
   velocities), so idkit's filter replaces the file's derivatives;
 * ``"off"``: never; a raw recording is an error (it has no accelerations).
+
+A ROS log (a bag folder, ``.mcap``, ``.db3``, ``.bag``: :mod:`idkit.data.logs`) is a raw recording.
+Files whose columns name joints (``<joint>.q``) and logs are matched to the robot's joints by name, in
+any order; extra joints are ignored and a joint the robot needs and the file lacks is refused by name.
 """
 
 from __future__ import annotations
 
-import csv
-from collections.abc import Mapping
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from idkit.data.io import FLOBAROID_KEYS, check_data_path, load_samples, open_npz
-from idkit.data.preprocess import PreprocessOptions, preprocess_with_times
-from idkit.data.recording import FLOBAROID_RECORDING_KEYS, load_recording
+from idkit.data.delay import shift_torques
+from idkit.data.io import FLOBAROID_KEYS, samples_from_table
+from idkit.data.logs import is_log, read_log
+from idkit.data.preprocess import PreprocessOptions, preprocess_recording
+from idkit.data.recording import FLOBAROID_RECORDING_KEYS, Recording, RecordingOptions, recording_from_table
+from idkit.data.table import Table, read_table
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
 APPLY = ("auto", "on", "off")
@@ -38,72 +46,113 @@ class FileKind:
     flobaroid: bool
 
 
-def file_kind(path: str | Path) -> FileKind:
-    """Look at a file's array names (``.npz``) or header (``.csv``) without reading the values.
+@dataclass(frozen=True)
+class DataFile:
+    """One loaded file: its ``samples`` ``[N, n]`` (joints in the robot's order when the file names
+    them), ``times[N]`` (s from the file's start, or ``None``), whether idkit ``preprocessed`` it, and
+    what preprocessing reported (``preprocessing``: the segments between gaps and a ``note``) and, for a
+    ROS log, what was read (``log``: topics, clocks, joints used and ignored); ``delay``: the torque
+    delay applied to a raw recording (seconds, samples dropped)."""
 
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: a directory, neither ``.npz`` nor ``.csv``, or not a readable archive of arrays.
-    """
-    path = check_data_path(path)
-    if path.suffix.lower() == ".npz":
-        with open_npz(path, "samples (q, qd, qdd, tau) or a recording (t, q, tau)") as data:
-            names = set(data.files)
-    else:
-        with path.open(newline="", encoding="utf-8-sig") as handle:
-            header = next(csv.reader(handle), [])
-        names = {cell.strip().rstrip("0123456789") for cell in header}
-    flobaroid = FLOBAROID_KEYS["q"] in names
-    keys = FLOBAROID_RECORDING_KEYS if flobaroid else {"t": "t"}
+    path: str
+    samples: Samples
+    times: np.ndarray | None
+    preprocessed: bool
+    preprocessing: dict[str, Any] | None = None
+    log: dict[str, Any] | None = None
+    delay: dict[str, Any] | None = None
+
+
+def file_kind(table: Table) -> FileKind:
+    """What an open table holds, from its column or array names."""
+    flobaroid = table.has(FLOBAROID_KEYS["q"])
+    time = (FLOBAROID_RECORDING_KEYS if flobaroid else {"t": "t"})["t"]
     accelerations = (FLOBAROID_KEYS if flobaroid else {"qdd": "qdd"})["qdd"]
-    return FileKind(samples=accelerations in names, timestamps=keys["t"] in names, flobaroid=flobaroid)
+    return FileKind(samples=table.has(accelerations), timestamps=table.has(time), flobaroid=flobaroid)
 
 
 def load_data_file(
-    path: str | Path, options: PreprocessOptions | None = None, apply: str = "auto", stride: int = 1
-) -> tuple[Samples, np.ndarray | None, bool]:
-    """Samples from one file (module doc): ``(samples, times[N] or None, preprocessed)``.
+    path: str | Path,
+    options: PreprocessOptions | None = None,
+    apply: str = "auto",
+    stride: int = 1,
+    joints: Sequence[str] | None = None,
+    log: RecordingOptions | None = None,
+    delay: float = 0.0,
+) -> DataFile:
+    """Samples from one file (module doc).
 
     Args:
-        path: ``.npz`` or ``.csv`` file of samples or of a raw recording.
+        path: ``.npz`` or ``.csv`` file of samples or of a raw recording, or a ROS log
+            (:mod:`idkit.data.logs`: always a raw recording).
         options: preprocessing options (default :class:`PreprocessOptions`).
         apply: ``"auto"``, ``"on"`` or ``"off"`` (module doc).
         stride: keep every ``stride``-th sample (after preprocessing, which sees them all).
+        joints: the robot's joint names: per-joint columns and log joints are taken in this order.
+        log: which topics of a log to read (its ``delay`` is not read here: see ``delay``).
+        delay: seconds by which a raw recording's torques trail its states
+            (:func:`idkit.data.delay.shift_torques`); a samples file used as it is refuses it.
 
     Raises:
         ValueError: ``apply`` unknown; ``"on"`` for a file without timestamps; ``"off"`` (or
-            ``"auto"``) for a file with neither accelerations nor timestamps — naming the file.
+            ``"auto"``) for a file with neither accelerations nor timestamps — naming the file; what
+            the readers refuse.
     """
     if apply not in APPLY:
         raise ValueError(f"preprocess.apply must be one of {', '.join(APPLY)}, got {apply!r}")
-    kind = file_kind(path)
+    if is_log(path):
+        if apply == "off":
+            raise ValueError(f"{path}: a ROS log is a raw recording (no accelerations); preprocess it")
+        recording, description = read_log(path, joints, log)
+        return _preprocessed(path, recording, options, stride, delay, description)
+    table = read_table(path)
+    kind = file_kind(table)
     run = apply == "on" or (apply == "auto" and not kind.samples)
     if not run:
         if not kind.samples:
             raise ValueError(
                 f"{path}: a raw recording (no accelerations qdd); preprocess it (preprocess=auto or on)"
             )
-        samples = load_samples(path, keys=FLOBAROID_KEYS if kind.flobaroid else None, stride=stride)
-        times = _times(path, kind)[::stride] if kind.timestamps else None
-        return samples, times, False
+        if delay != 0:
+            raise ValueError(
+                f"{path}: recording.delay={delay:g} shifts a raw recording's torques, but this file holds "
+                "samples used as they are (preprocess=on reads it as a recording)"
+            )
+        samples, _ = samples_from_table(table, FLOBAROID_KEYS if kind.flobaroid else None, joints)
+        times = None
+        if kind.timestamps:
+            t = table.vector(FLOBAROID_RECORDING_KEYS["t"] if kind.flobaroid else "t")
+            times = (t - t[0])[::stride]
+        return DataFile(str(path), _thin(samples, stride), times, False)
     if not kind.timestamps:
+        found = ", ".join(table.names()[:12]) + (" …" if len(table.names()) > 12 else "")
+        if kind.samples:
+            raise ValueError(
+                f"{path}: preprocess=on needs timestamps (a 't' column or array) and the file has none "
+                f"(it has {found}); preprocess=auto uses the file's own qd, qdd"
+            )
         raise ValueError(
-            f"{path}: preprocessing needs timestamps (a 't' column or array) and the file has none; "
-            "use preprocess=off for samples with their own qd, qdd"
+            f"{path}: neither samples (q, qd, qdd, tau) nor a raw recording (t, q, tau): no accelerations "
+            f"qdd and no timestamps t; it has {found}"
         )
-    keys: Mapping[str, str] | None = FLOBAROID_RECORDING_KEYS if kind.flobaroid else None
-    samples, times = preprocess_with_times(load_recording(path, keys=keys), options)
-    if stride > 1:
-        samples = Samples(*(getattr(samples, k)[::stride] for k in SAMPLE_ARRAYS))
-    return samples, times[::stride], True
+    recording = recording_from_table(table, FLOBAROID_RECORDING_KEYS if kind.flobaroid else None, joints)
+    return _preprocessed(path, recording, options, stride, delay)
 
 
-def _times(path: str | Path, kind: FileKind) -> np.ndarray:
-    """The timestamps of a samples file, from its start (s)."""
-    name = FLOBAROID_RECORDING_KEYS["t"] if kind.flobaroid else "t"
-    if Path(path).suffix.lower() == ".npz":
-        with np.load(path, allow_pickle=False) as data:
-            t = np.asarray(data[name], dtype=np.float64)
-    else:
-        t = load_recording(path).t
-    return t - t[0]
+def _preprocessed(
+    path: str | Path,
+    recording: Recording,
+    options: PreprocessOptions | None,
+    stride: int,
+    delay: float,
+    log: dict[str, Any] | None = None,
+) -> DataFile:
+    recording, dropped = shift_torques(recording, delay)
+    done = preprocess_recording(recording, options)
+    shifted = {"seconds": delay, "dropped_samples": dropped} if delay else None
+    thinned = _thin(done.samples, stride)
+    return DataFile(str(path), thinned, done.times[::stride], True, done.to_dict(), log, shifted)
+
+
+def _thin(samples: Samples, stride: int) -> Samples:
+    return Samples(*(getattr(samples, k)[::stride] for k in SAMPLE_ARRAYS)) if stride > 1 else samples

@@ -4,18 +4,20 @@ A raw recording is what a robot controller logs: ``t[N]`` (s, increasing, possib
 ``q[N, n]`` and ``tau[N, n]``, and sometimes ``qd[N, n]``; no accelerations.
 :func:`idkit.data.preprocess.preprocess` turns it into ``Samples``.
 
-Files:
+Files (read by :mod:`idkit.data.table`, which says what is refused and how):
     ``.csv``: one header line naming the columns ``t, q1..qn, tau1..taun`` and optionally
-    ``qd1..qdn`` (joint numbers from 1, any column order, other columns ignored), then one line per
-    sample.
+    ``qd1..qdn`` (joint numbers from 1), or per joint ``t, <joint>.q, <joint>.tau[, <joint>.qd]``;
+    any column order, any case, other columns ignored; then one line per sample.
     ``.npz``: arrays ``t`` ``[N]``, ``q`` and ``tau`` ``[N, n]``, optionally ``qd``. Other names map
     through ``keys``, e.g. :data:`FLOBAROID_RECORDING_KEYS` for the KUKA/FloBaRoID files.
+
+Timestamps must increase strictly: a repeated or earlier timestamp is refused naming the sample
+(which of two samples at one time is right cannot be known). Gaps are the preprocessing's business
+(:mod:`idkit.data.preprocess` never interpolates across one).
 """
 
 from __future__ import annotations
 
-import csv
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from idkit.data.table import Table, names_hint, read_quantities, read_table
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
 RECORDING_ARRAYS = ("t", "q", "tau", "qd")
@@ -36,6 +39,24 @@ FLOBAROID_RECORDING_KEYS: Mapping[str, str] = {
 
 
 @dataclass(frozen=True)
+class RecordingOptions:
+    """How raw recordings are read (the ``recording`` config section).
+
+    Attributes:
+        topic: a ROS log's ``sensor_msgs/JointState`` topic of positions (and efforts); ``None``: the
+            log's only one (:mod:`idkit.data.logs`).
+        effort_topic: a ``JointState`` topic carrying the efforts, if not ``topic``.
+        delay: seconds by which the torques trail the states (the torque at ``t`` is read at
+            ``t + delay``), or ``"auto"``: estimated by cross-correlation with the robot's a-priori
+            model (:mod:`idkit.data.delay`). ``0``: none.
+    """
+
+    topic: str | None = None
+    effort_topic: str | None = None
+    delay: float | str = 0.0
+
+
+@dataclass(frozen=True)
 class Recording:
     """A raw recording of an ``n``-joint robot (float64 numpy arrays).
 
@@ -45,6 +66,8 @@ class Recording:
         tau: ``[N, n]`` joint torques (or forces).
         qd: ``[N, n]`` measured joint velocities, or ``None``.
         source: where it came from, for error messages.
+        joint_names: the ``n`` joints' names when the file names them (per-joint CSV columns, a log),
+            else ``None`` (joints by position).
     """
 
     t: np.ndarray
@@ -52,6 +75,7 @@ class Recording:
     tau: np.ndarray
     qd: np.ndarray | None = None
     source: str = "<recording>"
+    joint_names: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         t = np.asarray(self.t, dtype=np.float64)
@@ -86,85 +110,42 @@ class Recording:
         return self.q.shape[1]
 
 
-def load_recording(path: str | Path, keys: Mapping[str, str] | None = None) -> Recording:
-    """Read a raw recording from ``.csv`` or ``.npz`` (module doc).
+def load_recording(
+    path: str | Path, keys: Mapping[str, str] | None = None, joints: Sequence[str] | None = None
+) -> Recording:
+    """Read a raw recording from ``.csv`` or ``.npz`` (module doc; the file is read by
+    :func:`idkit.data.table.read_table`).
 
     Args:
         path: the file.
         keys: file name of each array (npz key or CSV column prefix) where it differs from
             ``t``, ``q``, ``tau``, ``qd``.
+        joints: the joints wanted, in this order, from per-joint CSV columns (``<joint>.q``);
+            ``None``: every joint the file names.
 
     Raises:
         FileNotFoundError: no such file.
         ValueError: unknown suffix, missing arrays/columns, non-numeric values (naming file, column
             and line), or what :class:`Recording` rejects.
     """
-    path = Path(path)
-    names = {k: k for k in RECORDING_ARRAYS}
     unknown = sorted(set(keys or {}) - set(RECORDING_ARRAYS))
     if unknown:
         raise ValueError(f"keys: unknown array name(s) {unknown}; map some of {', '.join(RECORDING_ARRAYS)}")
-    names.update(keys or {})
-    if not path.is_file():
-        raise FileNotFoundError(f"recording not found: {path}")
-    suffix = path.suffix.lower()
-    if suffix == ".npz":
-        with np.load(path, allow_pickle=False) as data:
-            missing = [names[k] for k in ("t", "q", "tau") if names[k] not in data.files]
-            if missing:
-                raise ValueError(
-                    f"{path}: missing array(s) {missing}; the file has {sorted(data.files)} (map other "
-                    "names with keys=..., e.g. FLOBAROID_RECORDING_KEYS)"
-                )
-            arrays = {k: np.asarray(data[v]) for k, v in names.items() if v in data.files}
-    elif suffix == ".csv":
-        arrays = _read_csv_columns(path, names)
-    else:
-        raise ValueError(f"{path}: unsupported file type {path.suffix!r}; use .npz or .csv")
-    return Recording(arrays["t"], arrays["q"], arrays["tau"], arrays.get("qd"), source=str(path))
+    return recording_from_table(read_table(path), keys, joints)
 
 
-def _read_csv_columns(path: Path, names: dict[str, str]) -> dict[str, np.ndarray]:
-    with path.open(newline="") as handle:
-        rows = list(csv.reader(handle))
-    if len(rows) < 2:
-        raise ValueError(f"{path}: expected a header line (t, q1.., tau1.., [qd1..]) and samples")
-    header = [cell.strip() for cell in rows[0]]
-    try:
-        table = np.array([[float(cell) for cell in row] for row in rows[1:]])
-    except ValueError:
-        for i, row in enumerate(rows[1:]):
-            for col, cell in enumerate(row):
-                try:
-                    float(cell)
-                except ValueError:
-                    column = header[col] if col < len(header) else f"#{col + 1}"
-                    raise ValueError(
-                        f"{path}: line {i + 2}, column {column!r}: not a number: {cell!r}"
-                    ) from None
-        raise ValueError(f"{path}: rows have different numbers of values") from None
-    if table.ndim != 2 or table.shape[1] != len(header):
-        raise ValueError(f"{path}: every line needs {len(header)} values like the header")
-    if names["t"] not in header:
-        raise ValueError(f"{path}: no timestamp column {names['t']!r}; found {header}")
-    arrays = {"t": table[:, header.index(names["t"])]}
-    for k in ("q", "tau", "qd"):
-        numbered = {}
-        for col, label in enumerate(header):
-            match = re.fullmatch(re.escape(names[k]) + r"(\d+)", label)
-            if match:
-                numbered[int(match.group(1))] = col
-        if not numbered and k == "qd":
-            continue
-        n = len(numbered)
-        if n == 0 or sorted(numbered) != list(range(1, n + 1)):
-            raise ValueError(f"{path}: header needs columns {names[k]}1..{names[k]}n; found {header}")
-        arrays[k] = table[:, [numbered[j] for j in range(1, n + 1)]]
-    if arrays["tau"].shape[1] != arrays["q"].shape[1]:
-        raise ValueError(
-            f"{path}: {arrays['q'].shape[1]} position columns but {arrays['tau'].shape[1]} torque columns"
-        )
-    return arrays
+def recording_from_table(
+    table: Table, keys: Mapping[str, str] | None = None, joints: Sequence[str] | None = None
+) -> Recording:
+    """A :class:`Recording` from an open table (arguments as :func:`load_recording`)."""
+    names = {k: k for k in RECORDING_ARRAYS} | dict(keys or {})
+    table.require(matrices=[names["q"], names["tau"]], vectors=[names["t"]], hint=names_hint(table, names))
+    arrays, found = read_quantities(
+        table, {k: names[k] for k in ("q", "tau", "qd")}, joints, optional=("qd",)
+    )
+    return Recording(
+        table.vector(names["t"]), arrays["q"], arrays["tau"], arrays.get("qd"), str(table.path), found
+    )
 
 
 def stack_samples(parts: Sequence[Samples], labels: Sequence[str] | None = None) -> Samples:
@@ -191,38 +172,59 @@ def stack_samples(parts: Sequence[Samples], labels: Sequence[str] | None = None)
 
 
 def save_recording(recording: Recording, path: str | Path, velocities: bool = False) -> Path:
-    """Write ``recording`` as a raw CSV (``t, q1..qn, tau1..taun`` and, with ``velocities``, ``qd1..``)
-    that :func:`load_recording` reads back; 17 significant digits round-trip float64."""
+    """Write ``recording`` as a raw CSV that :func:`load_recording` reads back: ``t``, then positions,
+    torques and (with ``velocities``) measured velocities, as per-joint columns ``<joint>.q`` when
+    the recording names its joints, else numbered ``q1..qn``; 17 significant digits round-trip
+    float64."""
     n = recording.n_joints
+    names = recording.joint_names
+
+    def labels(quantity: str) -> list[str]:
+        return [f"{j}.{quantity}" for j in names] if names else [f"{quantity}{j}" for j in range(1, n + 1)]
+
     columns = [recording.t[:, None], recording.q, recording.tau]
-    header = ["t", *(f"q{j}" for j in range(1, n + 1)), *(f"tau{j}" for j in range(1, n + 1))]
+    header = ["t", *labels("q"), *labels("tau")]
     if velocities:
         if recording.qd is None:
             raise ValueError(f"{recording.source}: no velocities to write")
         columns.append(recording.qd)
-        header += [f"qd{j}" for j in range(1, n + 1)]
+        header += labels("qd")
     path = Path(path)
     np.savetxt(path, np.hstack(columns), fmt="%.17g", delimiter=",", header=",".join(header), comments="")
     return path
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    """``python -m idkit.data.recording IN OUT.csv``: a recording (e.g. a FloBaRoID/KUKA ``.npz``) as a
-    raw CSV of timestamps, positions and torques — what a robot controller logs."""
+    """``python -m idkit.data.recording IN OUT.csv``: a recording — a ROS log of JointState (bag folder,
+    ``.mcap``, ``.db3``, ``.bag``), a FloBaRoID/KUKA ``.npz`` or a CSV — as a raw CSV of timestamps,
+    positions and torques (per-joint columns ``<joint>.q`` for a log). Bad input: one line, exit 1."""
     import argparse
+    import sys
+
+    from idkit.data.logs import is_log, read_log
 
     parser = argparse.ArgumentParser(prog="python -m idkit.data.recording", description=main.__doc__)
-    parser.add_argument("source", help=".npz or .csv recording (FloBaRoID array names are recognised)")
-    parser.add_argument("target", help="the raw .csv to write (t, q1.., tau1..)")
-    parser.add_argument("--velocities", action="store_true", help="also write the measured qd1..qdn")
+    parser.add_argument(
+        "source", help="ROS log, .npz or .csv recording (FloBaRoID array names are recognised)"
+    )
+    parser.add_argument("target", help="the raw .csv to write (t, q.., tau..)")
+    parser.add_argument("--velocities", action="store_true", help="also write the measured velocities")
+    parser.add_argument("--topic", help="a log's JointState topic (default: its only one)")
+    parser.add_argument("--effort-topic", help="a log's JointState topic carrying the efforts")
     args = parser.parse_args(argv)
-    keys = None
-    if Path(args.source).suffix.lower() == ".npz":
-        with np.load(args.source, allow_pickle=False) as data:
-            keys = FLOBAROID_RECORDING_KEYS if FLOBAROID_RECORDING_KEYS["t"] in data.files else None
-    recording = load_recording(args.source, keys=keys)
-    path = save_recording(recording, args.target, velocities=args.velocities)
-    print(f"{path}: {recording.t.size} samples, {recording.n_joints} joints")
+    try:
+        if is_log(args.source):
+            recording, read = read_log(args.source, None, RecordingOptions(args.topic, args.effort_topic))
+            said = f" from {read['topic']} ({read['clock']})"
+        else:
+            table = read_table(args.source)
+            flobaroid = table.has(FLOBAROID_RECORDING_KEYS["t"])
+            recording, said = recording_from_table(table, FLOBAROID_RECORDING_KEYS if flobaroid else None), ""
+        path = save_recording(recording, args.target, velocities=args.velocities)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"{parser.prog}: {exc}", file=sys.stderr)
+        sys.exit(1)
+    print(f"{path}: {recording.t.size} samples, {recording.n_joints} joints{said}")
 
 
 if __name__ == "__main__":

@@ -45,6 +45,7 @@ from idkit.data.trajectory import sample_times
 from idkit.excitation.spec import excitation_of
 from idkit.interfaces import Excitation, Robot
 from idkit.problem import SAMPLE_ARRAYS, Samples
+from idkit.seeds import torch_generator
 
 
 def get_scenario(scenario: str | Scenario | Mapping[str, Any], **overrides: Any) -> Scenario:
@@ -200,7 +201,7 @@ def simulate_batch(
             f"scenario {sc.name!r}: n_outliers={sc.n_outliers} exceeds the {n_components} sample components "
             f"({sc.n_samples} samples x 4 arrays x {n} joints)"
         )
-    gen = torch.Generator().manual_seed(int(seed))
+    gen = torch_generator(seed)
     # Per trial, 2·M consecutive numbers: M for the errors, M to choose the outliers — so trial i
     # depends only on (seed, i), whatever the number of trials.
     draws = torch.rand(trials, 2, n_components, generator=gen, dtype=torch.float64)

@@ -2,7 +2,8 @@
 
 A rigid body's 10 standard parameters ``pi = (m, h = m c, I_O)`` (inertia about the link-frame
 origin, the order of :mod:`idkit.robots.urdf_model`) describe a real mass distribution iff its
-4×4 *pseudo-inertia* is positive semidefinite (Wensing, Kim & Slotine 2017)::
+4×4 *pseudo-inertia* is positive semidefinite (Wensing, Kim & Slotine 2017; the rigid-body side,
+shared with the URDF reader and writer, is :mod:`idkit.robots.inertia`)::
 
     J(pi) = [[Sigma, h], [h^T, m]],    Sigma = tr(I_O)/2 * 1 - I_O   (the second moment of mass).
 
@@ -10,7 +11,8 @@ origin, the order of :mod:`idkit.robots.urdf_model`) describe a real mass distri
 fit under it is a convex semidefinite program. Both tools here solve
 
     min_p  ‖R (K p) − b‖² / s²  +  w Σ_links D(J_i(p) ‖ J_i0)
-    s.t.   J_i(p) ⪰ 0,  m_i ≥ min_mass,  fc, fv ≥ 0,  fc + fs ≥ 0 (Stribeck term, if any),
+    s.t.   J_i(p) ⪰ 0,  m_i ≥ min_mass,  friction and armature ≥ 0,  fc + fs ≥ 0 (Stribeck term),
+           p_k = p0_k for the robot's ``a_priori_params`` (merged armatures, sigmoid shapes),
 
 with ``p`` the standard parameters ``[P]`` of a ``urdf`` robot, ``K`` its base map (``alpha = K p``)
 and ``(R, b, s²)`` a QR-compressed data term: for ``pcls`` the regressor and torques of the samples,
@@ -42,25 +44,30 @@ a weight pushes an eigenvalue to ~1e-6 of its scale, and Clarabel then failed (t
 that is what ``prior_weight`` is for.
 
 Solved by cvxpy with Clarabel (interior point, accurate), falling back to SCS; an infeasible program
-or a failed solver raises :class:`~idkit.estimators.observation.IdentificationError` in one line.
+or a failed solver raises :class:`~idkit.estimators.linear.observation.IdentificationError` in one line.
 """
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal, get_args
 
 import numpy as np
 import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
-from idkit.estimators.observation import IdentificationError
-from idkit.estimators.uncertainty import base_uncertainty
+from idkit.estimators.linear.observation import IdentificationError
+from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
+from idkit.robots.drives import NONNEGATIVE
+from idkit.robots.inertia import link_count, pseudo_inertia, pseudo_inertia_rows
+from idkit.robots.model_checks import nonphysical_links
+from idkit.seeds import torch_generator
 
 #: Weight (χ² per squared relative deviation) of the pull to CAD when ``prior_weight = 0`` (module doc).
 TIE_BREAK = 1.0
@@ -75,10 +82,10 @@ SOLVER_OPTIONS = {
 PROJECTION_UNIT = 1e-3
 #: Floor of the pcls data scale ``s²``, relative to ``‖tau‖²`` (noise-free data).
 NOISE_FLOOR = 1e-10
-#: Parameter-name suffixes constrained to be non-negative (Coulomb and viscous friction). A Stribeck
-#: coefficient ``fs`` may be negative (friction building up over ``v_s`` after a reversal) as long as
-#: the friction at low speed opposes the motion: ``fc + fs >= 0``.
-NONNEGATIVE_SUFFIXES = (".fc", ".fv")
+#: Parameter-name suffixes constrained to be non-negative (friction, armature: ``idkit.robots.drives``).
+#: A Stribeck coefficient ``fs`` may be negative (friction building up over ``v_s`` after a reversal)
+#: as long as the friction at low speed opposes the motion: ``fc + fs >= 0``.
+NONNEGATIVE_SUFFIXES = tuple(f".{suffix}" for suffix in NONNEGATIVE)
 #: A solution whose pseudo-inertia eigenvalue is below ``-PSD_TOLERANCE × max|J|`` of its link is
 #: not consistent: an inaccurate solver status ended outside the cone (refused, not returned).
 PSD_TOLERANCE = 1e-6
@@ -87,48 +94,60 @@ PSD_TOLERANCE = 1e-6
 PRIOR_REGULARISATION = 1e-6
 
 
-def pseudo_inertia(inertial: Tensor) -> Tensor:
-    """Pseudo-inertia ``J[..., 4, 4]`` of standard parameters ``inertial[..., 10]`` (module doc)."""
-    m, hx, hy, hz, xx, xy, xz, yy, yz, zz = inertial.unbind(-1)
-    half_trace = (xx + yy + zz) / 2
-    rows = [
-        [half_trace - xx, -xy, -xz, hx],
-        [-xy, half_trace - yy, -yz, hy],
-        [-xz, -yz, half_trace - zz, hz],
-        [hx, hy, hz, m],
-    ]
-    return torch.stack([torch.stack(row, -1) for row in rows], -2)
+#: The conic solver choice: ``"auto"`` tries ``AUTO_SOLVERS`` in order.
+Solver = Literal["auto", "clarabel", "scs"]
 
 
-def min_pseudo_inertia_eigenvalues(robot: Robot, params: Tensor) -> Tensor:
-    """Smallest eigenvalue ``[..., nb]`` of each link's pseudo-inertia for ``params[..., P]``.
+@dataclass(frozen=True)
+class ConsistentSettings:
+    """The options of the consistent program (``pcls``, ``nearest_consistent``), checked once.
 
-    ``≥ 0`` for every link iff the parameters are physically consistent (units mix kg, kg·m, kg·m²:
-    compare signs, not sizes, across links).
+    Attributes:
+        prior_weight: ``w >= 0`` of the entropic divergence to the CAD model (``TIE_BREAK`` if 0).
+        min_mass: lower bound ``>= 0`` on every link mass (kg); ``None`` = 1 % of the smallest CAD
+            mass (the robot's, known at the fit).
+        solver: the choice as given.
+        conic_solvers: the cvxpy solvers ``solver`` stands for, tried in order.
     """
-    nb = _n_links(robot)
-    inertials = params[..., : 10 * nb].unflatten(-1, (nb, 10))
-    return torch.linalg.eigvalsh(pseudo_inertia(inertials.double()))[..., 0]
 
+    prior_weight: float
+    min_mass: float | None
+    solver: Solver
+    conic_solvers: tuple[str, ...]
 
-def _n_links(robot: Robot) -> int:
-    tree = getattr(robot, "tree", None)
-    if tree is None or not hasattr(robot, "base_map"):
-        raise ValueError(
-            f"physical consistency needs a 'urdf' robot (10 standard parameters per link and a base "
-            f"map), got {type(robot).__name__}"
-        )
-    return len(tree.bodies)
+    @classmethod
+    def checked(
+        cls, who: str, prior_weight: float = 0.0, min_mass: float | None = None, solver: Solver = "auto"
+    ) -> ConsistentSettings:
+        """The settings, or ``ValueError`` naming ``who`` and the option."""
+        if not (math.isfinite(prior_weight) and prior_weight >= 0):
+            raise ValueError(f"{who}: prior_weight must be a finite number >= 0, got {prior_weight!r}")
+        if min_mass is not None and not (math.isfinite(min_mass) and min_mass >= 0):
+            raise ValueError(f"{who}: min_mass must be None or a finite number >= 0 (kg), got {min_mass!r}")
+        choices = get_args(Solver)
+        if solver not in choices:
+            listed = ", ".join(map(repr, choices))
+            raise ValueError(f"{who}: solver must be one of {listed}, got {solver!r}")
+        conic = AUTO_SOLVERS if solver == "auto" else (solver.upper(),)
+        return cls(float(prior_weight), min_mass, solver, conic)
 
 
 def cad_pseudo_inertias(robot: Robot) -> np.ndarray:
     """The CAD pseudo-inertias ``[nb, 4, 4]``, lifted where singular (``PRIOR_REGULARISATION``).
 
     Raises:
-        ValueError: a link has no ``<inertial>`` in the URDF (CAD mass 0): pcls needs a-priori
-            inertials to resolve the unidentifiable directions and for the prior.
+        ValueError: a link has no ``<inertial>`` in the URDF (CAD mass 0), or an inertia no rigid
+            body has (``idkit.robots.model_checks.nonphysical_links``): pcls needs physical
+            a-priori inertials to resolve the unidentifiable directions and for the prior.
     """
-    nb = _n_links(robot)
+    nb = link_count(robot)
+    nonphysical = nonphysical_links(robot.tree)
+    if nonphysical:
+        more = f" (and {len(nonphysical) - 1} more links)" if len(nonphysical) > 1 else ""
+        raise ValueError(
+            f"urdf: {nonphysical[0]}{more}; physically consistent fitting needs a physical CAD model "
+            "(fix the URDF's <inertia>, or use another estimator)"
+        )
     nominal = robot.nominal_params()[: 10 * nb].reshape(nb, 10)
     empty = [name for name, row in zip(robot.link_names, nominal, strict=True) if float(row[0]) <= 0.0]
     if empty:
@@ -179,9 +198,7 @@ def solve_consistent(
     R: np.ndarray,
     b: np.ndarray,
     scale2: float,
-    prior_weight: float = 0.0,
-    min_mass: float | None = None,
-    solver: str = "auto",
+    settings: ConsistentSettings,
     who: str = "pcls",
 ) -> ConsistentSolution:
     """Solve the program of the module doc for a ``urdf`` robot.
@@ -191,21 +208,17 @@ def solve_consistent(
         R: ``[B, B]`` (or any ``[r, B]``) compressed regressor acting on the base parameters.
         b: ``[r]`` compressed target.
         scale2: ``s² > 0`` dividing the data term.
-        prior_weight: ``w ≥ 0`` of the entropic divergence to the CAD model (``TIE_BREAK`` if 0).
-        min_mass: lower bound on every link mass (kg); ``None`` = 1 % of the smallest CAD mass.
-        solver: ``"auto"`` (Clarabel, then SCS), ``"clarabel"`` or ``"scs"``.
+        settings: prior weight, mass floor and conic solvers (:class:`ConsistentSettings`).
         who: name used in error messages.
 
     Raises:
         IdentificationError: infeasible constraints or a failed solver (one line, with the cause).
-        ValueError: bad options, a robot that is not ``urdf``, a link without CAD inertial.
+        ValueError: a robot that is not ``urdf``, a link without CAD inertial.
     """
     import cvxpy as cp
 
-    if prior_weight < 0:
-        raise ValueError(f"{who}: prior_weight must be >= 0, got {prior_weight}")
-    solvers = _solvers(solver, who)
-    nb = _n_links(robot)
+    prior_weight, min_mass = settings.prior_weight, settings.min_mass
+    nb = link_count(robot)
     j0 = cad_pseudo_inertias(robot)
     cad_masses = robot.nominal_params()[0 : 10 * nb : 10].numpy()
     floor = 0.01 * float(cad_masses.min()) if min_mass is None else float(min_mass)
@@ -225,6 +238,9 @@ def solve_consistent(
     if nonnegative:
         constraints.append(z[nonnegative] >= 0)
     index = {name: k for k, name in enumerate(robot.param_names)}
+    held = [index[name] for name in getattr(robot, "a_priori_params", ())]  # merged armatures, shapes
+    if held:
+        constraints.append(z[held] == nominal[held] / unit[held])
     for joint in robot.joint_names:
         if f"{joint}.fs" in index:
             constraints.append(p[index[f"{joint}.fc"]] + p[index[f"{joint}.fs"]] >= 0)
@@ -234,7 +250,7 @@ def solve_consistent(
         objective = data + prior_weight * prior
     else:  # a barrier-free tie-break: the log-det barrier is ill-conditioned where the LMIs are active
         objective = data + TIE_BREAK * cp.sum_squares(z[: 10 * nb] - nominal[: 10 * nb] / unit[: 10 * nb])
-    used, status = _solve(cp.Problem(cp.Minimize(objective), constraints), solvers, floor, who)
+    used, status = _solve(cp.Problem(cp.Minimize(objective), constraints), settings.conic_solvers, floor, who)
     elapsed = time.perf_counter() - started
     params = torch.as_tensor(unit * z.value, dtype=torch.float64)
     inertials = params[: 10 * nb].reshape(nb, 10)
@@ -298,15 +314,6 @@ def _solve(program: Any, solvers: tuple[str, ...], floor: float, who: str) -> tu
     raise IdentificationError(f"{who}: the conic solver failed ({'; '.join(failures)})")
 
 
-def _solvers(solver: str, who: str) -> tuple[str, ...]:
-    choice = solver.lower()
-    if choice == "auto":
-        return AUTO_SOLVERS
-    if choice.upper() in AUTO_SOLVERS:
-        return (choice.upper(),)
-    raise ValueError(f"{who}: solver must be 'auto', 'clarabel' or 'scs', got {solver!r}")
-
-
 def _parameter_units(robot: Robot, cad_masses: np.ndarray) -> np.ndarray:
     """Typical magnitude ``[P]`` of each parameter: ``m0``, ``m0 L``, ``m0 L²`` per link (``L`` the
     CAD radius of gyration about the origin, at least 0.05 m); 1 for friction and offset."""
@@ -323,16 +330,7 @@ def _parameter_units(robot: Robot, cad_masses: np.ndarray) -> np.ndarray:
 
 def _pseudo_inertia_expression(pi: Any, cp: Any) -> Any:
     """``J(pi)`` as a symmetric 4×4 cvxpy expression."""
-    m, hx, hy, hz, xx, xy, xz, yy, yz, zz = (pi[k] for k in range(10))
-    half = (xx + yy + zz) / 2
-    return cp.bmat(
-        [
-            [half - xx, -xy, -xz, hx],
-            [-xy, half - yy, -yz, hy],
-            [-xz, -yz, half - zz, hz],
-            [hx, hy, hz, m],
-        ]
-    )
+    return cp.bmat(pseudo_inertia_rows([pi[k] for k in range(10)]))
 
 
 def compress(W: Tensor, tau: Tensor | None = None) -> tuple[np.ndarray, np.ndarray, float]:
@@ -356,7 +354,7 @@ def nearest_consistent(
     samples: Samples | None = None,
     prior_weight: float = 0.0,
     min_mass: float | None = None,
-    solver: str = "auto",
+    solver: Solver = "auto",
 ) -> ConsistentSolution:
     """The physically consistent standard parameters that predict torques closest to an estimate's.
 
@@ -375,7 +373,8 @@ def nearest_consistent(
     """
     if (params is None) == (base_params is None):
         raise ValueError("nearest_consistent: give exactly one of params [P] or base_params [B]")
-    _n_links(robot)
+    settings = ConsistentSettings.checked("nearest_consistent", prior_weight, min_mass, solver)
+    link_count(robot)
     if params is not None:
         params = torch.as_tensor(params, dtype=torch.float64)
         if params.shape != (robot.n_params,):
@@ -391,7 +390,7 @@ def nearest_consistent(
                 f"{tuple(target.shape)}"
             )
     if samples is None:
-        generator = torch.Generator().manual_seed(int(getattr(robot, "seed", 0)))
+        generator = torch_generator(getattr(robot, "seed", 0))
         states = robot.random_states(int(getattr(robot, "n_states", 200)), generator)
     else:
         s = samples.to(dtype=torch.float64)
@@ -400,7 +399,7 @@ def nearest_consistent(
     R, _, _ = compress(W)
     b = R @ target.numpy()
     scale2 = PROJECTION_UNIT**2 * float(b @ b) if float(b @ b) > 0 else 1.0
-    return solve_consistent(robot, R, b, scale2, prior_weight, min_mass, solver, who="nearest_consistent")
+    return solve_consistent(robot, R, b, scale2, settings, who="nearest_consistent")
 
 
 class PhysicallyConsistentLS(Estimator):
@@ -414,7 +413,7 @@ class PhysicallyConsistentLS(Estimator):
 
     ``details``: ``min_eigenvalue`` per link, ``divergence`` per link, solver, status, times,
     ``rel_error_train`` (‖E‖/‖T‖ on the training samples) and the base-parameter uncertainty of
-    :func:`idkit.estimators.uncertainty.base_uncertainty` (the LS formula at the pcls estimate; the
+    :func:`idkit.estimators.linear.uncertainty.base_uncertainty` (the LS formula at the pcls estimate; the
     constraints make it conservative where they are active).
     """
 
@@ -425,21 +424,23 @@ class PhysicallyConsistentLS(Estimator):
     )
 
     def __init__(
-        self, prior_weight: float = 0.0, min_mass: float | None = None, solver: str = "auto"
+        self, prior_weight: float = 0.0, min_mass: float | None = None, solver: Solver = "auto"
     ) -> None:
         self.prior_weight = prior_weight
         self.min_mass = min_mass
         self.solver = solver
+        self.settings = ConsistentSettings.checked("pcls", prior_weight, min_mass, solver)
 
     @property
     def name(self) -> str:
-        return "PCLS" + (f"-prior{self.prior_weight:g}" if self.prior_weight > 0 else "")
+        weight = self.settings.prior_weight
+        return "PCLS" + (f"-prior{weight:g}" if weight > 0 else "")
 
     def fit(self, problem: Problem) -> Estimate:
         start = time.perf_counter()
         problem.check_identifiable()
         robot = problem.robot
-        _n_links(robot)
+        link_count(robot)
         s = problem.tensors()
         W = robot.regressor(s.q, s.qd, s.qdd).reshape(-1, len(robot.base_param_names))
         tau = s.tau.reshape(-1)
@@ -448,7 +449,7 @@ class PhysicallyConsistentLS(Estimator):
         if norm2 == 0.0:
             raise IdentificationError("pcls: the measured torques are all zero; nothing to fit")
         scale2 = max(rest, NOISE_FLOOR * norm2) / max(W.shape[0] - W.shape[1], 1)
-        solution = solve_consistent(robot, R, b, scale2, self.prior_weight, self.min_mass, self.solver)
+        solution = solve_consistent(robot, R, b, scale2, self.settings)
         params = solution.params.to(device=s.q.device, dtype=s.q.dtype)
         alpha = robot.base_params(params)
         residual = float(np.sqrt(max(solution.data_term * scale2 + rest, 0.0)))
@@ -458,14 +459,14 @@ class PhysicallyConsistentLS(Estimator):
             "criterion": "||tau_s - W alpha||_2 s.t. pseudo-inertias PSD",
             "criterion_value": residual,
             "rel_error_train": residual / np.sqrt(norm2),
-            "prior_weight": self.prior_weight,
+            "prior_weight": self.settings.prior_weight,
             "min_eigenvalue": dict(zip(names, solution.min_eigenvalues.tolist(), strict=True)),
             "divergence": dict(zip(names, solution.divergence.tolist(), strict=True)),
             "solver": solution.solver,
             "status": solution.status,
             "solve_time_s": solution.solve_time_s,
             "equations": int(W.shape[0]),
-            **base_uncertainty(W, tau, alpha, robot.base_param_names).to_details(),
+            **base_uncertainty(W, tau, alpha, robot.base_param_names, robot.unidentifiable).to_details(),
         }
         return Estimate(
             estimator=self.name,

@@ -30,7 +30,7 @@ from dataclasses import replace
 from typing import TypeVar
 
 from idkit.estimate import Estimate
-from idkit.interfaces import Cost, Estimator
+from idkit.interfaces import BatchedEstimator, Cost, Estimator
 from idkit.problem import Problem
 
 E = TypeVar("E", bound=BaseException)
@@ -214,7 +214,7 @@ def fit_trials(
     problems = list(problems)
     if not problems:
         return []
-    if hasattr(estimator, "fit_trials"):
+    if isinstance(estimator, BatchedEstimator):
         return estimator.fit_trials(problems, costs, chunk=chunk)
     if costs is None:
         return [[estimator.fit(p)] for p in problems]

@@ -38,6 +38,7 @@ import torch
 from torch import Tensor
 
 from idkit.interfaces import Robot
+from idkit.seeds import check_seed, torch_generator
 
 CRITERIA = ("cond", "logdet", "ls_error")
 
@@ -149,12 +150,11 @@ class NoiseModel:
                 raise ValueError(f"excitation noise: {key} must be a level in [0, 1), got {value!r}")
         if isinstance(self.draws, bool) or not isinstance(self.draws, int) or self.draws < 1:
             raise ValueError(f"excitation noise: draws must be an integer >= 1, got {self.draws!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"excitation noise: seed must be an integer >= 0, got {self.seed!r}")
+        check_seed(self.seed, "excitation noise: seed")
 
     def errors(self, n_samples: int, n_joints: int) -> Tensor:
         """The drawn relative errors ``u[K, 4, N, n]`` (rows ``q, qd, qdd, tau``), float64 CPU."""
-        generator = torch.Generator().manual_seed(self.seed)
+        generator = torch_generator(self.seed)
         unit = (
             2.0 * torch.rand(self.draws, 4, n_samples, n_joints, generator=generator, dtype=torch.float64) - 1
         )

@@ -23,6 +23,7 @@ from torch import Tensor
 
 from idkit.interfaces import Robot
 from idkit.limits import MotionLimits
+from idkit.seeds import torch_generator
 
 #: Share of a joint's effort limit its own inertia may take at the default acceleration limit.
 DEFAULT_EFFORT_FRACTION = 0.5
@@ -82,7 +83,7 @@ def default_acceleration_limits(robot: Robot, fraction: float = DEFAULT_EFFORT_F
     limits = robot.motion_limits()
     lower = torch.where(limits.lower[0].isinf(), -torch.pi, limits.lower[0])
     upper = torch.where(limits.upper[0].isinf(), torch.pi, limits.upper[0])
-    generator = torch.Generator().manual_seed(0)
+    generator = torch_generator(0)
     unit = torch.rand(INERTIA_POSES, robot.n_joints, generator=generator, dtype=torch.float64)
     inertia = mass_matrix_diagonal(robot, lower + (upper - lower) * unit).amax(0)
     return fraction * effort / inertia

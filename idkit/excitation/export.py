@@ -13,10 +13,8 @@ number (otherwise the last step would be shorter than the others).
 
 from __future__ import annotations
 
-import csv
 import math
 import os
-import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -88,25 +86,50 @@ class Trajectory:
 def read_trajectory(path: str | os.PathLike[str], joint_names: Sequence[str]) -> Trajectory:
     """Read a trajectory file (``.csv`` or ``.npz``, module docstring) for the joints ``joint_names``.
 
-    Columns are matched by joint name; the result is in ``joint_names`` order.
+    Read through idkit's one table reader (``idkit.data.table``: encodings, duplicate columns,
+    non-numbers and non-finite values refused naming file, line and column); columns are matched
+    by joint name and the result is in ``joint_names`` order.
 
     Raises:
-        ValueError: not such a file, a missing joint or quantity, a joint the robot does not have,
-            a value that is not a finite number; the message names the file and the column.
+        ValueError: not such a file, a missing quantity, a missing joint or one the robot does not
+            have, columns without joint names, fewer than two samples.
         FileNotFoundError: no such file.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"trajectory file not found: {path}")
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        return _read_csv(path, tuple(joint_names))
-    if suffix == ".npz":
-        return _read_npz(path, tuple(joint_names))
-    raise ValueError(f"{path}: unsupported trajectory file type {path.suffix!r}; use .csv or .npz")
+    from idkit.data.table import NpzTable, open_npz, read_table
+
+    table = read_table(path)
+    table.require(matrices=QUANTITIES, vectors=["t"])
+    joints = tuple(joint_names)
+    if isinstance(table, NpzTable):
+        with open_npz(table.path, "t, q, qd, qdd and joint_names") as archive:
+            if "joint_names" not in archive.files:
+                raise ValueError(
+                    f"{table.path}: no joint_names array to tell which column is which joint (it has: "
+                    f"{', '.join(sorted(archive.files))}); an excitation.npz written by idkit has one"
+                )
+            named = [str(name) for name in np.atleast_1d(archive["joint_names"])]
+    else:
+        named = table.matrix("q").joints
+        if named is None:
+            raise ValueError(f"{table.path}: columns q1..qn do not name their joints; name them <joint>.q")
+    _same_joints(table.path, joints, named)
+    t = table.vector("t")
+    if len(t) < 2:
+        raise ValueError(f"{table.path}: expected at least two samples, got {len(t)}")
+    order = [named.index(joint) for joint in joints]
+    matrices = []
+    for name in QUANTITIES:
+        values = table.matrix(name, joints).values
+        if values.shape != (len(t), len(joints)):
+            raise ValueError(
+                f"{table.path}: {name} must be [{len(t)}, {len(joints)}] (samples of t, joints), got "
+                f"{list(values.shape)}"
+            )
+        matrices.append(values[:, order] if isinstance(table, NpzTable) else values)
+    return Trajectory(joints, t, *matrices)
 
 
-def _by_joint(path: Path, joints: Sequence[str], named: Sequence[str]) -> None:
+def _same_joints(path: Path, joints: Sequence[str], named: Sequence[str]) -> None:
     """Refuse a file whose joints differ from the robot's (missing ones, or ones it does not have)."""
     missing = [j for j in joints if j not in named]
     unknown = [j for j in named if j not in joints]
@@ -114,85 +137,3 @@ def _by_joint(path: Path, joints: Sequence[str], named: Sequence[str]) -> None:
         parts = [f"no columns for joint(s) {', '.join(missing)}"] if missing else []
         parts += [f"joint(s) {', '.join(unknown)} that the robot does not have"] if unknown else []
         raise ValueError(f"{path}: {'; '.join(parts)} (robot joints: {', '.join(joints)})")
-
-
-def _read_csv(path: Path, joints: tuple[str, ...]) -> Trajectory:
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as handle:
-            table = list(csv.reader(handle))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read it as UTF-8 CSV text: {exc}") from None
-    table = [row for row in table if row]
-    if len(table) < 3:
-        raise ValueError(f"{path}: expected a header line and at least two samples, got {len(table) - 1}")
-    header = [name.strip() for name in table[0]]
-    named = sorted({name.rpartition(".")[0] for name in header if name.rpartition(".")[2] in QUANTITIES})
-    _by_joint(path, joints, named)
-    wanted = columns(joints)
-    absent = [name for name in wanted if name not in header]
-    if absent:
-        raise ValueError(f"{path}: missing column(s) {', '.join(absent)} (it has: {', '.join(header)})")
-    index = [header.index(name) for name in wanted]
-    values = np.empty((len(table) - 1, len(wanted)))
-    for line, row in enumerate(table[1:], start=2):
-        if len(row) != len(header):
-            raise ValueError(f"{path} line {line}: {len(row)} values for {len(header)} columns")
-        for k, i in enumerate(index):
-            try:
-                values[line - 2, k] = float(row[i])
-            except ValueError:
-                raise ValueError(
-                    f"{path} line {line}, column {wanted[k]}: {row[i]!r} is not a number"
-                ) from None
-    _check_finite(path, values, wanted)
-    per_joint = values[:, 1:].reshape(len(values), len(joints), len(QUANTITIES))
-    return Trajectory(joints, values[:, 0], *(per_joint[..., k] for k in range(len(QUANTITIES))))
-
-
-def _check_finite(path: Path, values: np.ndarray, names: Sequence[str]) -> None:
-    bad = np.argwhere(~np.isfinite(values))
-    if len(bad):
-        sample, column = bad[0]
-        raise ValueError(
-            f"{path}: {names[column]} is not finite at sample {sample} ({values[sample, column]})"
-        )
-
-
-def _read_npz(path: Path, joints: tuple[str, ...]) -> Trajectory:
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            arrays = {name: archive[name] for name in archive.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
-        raise ValueError(f"{path}: not an archive of arrays (.npz): {exc}") from None
-    if "joint_names" not in arrays:
-        raise ValueError(
-            f"{path}: no joint_names array to tell which column is which joint (it has: "
-            f"{', '.join(sorted(arrays))}); an excitation.npz written by idkit has one"
-        )
-    named = [str(name) for name in np.atleast_1d(arrays["joint_names"])]
-    _by_joint(path, joints, named)
-    absent = [name for name in ("t", *QUANTITIES) if name not in arrays]
-    if absent:
-        raise ValueError(
-            f"{path}: missing array(s) {', '.join(absent)} (it has: {', '.join(sorted(arrays))})"
-        )
-    t = arrays["t"]
-    if t.dtype.kind not in "iuf" or t.ndim != 1:
-        raise ValueError(f"{path}: t must be one-dimensional numbers, got {t.dtype} {list(t.shape)}")
-    t = t.astype(np.float64)
-    if len(t) < 2:
-        raise ValueError(f"{path}: expected at least two samples, got {len(t)}")
-    order = [named.index(joint) for joint in joints]
-    matrices = []
-    for name in QUANTITIES:
-        value = arrays[name]
-        if value.dtype.kind not in "iuf" or value.shape != (len(t), len(named)):
-            raise ValueError(
-                f"{path}: {name} must be numbers of shape [{len(t)}, {len(named)}] (t, joint_names), "
-                f"got {value.dtype} {list(value.shape)}"
-            )
-        matrices.append(value.astype(np.float64)[:, order])
-    stacked = np.concatenate([t[:, None], *matrices], axis=1)
-    names = ["t"] + [f"{j}.{q}" for q in QUANTITIES for j in joints]
-    _check_finite(path, stacked, names)
-    return Trajectory(joints, t, *matrices)

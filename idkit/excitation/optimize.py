@@ -50,6 +50,7 @@ from idkit.excitation.spec import build_excitation
 from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
 from idkit.runtime import resolve_threads, torch_threads
+from idkit.seeds import torch_generator
 
 METHODS = ("pso", "adam", "pso+adam")
 
@@ -178,7 +179,7 @@ def optimize_excitation(
     t = sample_times(n_samples, t_end)
     grid = torch.linspace(0.0, t_end, grid_points, dtype=torch.float64)
     objective = _Objective(robot, family, criterion_, limits, efforts, t, grid, like, collision)
-    generator = torch.Generator().manual_seed(int(seed))
+    generator = torch_generator(seed)
     budget = {
         "swarms": swarms,
         "particles": particles,

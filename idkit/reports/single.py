@@ -1,4 +1,5 @@
-"""The ``single`` task's report: a text table, ``result.json``, ``history.csv``, plots, ``identified.urdf``.
+"""The ``single`` task's report: a text table, ``result.json``, ``history.csv``, plots, ``identified.urdf``
+and ``identified.xml``.
 
 The table lists the estimate; for least-squares-type fits (``details["uncertainty"]``) each base
 parameter's relative standard deviation, the regressor's rank and condition number and the
@@ -23,6 +24,7 @@ from idkit.studies.single import HeldOut, RunResult
 
 HISTORY_FILE = "history.csv"
 URDF_FILE = "identified.urdf"
+MJCF_FILE = "identified.xml"
 #: Held-out torque plots show the first this many seconds (files with timestamps) or samples.
 PLOT_SECONDS = 20.0
 PLOT_SAMPLES = 2000
@@ -127,6 +129,8 @@ def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[st
         )
     if result.urdf is not None:
         written["identified_urdf"] = str(files.write_text(out / URDF_FILE, result.urdf))
+    if result.mjcf is not None:
+        written["identified_mjcf"] = str(files.write_text(out / MJCF_FILE, result.mjcf))
     if plots:
         for k, held in enumerate(result.validation):
             path = out / f"validation_{k + 1}.png"

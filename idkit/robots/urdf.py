@@ -1,16 +1,23 @@
 """Any fixed-base URDF robot: standard parameters, exact regressor, numerical base parameters.
 
-Parameters ``p[P]`` (``P = 10 nb (+ 2 n friction) (+ n offset)``), in this order:
+Parameters ``p[P]`` (``P = 10 nb + D``), in this order:
 
 * per moving body (link frame = joint frame; welded links merged), the 10 standard inertial
   parameters ``<link>.m, .mcx, .mcy, .mcz, .Ixx, .Ixy, .Ixz, .Iyy, .Iyz, .Izz`` with the inertia
   about the LINK-FRAME ORIGIN (not the centre of mass): the dynamics are linear in these;
-* with ``friction=True``: ``<joint>.fc`` for every joint, then ``<joint>.fv`` for every joint
-  (the paper's eq. (1) ``F_c sign(qd) + F_v qd``); with ``stribeck_velocity = v_s`` also
-  ``<joint>.fs`` for every joint, a low-speed term ``F_s exp(-(qd/v_s)²) sign(qd)`` (linear in
-  ``F_s`` for a fixed ``v_s``): ``F_s > 0`` is the Stribeck excess of breakaway over Coulomb
-  friction, ``-F_c ≤ F_s < 0`` friction that builds up over ``v_s`` after a velocity reversal;
-* with ``offset=True``: ``<joint>.offset``, a constant torque per joint (sensor bias).
+* the ``D`` drive parameters of :mod:`idkit.robots.drives`, one group per term and joint: friction
+  (``friction=True``: ``<joint>.fc`` then ``<joint>.fv``, the paper's eq. (1) ``F_c sign(qd) + F_v
+  qd``, and with ``stribeck_velocity = v_s`` a low-speed ``<joint>.fs``: ``F_s > 0`` is the Stribeck
+  excess of breakaway over Coulomb friction, ``-F_c ≤ F_s < 0`` friction that builds up over ``v_s``
+  after a velocity reversal; ``friction="asymmetric"``: ``fc_pos, fc_neg, fv``;
+  ``friction="sigmoid"``: ``phi1, fv`` and the shape ``phi2, phi3``), then ``<joint>.armature``
+  (``armature=True``), then ``<joint>.offset`` (``offset=True``, a constant torque per joint).
+
+``effort_scale`` does not add parameters: :meth:`URDFRobot.joint_torques` turns recorded efforts
+into joint torques where a recording enters a study. An armature whose regressor column lies in the
+span of the link-inertia columns (the first joints of most arms) is *merged*: it is named in
+``unidentifiable`` (and warned about once), and every estimator keeps it at its a-priori value
+(``a_priori_params``) while the link inertia carries the rest.
 
 Base parameters (``alpha = K p``) come from :mod:`idkit.robots.base_params` on the regressor stacked
 over ``n_states`` random states; ``base_param_names`` names each after the standard parameter it is
@@ -25,7 +32,10 @@ floating base), unknown types, ``<mimic>`` joints; closed loops are refused too.
 
 from __future__ import annotations
 
+import inspect
+import warnings
 from collections.abc import Sequence
+from typing import ClassVar
 
 import numpy as np
 import torch
@@ -34,8 +44,10 @@ from torch import Tensor
 from idkit.interfaces import Robot
 from idkit.limits import MotionLimits
 from idkit.robots.base_params import BaseParameters, find_base_parameters
+from idkit.robots.drives import Boxes, DriveModel, Friction, check_effort_scale, per_joint, read_armatures
 from idkit.robots.rnea import TreeTensors, rnea, rnea_regressor
 from idkit.robots.urdf_model import INERTIAL_NAMES, KinematicTree, parse_urdf
+from idkit.seeds import Seed, torch_generator
 
 
 class URDFRobot(Robot):
@@ -44,42 +56,62 @@ class URDFRobot(Robot):
     Args:
         urdf: a URDF file path, URDF text, or the name of a URDF shipped in ``idkit/robots/assets``
             (default: the paper's cylindrical robot).
-        friction: add per-joint Coulomb ``fc`` and viscous ``fv`` friction parameters.
-        stribeck_velocity: with ``friction``, also a per-joint Stribeck parameter ``fs`` with this
-            velocity scale (rad/s or m/s; one value, or one per joint); ``None`` = no Stribeck term.
+        friction: the friction model (:mod:`idkit.robots.drives`): ``False``, ``True`` (Coulomb ``fc``
+            and viscous ``fv``), ``"asymmetric"`` (``fc_pos``, ``fc_neg``, ``fv``) or ``"sigmoid"``
+            (Gaz et al.: ``phi1``, ``fv`` and the nonlinear shape ``phi2``, ``phi3``).
+        stribeck_velocity: with ``friction=True``, also a per-joint Stribeck parameter ``fs`` with
+            this velocity scale (rad/s or m/s; one value, or one per joint); ``None`` = no Stribeck term.
         offset: add a per-joint constant torque offset.
+        armature: add a per-joint reflected rotor inertia ``armature`` (``tau += Ia qdd``); its
+            a-priori value comes from the URDF's transmissions (:func:`~idkit.robots.drives.read_armatures`).
+        effort_scale: ``k[n]`` with joint torque = ``k`` × recorded effort (e.g. gear ratio × torque
+            constant for a motor current); ``None`` = the recordings hold joint torques.
         gravity: gravitational acceleration (m/s²) along −z of the root link.
         n_states: random states stacked to find the base parameters (``n_states * n >> P``).
         tolerance: relative rank tolerance of the base-parameter search.
         seed: seed of the random states (``q`` uniform within the joint limits, or ``[-π, π]`` /
             ``[-1, 1] m`` without limits; ``qd``, ``qdd`` standard normal).
-        max_coulomb, max_viscous, max_offset: search-box widths of the friction (N·m, N·m·s/rad)
-            and offset (N·m) parameters; their a-priori value is 0.
+        max_coulomb, max_viscous, max_offset, max_armature: search-box widths of the friction
+            (N·m, N·m·s/rad), offset (N·m) and armature (kg·m²) parameters.
+        sigmoid_steepness, sigmoid_shift: reference ``phi2`` (s/rad) and ``phi3`` (rad/s) of the
+            sigmoid model (one value or one per joint): the a-priori shape linear estimators use.
+        steepness_range, max_shift: search box of ``phi2`` and ``phi3`` (``±max_shift``).
 
     Search boxes (``bounds``), from the URDF's a-priori values ``m0, h0 = m0 c0, I0`` of a body
     (``L = max(|c0|, 0.1 m)``, ``m_hi`` the upper mass bound): mass ``[m0/2, 2 m0]`` (``[0, 1 kg]``
     when ``m0 = 0``); first moments ``h0 ± m_hi L``; diagonal inertia about the origin
     ``[I0/2, 2 I0]`` (``[0, m_hi L²]`` when 0); products ``I0_kl ± sqrt(I_hi,kk I_hi,ll) / 2``;
-    ``fc ∈ [0, max_coulomb]``, ``fv ∈ [0, max_viscous]``, ``fs ∈ ±max_coulomb``, ``offset ∈ ±max_offset``.
+    ``fc, fc_pos, fc_neg, phi1 ∈ [0, max_coulomb]``, ``fv ∈ [0, max_viscous]``, ``fs ∈ ±max_coulomb``,
+    ``armature ∈ [0, max_armature]``, ``offset ∈ ±max_offset``, ``phi2 ∈ steepness_range``,
+    ``phi3 ∈ ±max_shift``.
     ``base_bounds`` is the smallest box holding ``K p`` for every ``p`` in that box (interval
     arithmetic: ``K mid ± |K| half_width``), so every physical point of the box is reachable.
     """
 
     search_space = "base"
+    #: The model format: names it in error messages (a subclass reading another format sets it).
+    source_format: ClassVar[str] = "urdf"
 
     def __init__(
         self,
         urdf: str = "cylindrical",
-        friction: bool = False,
+        friction: Friction = False,
         offset: bool = False,
         gravity: float = 9.81,
         n_states: int = 200,
         tolerance: float = 1e-8,
-        seed: int = 0,
+        seed: Seed = 0,
         max_coulomb: float = 10.0,
         max_viscous: float = 10.0,
         max_offset: float = 10.0,
         stribeck_velocity: float | Sequence[float] | None = None,
+        armature: bool = False,
+        effort_scale: Sequence[float] | None = None,
+        max_armature: float = 10.0,
+        sigmoid_steepness: float | Sequence[float] = 10.0,
+        sigmoid_shift: float | Sequence[float] = 0.0,
+        steepness_range: tuple[float, float] = (1.0, 100.0),
+        max_shift: float = 0.2,
     ) -> None:
         self.urdf = urdf
         self.friction = friction
@@ -92,30 +124,110 @@ class URDFRobot(Robot):
         self.max_viscous = max_viscous
         self.max_offset = max_offset
         self.stribeck_velocity = stribeck_velocity
-        self.tree: KinematicTree = parse_urdf(urdf)
+        self.armature = armature
+        self.effort_scale = effort_scale
+        self.max_armature = max_armature
+        self.sigmoid_steepness = sigmoid_steepness
+        self.sigmoid_shift = sigmoid_shift
+        self.steepness_range = steepness_range
+        self.max_shift = max_shift
+        self.tree: KinematicTree = self._read_tree()
         self.joint_names = self.tree.joint_names
         self.stribeck_scales = self._check_stribeck(stribeck_velocity)
+        self.effort_scales = check_effort_scale(effort_scale, self.joint_names, self.source_format)
         self.link_names = self.tree.link_names
+        self.drives = self._drive_model()
         names = [f"{link}.{p}" for link in self.link_names for p in INERTIAL_NAMES]
-        if friction:
-            names += [f"{j}.fc" for j in self.joint_names] + [f"{j}.fv" for j in self.joint_names]
-            if self.stribeck_scales is not None:
-                names += [f"{j}.fs" for j in self.joint_names]
-        if offset:
-            names += [f"{j}.offset" for j in self.joint_names]
-        self.param_names = tuple(names)
+        self.param_names = tuple(names) + self.drives.names
         self._tensors: dict[tuple[torch.device, torch.dtype], TreeTensors] = {}
         self._regressor_cache: tuple[tuple[Tensor, ...], tuple[int, ...], Tensor] | None = None
         self.base = self._find_base()
         self.base_map = torch.as_tensor(self.base.matrix)
-        self._pinv = torch.as_tensor(np.linalg.pinv(self.base.matrix))
         self.base_param_groups = self.base.groups(self.param_names)
         self.base_param_names = tuple(
             self.param_names[i] + ("R" if np.count_nonzero(row) > 1 else "")
             for i, row in zip(self.base.indices, self.base.matrix, strict=True)
         )
+        self.unidentifiable, merged = self._merged_armatures()
+        #: Standard parameters every estimator keeps at ``nominal_params()``: merged armatures and
+        #: the sigmoid shapes (zero regressor columns; :mod:`idkit.estimators.varpro` searches those).
+        self.a_priori_params = merged + self.drives.names_where(lambda term: term.shape)
+        free = self.base.matrix.copy()
+        free[:, [self.param_names.index(name) for name in self.a_priori_params]] = 0.0
+        self._pinv = torch.as_tensor(np.linalg.pinv(free))
 
     # ---------------------------------------------------------------- structure
+    def _drive_model(self) -> DriveModel:
+        """The friction, armature and offset terms (:mod:`idkit.robots.drives`) of this robot's joints."""
+        joints = self.joint_names
+        prior = None
+        if self.armature:
+            known = self._a_priori_armatures()
+            prior = np.array([known.get(j, 0.0) for j in joints])
+        shape = None
+        if self.friction == "sigmoid":
+            shape = (
+                per_joint(self.sigmoid_steepness, joints, "sigmoid_steepness", self.source_format),
+                per_joint(self.sigmoid_shift, joints, "sigmoid_shift", self.source_format),
+            )
+        boxes = Boxes(
+            self.max_coulomb,
+            self.max_viscous,
+            self.max_offset,
+            self.max_armature,
+            tuple(self.steepness_range),
+            self.max_shift,
+        )
+        return DriveModel(
+            joints,
+            self.friction,
+            self.armature,
+            self.offset,
+            self.stribeck_scales,
+            prior,
+            shape,
+            boxes,
+            self.source_format,
+        )
+
+    def with_options(self, **changes: object) -> URDFRobot:
+        """The same robot built with some constructor options changed (e.g. the reference sigmoid
+        shape a fit found): every option is stored unchanged under its own name."""
+        keys = inspect.signature(type(self)).parameters
+        return type(self)(**{**{key: getattr(self, key) for key in keys}, **changes})
+
+    def _a_priori_armatures(self) -> dict[str, float]:
+        """The model file's armature per joint (a URDF's transmissions); the MJCF reader overrides it."""
+        return read_armatures(self.urdf)
+
+    def _merged_armatures(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """``(statements, names)`` of the armatures whose column the link inertias already span.
+
+        Such an armature is a dependent column of the base-parameter search, regrouped into a link's
+        base parameter: no data can separate the two, so it is kept at its a-priori value and named.
+        """
+        statements, names = [], []
+        base = set(self.base.indices)
+        for name in self.drives.names_where(lambda term: term.suffix == "armature"):
+            k = self.param_names.index(name)
+            if k in base:
+                continue
+            rows = np.flatnonzero(self.base.matrix[:, k])
+            into = ", ".join(self.base_param_names[r] for r in rows) or "no base parameter"
+            prior = float(self.nominal_params()[k])
+            statements.append(
+                f"{name} merges with the link inertia ({into}): not identifiable, kept at its a-priori "
+                f"value {prior:.6g}"
+            )
+            names.append(name)
+        if statements:
+            warnings.warn(f"{self.source_format}: {'; '.join(statements)}", stacklevel=3)
+        return tuple(statements), tuple(names)
+
+    def _read_tree(self) -> KinematicTree:
+        """The tree the dynamics run on: the seam where another format plugs in (``mjcf``)."""
+        return parse_urdf(self.urdf)
+
     def _tree_tensors(self, like: Tensor) -> TreeTensors:
         key = (like.device, like.dtype)
         if key not in self._tensors:
@@ -140,10 +252,11 @@ class URDFRobot(Robot):
     def _find_base(self) -> BaseParameters:
         if self.n_states * self.n_joints <= self.n_params:
             raise ValueError(
-                f"urdf: n_states={self.n_states} gives {self.n_states * self.n_joints} regressor rows for "
-                f"{self.n_params} parameters; use n_states > {self.n_params // self.n_joints} (default 200)"
+                f"{self.source_format}: n_states={self.n_states} gives {self.n_states * self.n_joints} "
+                f"regressor rows for {self.n_params} parameters; use n_states > "
+                f"{self.n_params // self.n_joints} (default 200)"
             )
-        generator = torch.Generator().manual_seed(int(self.seed))
+        generator = torch_generator(self.seed)
         states = self.random_states(self.n_states, generator)
         stacked = self.standard_regressor(*states).reshape(-1, self.n_params)
         return find_base_parameters(stacked.numpy(), self.tolerance)
@@ -171,10 +284,16 @@ class URDFRobot(Robot):
 
     # ---------------------------------------------------------------- parameters
     def nominal_params(self) -> Tensor:
-        """The URDF's CAD parameters ``[P]`` (friction and offset 0)."""
+        """The URDF's CAD parameters ``[P]`` (friction and offset 0, the reference sigmoid shape, the
+        transmissions' armature)."""
         inertial = np.concatenate([b.inertial for b in self.tree.bodies])
-        extra = np.zeros(self.n_params - inertial.size)
-        return torch.as_tensor(np.concatenate([inertial, extra]))
+        return torch.as_tensor(np.concatenate([inertial, self.drives.nominal()]))
+
+    def joint_torques(self, effort: Tensor) -> Tensor:
+        """Joint torques ``[N, n]`` of recorded efforts ``[N, n]``: ``k × effort`` with ``effort_scale``."""
+        if self.effort_scales is None:
+            return effort
+        return effort * torch.as_tensor(self.effort_scales, dtype=effort.dtype, device=effort.device)
 
     def bounds(self) -> tuple[Tensor, Tensor]:
         """Search box ``(lower[P], upper[P])`` from the a-priori values (rule in the class doc)."""
@@ -192,16 +311,8 @@ class URDFRobot(Robot):
             (xy_lo, xz_lo, yz_lo), (xy_hi, xz_hi, yz_hi) = products0 - half, products0 + half
             lower += [m_lo, *(h0 - m_hi * length), xx_lo, xy_lo, xz_lo, yy_lo, yz_lo, zz_lo]
             upper += [m_hi, *(h0 + m_hi * length), xx_hi, xy_hi, xz_hi, yy_hi, yz_hi, zz_hi]
-        n = self.n_joints
-        if self.friction:
-            lower += [0.0] * (2 * n)
-            upper += [self.max_coulomb] * n + [self.max_viscous] * n
-            if self.stribeck_scales is not None:  # fs < 0: friction building up after a reversal
-                lower += [-self.max_coulomb] * n
-                upper += [self.max_coulomb] * n
-        if self.offset:
-            lower += [-self.max_offset] * n
-            upper += [self.max_offset] * n
+        drive_lower, drive_upper = self.drives.bounds()
+        lower, upper = np.concatenate([lower, drive_lower]), np.concatenate([upper, drive_upper])
         return torch.tensor(lower, dtype=torch.float64), torch.tensor(upper, dtype=torch.float64)
 
     def base_bounds(self) -> tuple[Tensor, Tensor]:
@@ -219,14 +330,16 @@ class URDFRobot(Robot):
     def params_from_base(self, alpha: Tensor) -> Tensor:
         """Physical parameters ``[..., P]`` closest (Euclidean) to the CAD values with ``K p = alpha``.
 
-        ``p = p0 + pinv(K) (alpha - K p0)``: the base parameters fix ``B`` combinations; the other
-        ``P - B`` directions (the null space of ``K``) stay at their a-priori value. Not unique and
+        ``p = p0 + pinv(K_free) (alpha - K p0)``: the base parameters fix ``B`` combinations; the other
+        ``P - B`` directions (the null space of ``K``) stay at their a-priori value. ``K_free`` is ``K``
+        without the columns of ``a_priori_params`` (a merged armature stays at its a-priori value and
+        its link inertia takes the whole regrouped base parameter). Not unique and
         not guaranteed physical (e.g. a mass may become negative) when ``alpha`` is far from ``K p0``.
         """
         if alpha.shape[-1] != len(self.base_param_names):
             raise ValueError(
-                f"urdf: base parameters need {len(self.base_param_names)} values in the last dimension, "
-                f"got shape {tuple(alpha.shape)}"
+                f"{self.source_format}: base parameters need {len(self.base_param_names)} values in the "
+                f"last dimension, got shape {tuple(alpha.shape)}"
             )
         base_map, pinv = self.base_map.to(alpha), self._pinv.to(alpha)
         nominal = self.nominal_params().to(alpha)
@@ -236,7 +349,7 @@ class URDFRobot(Robot):
     def _check_params(self, params: Tensor) -> None:
         if params.shape[-1:] != (self.n_params,):
             raise ValueError(
-                f"urdf: params need {self.n_params} values in the last dimension "
+                f"{self.source_format}: params need {self.n_params} values in the last dimension "
                 f"({self.param_names[0]}, ...), got shape {tuple(params.shape)}"
             )
 
@@ -244,8 +357,8 @@ class URDFRobot(Robot):
         for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
             if value.ndim != 2 or value.shape[1] != self.n_joints or value.shape != q.shape:
                 raise ValueError(
-                    f"urdf: {name} must be [N, {self.n_joints}] like q, got {tuple(value.shape)} "
-                    f"(joints: {', '.join(self.joint_names)})"
+                    f"{self.source_format}: {name} must be [N, {self.n_joints}] like q, got "
+                    f"{tuple(value.shape)} (joints: {', '.join(self.joint_names)})"
                 )
 
     def inverse_dynamics(self, params: Tensor, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
@@ -260,21 +373,13 @@ class URDFRobot(Robot):
         """
         self._check_params(params)
         self._check_states(q, qd, qdd)
+        nb = len(self.tree.bodies)
+        drive = self.drives.torque(params[..., 10 * nb :], qd, qdd)
         y = self._cached_regressor(q, qd, qdd, build=params.ndim > 1)
         if y is not None:
-            return torch.einsum("snp,...p->...sn", y, params)
-        nb = len(self.tree.bodies)
+            return torch.einsum("snp,...p->...sn", y[..., : 10 * nb], params[..., : 10 * nb]) + drive
         inertials = params[..., : 10 * nb].unflatten(-1, (nb, 10))
-        tau = rnea(self._tree_tensors(q), inertials, q, qd, qdd, self.gravity)
-        extra = params[..., None, 10 * nb :]  # [..., 1, (2 or 3) n + n]
-        n = self.n_joints
-        if self.friction:
-            for feature in self.friction_features(qd):
-                tau = tau + extra[..., :n] * feature
-                extra = extra[..., n:]
-        if self.offset:
-            tau = tau + extra
-        return tau
+        return rnea(self._tree_tensors(q), inertials, q, qd, qdd, self.gravity) + drive
 
     def _cached_regressor(self, q: Tensor, qd: Tensor, qdd: Tensor, build: bool) -> Tensor | None:
         """The standard regressor of these exact state tensors if kept, else built when ``build``.
@@ -297,15 +402,6 @@ class URDFRobot(Robot):
             self._regressor_cache = (states, versions, y)
         return y
 
-    def friction_features(self, qd: Tensor) -> list[Tensor]:
-        """Per-joint friction torque per unit coefficient, ``[N, n]`` each, in parameter order:
-        ``sign(qd)``, ``qd`` and (with ``stribeck_velocity``) ``exp(-(qd/v_s)²) sign(qd)``."""
-        features = [torch.sign(qd), qd]
-        if self.stribeck_scales is not None:
-            scale = torch.as_tensor(self.stribeck_scales, dtype=qd.dtype, device=qd.device)
-            features.append(torch.exp(-((qd / scale) ** 2)) * torch.sign(qd))
-        return features
-
     def _check_stribeck(self, value: float | Sequence[float] | None) -> np.ndarray | None:
         """``stribeck_velocity`` as ``[n]`` positive scales, or ``None``."""
         if value is None:
@@ -313,10 +409,10 @@ class URDFRobot(Robot):
         scales = np.atleast_1d(np.asarray(value if np.isscalar(value) else list(value), dtype=np.float64))
         if scales.size == 1:
             scales = np.full(self.n_joints, scales[0])
-        if not self.friction or scales.shape != (self.n_joints,) or not (scales > 0).all():
+        if self.friction is not True or scales.shape != (self.n_joints,) or not (scales > 0).all():
             raise ValueError(
-                f"urdf: stribeck_velocity={value!r} needs friction=true and one value > 0 (rad/s) or "
-                f"{self.n_joints} of them (joints: {', '.join(self.joint_names)})"
+                f"{self.source_format}: stribeck_velocity={value!r} needs friction=true and one value > 0 "
+                f"(rad/s) or {self.n_joints} of them (joints: {', '.join(self.joint_names)})"
             )
         return scales
 
@@ -324,12 +420,7 @@ class URDFRobot(Robot):
         """Regressor ``Y[N, n, P]`` of all standard parameters: ``tau = Y @ params``."""
         self._check_states(q, qd, qdd)
         inertial = rnea_regressor(self._tree_tensors(q), q, qd, qdd, self.gravity).flatten(-2)
-        blocks = [inertial]
-        if self.friction:
-            blocks += [torch.diag_embed(feature) for feature in self.friction_features(qd)]
-        if self.offset:
-            blocks.append(torch.diag_embed(torch.ones_like(q)))
-        return torch.cat(blocks, dim=-1)
+        return torch.cat([inertial, self.drives.columns(qd, qdd)], dim=-1)
 
     def regressor(self, q: Tensor, qd: Tensor, qdd: Tensor) -> Tensor:
         """Base regressor ``Y[N, n, B]``: the base columns of the standard one, ``tau = Y @ alpha``."""

@@ -9,8 +9,15 @@ limits, transmissions, plugins stay as they are); only these change:
 * links welded to a body by ``fixed`` joints lose their ``<inertial>``: the parser merged them into
   the body, and the identification cannot separate them again;
 * with friction, each joint's ``<dynamics damping="fv" friction="fc">`` (other attributes kept);
-  terms URDF has no field for (Stribeck ``fs``, torque ``offset``) go into an XML comment in the
-  joint, so they are not lost.
+  URDF's friction is symmetric Coulomb, so the asymmetric model writes the mean ``(fc_pos +
+  fc_neg)/2`` and the sigmoid model its saturated half-range ``phi1/2`` there; the exact terms URDF
+  has no field for (Stribeck ``fs``, ``fc_pos``/``fc_neg``, ``phi1..phi3``, torque ``offset``) go
+  into an XML comment in the joint, so they are not lost;
+* with armature, the joint's ``<transmission>`` gets ``<rotor_inertia>Ia / N²</rotor_inertia>`` in its
+  ``<actuator>`` (``N`` its ``<mechanicalReduction>``, kept; 1 when absent): the convention
+  :func:`idkit.robots.drives.read_armatures` reads back. A joint without a transmission gets a
+  ``SimpleTransmission`` named ``<joint>_idkit_drive``. A merged (unidentifiable) armature is written
+  at its a-priori value with a comment saying so.
 
 A mass ``≤ 0`` cannot be written (the centre of mass is undefined) and raises; a pseudo-inertia that
 is not positive semidefinite is written with a warning (many simulators reject it): project the
@@ -28,29 +35,24 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from idkit.robots.inertia import centroidal, min_pseudo_inertia_eigenvalues, pseudo_inertia
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_model import read_urdf_text
 
 
-def _vector(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> np.ndarray:
+def parameter_vector(
+    robot: URDFRobot, params: Tensor | Mapping[str, float], writer: str = "urdf export"
+) -> np.ndarray:
+    """``params`` (``[P]`` or name → value) as a float64 ``[P]`` array; ``writer`` prefixes errors."""
     if isinstance(params, Mapping):
         missing = [name for name in robot.param_names if name not in params]
         if missing:
-            raise ValueError(f"urdf export: parameters missing: {', '.join(missing[:5])}")
+            raise ValueError(f"{writer}: parameters missing: {', '.join(missing[:5])}")
         return np.array([float(params[name]) for name in robot.param_names])
     values = torch.as_tensor(params, dtype=torch.float64).detach().cpu().numpy()
     if values.shape != (robot.n_params,):
-        raise ValueError(f"urdf export: params must be [{robot.n_params}], got {values.shape}")
+        raise ValueError(f"{writer}: params must be [{robot.n_params}], got {values.shape}")
     return values
-
-
-def centroidal(standard: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """``(m, c[3], I_c[3, 3])`` of standard parameters ``[10]`` (inertia about the origin)."""
-    m, h = float(standard[0]), standard[1:4]
-    xx, xy, xz, yy, yz, zz = standard[4:]
-    inertia_o = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-    c = h / m
-    return m, c, inertia_o - m * (c @ c * np.eye(3) - np.outer(c, c))
 
 
 def _number(x: float) -> str:
@@ -63,9 +65,7 @@ def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
     Raises:
         ValueError: wrong parameter shape or names, or a link mass ``≤ 0`` (naming the link).
     """
-    from idkit.estimators.physical import min_pseudo_inertia_eigenvalues, pseudo_inertia
-
-    values = _vector(robot, params)
+    values = parameter_vector(robot, params)
     data, _ = read_urdf_text(robot.urdf)
     root = ET.fromstring(data, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
     links = {link.get("name"): link for link in root.findall("link")}
@@ -96,6 +96,7 @@ def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
             for inertial in links[name].findall("inertial"):
                 links[name].remove(inertial)
     _write_joint_terms(robot, values, joints)
+    _write_armatures(robot, values, root)
     return '<?xml version="1.0" encoding="utf-8"?>\n' + _prolog(data) + ET.tostring(root, encoding="unicode")
 
 
@@ -128,19 +129,33 @@ def _set_inertial(link: ET.Element, mass: float, com: np.ndarray, inertia: np.nd
         link.text, inertial.tail = indent, indent[:-2] if indent.endswith("  ") else indent
 
 
+#: Drive terms URDF has no field for: written into a comment in the joint.
+COMMENT_TERMS = ("fs", "fc_pos", "fc_neg", "phi1", "phi2", "phi3", "offset")
+
+
+def _coulomb(value: dict[str, float]) -> float:
+    """URDF's symmetric Coulomb friction for each friction model (module doc)."""
+    if "fc" in value:
+        return value["fc"]
+    if "fc_pos" in value:
+        return (value["fc_pos"] + value["fc_neg"]) / 2
+    return value["phi1"] / 2
+
+
 def _write_joint_terms(robot: URDFRobot, values: np.ndarray, joints: dict[str, ET.Element]) -> None:
-    """Friction into ``<dynamics>``; Stribeck and offset terms into a comment in the joint."""
+    """Friction into ``<dynamics>``; the terms without a URDF field into a comment in the joint."""
     index = {name: k for k, name in enumerate(robot.param_names)}
     for j, name in enumerate(robot.joint_names):
         joint = joints[name]
+        value = {s: float(values[index[f"{name}.{s}"]]) for s in robot.drives.suffixes}
         if robot.friction:
             dynamics = joint.find("dynamics")
             if dynamics is None:
                 dynamics = ET.SubElement(joint, "dynamics")
                 dynamics.tail = "\n  "
-            dynamics.set("damping", _number(values[index[f"{name}.fv"]]))
-            dynamics.set("friction", _number(values[index[f"{name}.fc"]]))
-        keys = [key for key in ("fs", "offset") if f"{name}.{key}" in index]
+            dynamics.set("damping", _number(value["fv"]))
+            dynamics.set("friction", _number(_coulomb(value)))
+        keys = [key for key in COMMENT_TERMS if f"{name}.{key}" in index]
         extra = [f"{key}={_number(values[index[f'{name}.{key}']])}" for key in keys]
         if robot.stribeck_scales is not None:
             extra.append(f"stribeck_velocity={_number(robot.stribeck_scales[j])}")
@@ -149,6 +164,59 @@ def _write_joint_terms(robot: URDFRobot, values: np.ndarray, joints: dict[str, E
             if len(joint):
                 comment.tail, joint[-1].tail = joint[-1].tail, "\n    "
             joint.append(comment)
+
+
+def _write_armatures(robot: URDFRobot, values: np.ndarray, root: ET.Element) -> None:
+    """``<rotor_inertia>`` of each joint's transmission (module doc; ``read_armatures`` reads it)."""
+    index = {name: k for k, name in enumerate(robot.param_names)}
+    single = {}
+    for transmission in root.findall("transmission"):
+        names = [joint.get("name") for joint in transmission.findall("joint")]
+        if len(names) == 1 and len(transmission.findall("actuator")) <= 1:
+            single[names[0]] = transmission
+    for joint in robot.joint_names:
+        key = f"{joint}.armature"
+        if key not in index:
+            continue
+        transmission = single.get(joint) or _new_transmission(root, joint)
+        actuator = transmission.find("actuator")
+        if actuator is None:
+            actuator = _append(transmission, ET.Element("actuator", name=f"{joint}_motor"))
+        reduction = actuator.find("mechanicalReduction")
+        if reduction is None:
+            reduction = transmission.find("mechanicalReduction")
+        ratio = 1.0 if reduction is None else float((reduction.text or "1").strip())
+        rotor = actuator.find("rotor_inertia")
+        if rotor is None:
+            rotor = transmission.find("rotor_inertia")
+        if rotor is None:
+            rotor = _append(actuator, ET.Element("rotor_inertia"))
+        rotor.text = _number(values[index[key]] / ratio**2)
+        if key in robot.a_priori_params:
+            note = f" idkit: the armature of {joint} merges with the link inertia (not identifiable); "
+            _append(transmission, ET.Comment(note + "rotor_inertia is its a-priori value "))
+
+
+def _append(parent: ET.Element, child: ET.Element) -> ET.Element:
+    """Append ``child`` indented like its siblings (a pretty-printed source stays pretty)."""
+    if len(parent):
+        child.tail, parent[-1].tail = parent[-1].tail, parent.text
+    else:
+        child.tail, parent.text = parent.tail, (parent.tail or "") + "  "
+    parent.append(child)
+    return child
+
+
+def _new_transmission(root: ET.Element, joint: str) -> ET.Element:
+    """A ``SimpleTransmission`` of ``joint`` with one actuator of reduction 1 (its rotor inertia 0)."""
+    transmission = ET.Element("transmission", name=f"{joint}_idkit_drive")
+    ET.SubElement(transmission, "type").text = "transmission_interface/SimpleTransmission"
+    ET.SubElement(transmission, "joint", name=joint)
+    actuator = ET.SubElement(transmission, "actuator", name=f"{joint}_motor")
+    ET.SubElement(actuator, "mechanicalReduction").text = "1"
+    ET.SubElement(actuator, "rotor_inertia").text = "0"
+    ET.indent(transmission, space="  ", level=1)
+    return _append(root, transmission)
 
 
 def write_identified_urdf(

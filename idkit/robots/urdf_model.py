@@ -12,6 +12,11 @@ child link's frame, which URDF defines to be the joint frame.
 
 Bodies are listed depth-first from the root (children in document order), so a body's parent
 always precedes it; kinematic trees (branches) are therefore supported, not only serial chains.
+
+The tree also keeps every link's own inertial as written, so that
+:func:`idkit.robots.model_checks.check_model` (which every reader calls) can name the element at
+fault: a repeated name, a negative or non-finite mass, a lower limit above the upper one, an
+inertia no rigid body has.
 """
 
 from __future__ import annotations
@@ -22,6 +27,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+
+from idkit.robots.inertia import standard_parameters
+from idkit.robots.model_checks import check_model
 
 ASSETS = Path(__file__).resolve().parent / "assets"
 MOVING = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
@@ -68,12 +76,41 @@ class Body:
 
 
 @dataclass(frozen=True)
+class LinkInertial:
+    """One link's own inertial as the model file gives it, before welded links are merged.
+
+    Attributes:
+        name: link name.
+        mass: kg (0 for a link without an inertial).
+        com: ``[3]`` centre of mass in the link frame.
+        inertia: ``[3, 3]`` inertia about the centre of mass, in link-frame axes.
+    """
+
+    name: str
+    mass: float
+    com: np.ndarray
+    inertia: np.ndarray
+
+
+@dataclass(frozen=True)
 class KinematicTree:
-    """The moving bodies of a fixed-base robot, parents before children."""
+    """The moving bodies of a fixed-base robot, parents before children.
+
+    Attributes:
+        name: the robot's name in its file.
+        root: the root link.
+        bodies: the moving bodies.
+        source: where the model was read from (a file path, ``<URDF text>``), for messages.
+        links: every link of the file in document order (repeats included), with its own inertial.
+        fixed_joints: the names of the fixed joints (merged away in ``bodies``).
+    """
 
     name: str
     root: str
     bodies: tuple[Body, ...]
+    source: str
+    links: tuple[LinkInertial, ...]
+    fixed_joints: tuple[str, ...] = ()
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -119,11 +156,11 @@ def _floats(element: ET.Element | None, attribute: str, default: tuple[float, ..
     try:
         values = np.array([float(v) for v in element.get(attribute, "").split()], dtype=np.float64)
     except ValueError:
-        raise ValueError(f"urdf: {where}: {attribute}={element.get(attribute)!r} is not numeric") from None
+        raise ValueError(f"{where}: {attribute}={element.get(attribute)!r} is not numeric") from None
+    if not np.isfinite(values).all():
+        raise ValueError(f"{where}: {attribute}={element.get(attribute)!r} is not a finite number")
     if values.shape != (len(default),):
-        raise ValueError(
-            f"urdf: {where}: {attribute} needs {len(default)} numbers, got {element.get(attribute)!r}"
-        )
+        raise ValueError(f"{where}: {attribute} needs {len(default)} numbers, got {element.get(attribute)!r}")
     return values
 
 
@@ -147,26 +184,20 @@ def _origin(element: ET.Element, where: str) -> tuple[np.ndarray, np.ndarray]:
     return rpy_matrix(rpy), xyz
 
 
-def _link_inertial(link: ET.Element) -> tuple[float, np.ndarray, np.ndarray]:
-    """``(m, c[3], I_c[3, 3])`` of a link in its own frame; zeros when it has no ``<inertial>``."""
-    where = f"link {link.get('name')!r}"
+def _link_inertial(link: ET.Element) -> LinkInertial:
+    """A link's inertial in its own frame; zeros when it has no ``<inertial>``."""
+    name = link.get("name", "")
+    where = f"link {name!r}"
     inertial = link.find("inertial")
     if inertial is None:
-        return 0.0, np.zeros(3), np.zeros((3, 3))
+        return LinkInertial(name, 0.0, np.zeros(3), np.zeros((3, 3)))
     mass = _floats(inertial.find("mass"), "value", (0.0,), f"{where} <mass>")[0]
     rotation, com = _origin(inertial, f"{where} <inertial>")
     element = inertial.find("inertia")
     names = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
     xx, xy, xz, yy, yz, zz = (_floats(element, k, (0.0,), f"{where} <inertia>")[0] for k in names)
     inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-    return float(mass), com, rotation @ inertia @ rotation.T
-
-
-def _standard(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray:
-    """Standard parameters ``[10]`` from mass, centre of mass and inertia about it (same frame)."""
-    inertia_o = inertia_c + mass * (com @ com * np.eye(3) - np.outer(com, com))  # parallel axis
-    (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia_o
-    return np.array([mass, *(mass * com), xx, xy, xz, yy, yz, zz])
+    return LinkInertial(name, float(mass), com, rotation @ inertia @ rotation.T)
 
 
 def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translation: np.ndarray) -> Body:
@@ -175,7 +206,7 @@ def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translati
     axis = _floats(joint.find("axis"), "xyz", (1.0, 0.0, 0.0), f"joint {name!r} <axis>")
     norm = np.linalg.norm(axis)
     if norm < 1e-12:
-        raise ValueError(f"urdf: joint {name!r} has a zero axis")
+        raise ValueError(f"joint {name!r} has a zero axis")
     limits = None
     limit = joint.find("limit")
     velocity = _floats(limit, "velocity", (0.0,), f"joint {name!r} <limit>")[0]
@@ -183,7 +214,7 @@ def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translati
     if kind != "continuous":
         lo = _floats(limit, "lower", (0.0,), f"joint {name!r} <limit>")[0]
         hi = _floats(limit, "upper", (0.0,), f"joint {name!r} <limit>")[0]
-        limits = (float(lo), float(hi)) if hi > lo else None
+        limits = None if hi == lo else (float(lo), float(hi))  # both absent: 0, 0 (no limit)
     child = joint.find("child").get("link")
     max_velocity = float(velocity) if velocity > 0 else None
     kind, axis = MOVING[kind], axis / norm
@@ -204,51 +235,65 @@ def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translati
 
 
 def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
-    """Parse URDF text, a path or a shipped asset name into a :class:`KinematicTree`.
+    """Parse URDF text, a path or a shipped asset name into a checked :class:`KinematicTree`.
 
     Raises:
-        ValueError: malformed XML, a joint of unsupported type (``floating``, ``planar``,
-            unknown) or with ``<mimic>``, a zero axis, a link with two parents, no unique root,
-            or no moving joint. The message names the offending joint or link.
+        ValueError: malformed XML, a number that is not one (``nan``), a joint of unsupported type
+            (``floating``, ``planar``, unknown) or with ``<mimic>``, a zero axis, a link with two
+            parents, no unique root, or no moving joint; and whatever
+            :func:`~idkit.robots.model_checks.check_model` refuses. The message names the file and
+            the offending joint or link.
     """
     data, label = read_urdf_text(urdf)
     try:
         robot = ET.fromstring(data)
     except ET.ParseError as error:
         raise ValueError(f"urdf: {label} is not valid XML: {error}") from None
+    try:
+        tree = _tree(robot, label)
+    except ValueError as error:
+        raise ValueError(f"urdf: {label}: {error}") from None
+    check_model(tree)
+    return tree
+
+
+def _tree(robot: ET.Element, label: str) -> KinematicTree:
+    """The :class:`KinematicTree` of a parsed ``<robot>`` element (``label``: its source)."""
     if robot.tag != "robot":
-        raise ValueError(f"urdf: {label}: root element is <{robot.tag}>, expected <robot>")
+        raise ValueError(f"root element is <{robot.tag}>, expected <robot>")
+    own = [_link_inertial(link) for link in robot.findall("link")]
     links = {link.get("name"): link for link in robot.findall("link")}
+    inertial_of = {link.name: link for link in own}
     children: dict[str, list[ET.Element]] = {name: [] for name in links}
     parent_of: dict[str, str] = {}
     for joint in robot.findall("joint"):
         name, kind = joint.get("name"), joint.get("type")
         if kind in UNSUPPORTED:
-            raise ValueError(f"urdf: joint {name!r} has type {kind!r}: {UNSUPPORTED[kind]}")
+            raise ValueError(f"joint {name!r} has type {kind!r}: {UNSUPPORTED[kind]}")
         if kind not in MOVING and kind != "fixed":
             raise ValueError(
-                f"urdf: joint {name!r} has unknown type {kind!r} "
+                f"joint {name!r} has unknown type {kind!r} "
                 "(supported: revolute, continuous, prismatic, fixed)"
             )
         if joint.find("mimic") is not None:
-            raise ValueError(f"urdf: joint {name!r} has <mimic>: mimic joints are not supported")
+            raise ValueError(f"joint {name!r} has <mimic>: mimic joints are not supported")
         parent = joint.find("parent")
         child = joint.find("child")
         parent_link = None if parent is None else parent.get("link")
         child_link = None if child is None else child.get("link")
         for role, link_name in (("parent", parent_link), ("child", child_link)):
             if link_name not in links:
-                raise ValueError(f"urdf: joint {name!r}: {role} link {link_name!r} is not defined")
+                raise ValueError(f"joint {name!r}: {role} link {link_name!r} is not defined")
         if child_link in parent_of:
             raise ValueError(
-                f"urdf: link {child_link!r} is the child of two joints ({parent_of[child_link]!r}, "
+                f"link {child_link!r} is the child of two joints ({parent_of[child_link]!r}, "
                 f"{name!r}): closed loops are not supported"
             )
         parent_of[child_link] = name
         children[parent_link].append(joint)
     roots = [name for name in links if name not in parent_of]
     if len(roots) != 1:
-        raise ValueError(f"urdf: {label}: expected one root link, found {roots or 'none (a loop)'}")
+        raise ValueError(f"expected one root link, found {roots or 'none (a loop)'}")
     bodies: list[Body] = []
     inertials: list[np.ndarray] = []
     welded: list[list[str]] = []
@@ -266,9 +311,10 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
             owner, rot, pos = len(bodies) - 1, np.eye(3), np.zeros(3)
         elif owner >= 0:
             welded[owner].append(link)
-        mass, com, inertia = _link_inertial(links[link])
+        inertial = inertial_of[link]
         if owner >= 0:
-            inertials[owner] += _standard(mass, rot @ com + pos, rot @ inertia @ rot.T)
+            com, inertia = rot @ inertial.com + pos, rot @ inertial.inertia @ rot.T
+            inertials[owner] += standard_parameters(inertial.mass, com, inertia)
         pending = []
         for joint in children[link]:
             name = joint.get("name")
@@ -281,9 +327,10 @@ def parse_urdf(urdf: str | os.PathLike) -> KinematicTree:
                 pending.append((child, owner, rot_c, pos_c, _moving_body(joint, owner, rot_c, pos_c)))
         stack.extend(reversed(pending))  # children in document order
     if not bodies:
-        raise ValueError(f"urdf: {label} has no revolute, continuous or prismatic joint")
+        raise ValueError("has no revolute, continuous or prismatic joint")
     bodies = [
         replace(b, inertial=inertial, welded=tuple(w))
         for b, inertial, w in zip(bodies, inertials, welded, strict=True)
     ]
-    return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies))
+    fixed = tuple(joint.get("name", "") for joint in robot.findall("joint") if joint.get("type") == "fixed")
+    return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies), label, tuple(own), fixed)

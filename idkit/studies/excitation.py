@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from idkit.data.presets import Scenario
+from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
 
@@ -138,7 +139,7 @@ def run(
     learning_rate: float = 0.01,
     grid_points: int = 1001,
     check_points: int | None = None,
-    seed: int = 0,
+    seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
 ) -> ExcitationStudy:

@@ -48,11 +48,13 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.estimators.physical import min_pseudo_inertia_eigenvalues
+from idkit.interfaces import CostSearcher
 from idkit.problem import Problem, Samples
+from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
+from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
-from idkit.studies.labels import searches_cost, unique_labels
+from idkit.studies.labels import unique_labels
 from idkit.studies.recordings import DataFile, load_files, preprocess_options
 from idkit.studies.result import Provenance, StudyInterrupted
 from idkit.studies.validation import Validation, score, validate
@@ -243,7 +245,7 @@ def run(
     search_cost: Spec = "f1",
     plot_window: Sequence[float] = (10.0, 25.0),
     preprocess: Any = None,
-    seed: int = 0,
+    seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
 ) -> KukaStudy:
@@ -282,9 +284,9 @@ def run(
     as_recorded = load_files(rigid, [data_dir / f"{name}.npz" for name in names], {"apply": "off"})
     checks = {name: data_check(f.samples, f.times) for name, f in zip(names, as_recorded, strict=True)}
     est_objs = [build("estimator", spec) for spec in estimators]
+    searches = [isinstance(obj, CostSearcher) for obj in est_objs]
     labels = unique_labels(
-        [(spec, search_cost, searches_cost(obj)) for spec, obj in zip(estimators, est_objs, strict=True)],
-        where="kuka",
+        [(spec, search_cost, s) for spec, s in zip(estimators, searches, strict=True)], where="kuka"
     )
     cost = build("cost", search_cost)
     data = {"dir": str(data_dir), "train": train, "test": list(test), "stride": stride}

@@ -1,13 +1,20 @@
-"""Estimate labels from registry names and options: ``PSO-f13``, ``PSO-huber(relative)``, ``LS-rel``.
+"""Estimate labels from specs — registry names and options: ``PSO-f13``, ``PSO-huber(relative)``, ``LS-rel``.
 
 A label is what tables, plots and ``result.json`` call an estimate, so it must say what ran and be
-unique within a study. It is derived from the specs, not from class names:
+unique within a study. It comes from the spec alone, never from a class's own ``label`` or ``name``,
+so a ready object and the config that builds it get one label:
 
+* a name or mapping spec is a registry name and options; a ready object is read back into one:
+  the name an installed distribution registers its class under, and its
+  constructor's options as the object stores them (the plugin contract: every hyperparameter an
+  attribute of the same name). An object of a class no distribution registers (a subclass in a
+  script) has no registry name, and its class name stands in for one;
 * the estimator's registry name, its first word upper-cased (``pso`` → ``PSO``, ``pso_f13_f14`` →
-  ``PSO-f13-f14``), then ``-rel`` when its ``relative`` option is on (the paper's ``LS-rel``);
-* for an estimator that searches a cost (it has ``fit_costs``): ``-`` and the cost's registry name,
-  with the cost's options that differ from their defaults in brackets (``huber(relative)``,
-  ``huber(delta=2.0)``).
+  ``PSO-f13-f14``; a class name as it is), then ``-rel`` when its ``relative`` option is on (the
+  paper's ``LS-rel``);
+* for an estimator that searches a cost (:class:`~idkit.interfaces.CostSearcher`): ``-`` and the
+  cost's name, with the cost's options that differ from their defaults in brackets
+  (``huber(relative)``, ``huber(delta=2.0)``).
 
 Two specs that give the same label are told apart by the estimator's own non-default options
 (``PSO(runs=4)-f1``); if they are still equal, :func:`unique_labels` raises.
@@ -19,20 +26,35 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from idkit import registry
-from idkit.studies.build import Spec, constructor_options, name_and_options
+from idkit.studies.build import Spec, constructor_options, name_and_options, stored_options
 
 #: Estimator options shown in the label itself (``-rel``), never in brackets.
 _IN_NAME = ("relative",)
 
 
-def _defaults(kind: registry.Kind, name: str | None) -> dict[str, Any]:
-    return {} if name is None else constructor_options(registry.load(kind, name))
+def registered_name(kind: registry.Kind, cls: type) -> str | None:
+    """The name ``cls`` is registered under in ``kind``'s entry points, or ``None`` (imports nothing)."""
+    target = f"{cls.__module__}:{cls.__qualname__}"
+    found = [name for name in registry.available(kind) if registry.info(kind, name).value == target]
+    return found[0] if found else None
 
 
-def _changed(kind: registry.Kind, name: str | None, options: Mapping[str, Any]) -> dict[str, Any]:
-    """Options that differ from the constructor's defaults."""
-    defaults = _defaults(kind, name)
-    return {k: v for k, v in options.items() if k not in defaults or defaults[k] != v}
+def _read(kind: registry.Kind, spec: Spec) -> tuple[str | None, str, dict[str, Any], Any]:
+    """``(registry name, name, options, factory)`` of a spec: a ready object is read back, and the
+    name of an unregistered one is its class name (module docstring)."""
+    name, options = name_and_options(kind, spec)
+    if name is not None:
+        return name, name, options, registry.load(kind, name)
+    cls = type(spec)
+    registered = registered_name(kind, cls)
+    return registered, registered or cls.__name__, stored_options(spec), cls
+
+
+def _changed(kind: registry.Kind, spec: Spec) -> tuple[str | None, str, dict[str, Any]]:
+    """The spec's registry name, name and options that differ from the constructor's defaults."""
+    registered, name, options, factory = _read(kind, spec)
+    defaults = constructor_options(factory)
+    return registered, name, {k: v for k, v in options.items() if k not in defaults or defaults[k] != v}
 
 
 def _brackets(options: Mapping[str, Any]) -> str:
@@ -45,17 +67,10 @@ def _display(name: str) -> str:
     return "-".join([head.upper(), *rest])
 
 
-def searches_cost(estimator: Any) -> bool:
-    """Whether an estimator minimises the problem's cost (so the cost belongs in its label)."""
-    return callable(getattr(estimator, "fit_costs", None))
-
-
 def cost_label(cost: Spec) -> str:
-    """``f13``, ``huber(relative)``: the cost's registry name and its non-default options."""
-    name, options = name_and_options("cost", cost)
-    if name is None:
-        return type(cost).__name__
-    return name + _brackets(_changed("cost", name, options))
+    """``f13``, ``huber(relative)``: the cost's name and its non-default options."""
+    _, name, changed = _changed("cost", cost)
+    return name + _brackets(changed)
 
 
 def estimator_label(
@@ -69,17 +84,11 @@ def estimator_label(
         all_options: also bracket the estimator's other non-default options (to tell apart two
             specs of one estimator).
     """
-    name, options = name_and_options("estimator", estimator)
-    if name is None:  # a ready object: its own short name if it declares one
-        own = getattr(estimator, "label", None)
-        label = own if isinstance(own, str) and "{" not in own else type(estimator).__name__
-        relative = bool(getattr(estimator, "relative", False))
-    else:
-        label = _display(name)
-        changed = _changed("estimator", name, options)
-        relative = bool(changed.pop("relative", False))
-        if all_options:
-            label += _brackets({k: v for k, v in changed.items() if k not in _IN_NAME})
+    registered, name, changed = _changed("estimator", estimator)
+    label = name if registered is None else _display(name)
+    relative = bool(changed.pop("relative", False))
+    if all_options:
+        label += _brackets({k: v for k, v in changed.items() if k not in _IN_NAME})
     if relative:
         label += "-rel"
     if with_cost and cost is not None:

@@ -25,6 +25,7 @@ from typing import Any
 
 from idkit.data.presets import PAPER_SCENARIOS
 from idkit.estimate import Estimate
+from idkit.seeds import Seed
 from idkit.studies.average import average, average_label, mean_params
 from idkit.studies.build import Spec, build, describe, name_and_options
 from idkit.studies.labels import unique_labels
@@ -151,7 +152,7 @@ def run(
     costs: Sequence[Spec] = COSTS,
     average_of: Sequence[str] = ("f13", "f14"),
     scenario: Mapping[str, Any] | None = None,
-    seed: int = 0,
+    seed: Seed = 0,
     columns: Sequence[str] = COLUMNS,
     reference: str | Path | None = None,
     device: str = "cpu",

@@ -22,6 +22,12 @@ stacks trials × costs × runs into one batched swarm, the LS family and IRLS st
 linear systems, and third-party estimators without ``fit_trials`` are fitted trial by trial.
 ``shard``/``shards`` split the trials into contiguous slices for parallel jobs, which
 :func:`merge` joins (the multirun callback does it).
+
+Size: the noise draws of every scenario are made up front (trial ``i`` depends only on ``(seed,
+i)``), so memory grows with ``trials``. Before drawing, :func:`memory_needed` estimates the bytes
+from the measured model below and ``idkit.memory.check_memory`` refuses, in one line with the
+estimate and the machine's available memory, a study that cannot fit (the default study with
+``trials=1e9``: ~21 TB).
 """
 
 from __future__ import annotations
@@ -37,6 +43,8 @@ import numpy as np
 
 from idkit import registry
 from idkit.data.presets import PAPER_SCENARIOS
+from idkit.memory import check_memory
+from idkit.seeds import Seed, trial_seed
 from idkit.studies.average import average_label, mean_params
 from idkit.studies.build import Spec, build, describe, name_and_options
 from idkit.studies.labels import unique_labels
@@ -49,6 +57,17 @@ TRIALS_FILE = "robustness_trials.csv"
 DEFAULT_CHUNK = 50
 CONFIDENCE = 0.95
 ALPHA = 1 - CONFIDENCE
+#: The study's memory model, in bytes per trial. The draws of every scenario stay for the whole
+#: study: 17 B per sample component (one joint's q, qd, qdd or tau at one sample: the noisy value
+#: and the drawn error in float64, the outlier flag), and drawing one scenario needs ~40 B per
+#: component more for a moment (measured with ``/proc`` and ``ru_maxrss``: 100,000 trials). The
+#: estimates kept per trial, scenario and label are a row of Python floats and, at the end, an array.
+#: Checked on 20,000 trials of the paper's scenarios and four LS/RLS estimators: 22.1 kB per trial
+#: measured (peak RSS growth), 19.8 kB by the model.
+DRAW_BYTES_KEPT = 17
+DRAW_BYTES_PEAK = 40
+ESTIMATE_BYTES = 64
+PARAMETER_BYTES = 40
 
 
 @dataclass
@@ -322,15 +341,51 @@ def shard_trials(trials: int, shard: int, shards: int) -> range:
 
     Contiguous slices in shard order concatenate to ``range(trials)``, so :func:`merge` of the
     shards is the one-process study.
+
+    Raises:
+        ValueError: ``trials`` or ``shards`` below 1, ``shard`` outside ``[0, shards)``, or more
+            shards than trials.
     """
-    for name, value, low in (("shards", shards, 1), ("shard", shard, 0)):
+    for name, value, low in (
+        ("trials", trials, 1),
+        ("robustness.shards", shards, 1),
+        ("robustness.shard", shard, 0),
+    ):
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ValueError(f"robustness.{name} must be an integer >= {low}, got {value!r}")
+            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
     if shard >= shards:
         raise ValueError(f"robustness.shard must be below robustness.shards={shards}, got {shard}")
     if shards > trials:
-        raise ValueError(f"robustness.shards={shards} exceeds trials={trials}: a shard would be empty")
+        raise ValueError(
+            f"robustness.shards={shards} exceeds trials={trials}: a shard would have no trial; use at "
+            f"most {trials} shard{'s' if trials > 1 else ''}"
+        )
     return range(trials * shard // shards, trials * (shard + 1) // shards)
+
+
+def memory_needed(
+    robot: Any, scenarios: Sequence[Any], common: Mapping[str, Any], drawn: int, fitted: int, labels: int
+) -> int:
+    """Bytes the study needs at its peak for ``drawn`` trials' noise draws and ``fitted`` trials'
+    estimates under ``labels`` labels, by the measured model of the module's constants: the kept
+    draws, plus the larger of the moment one scenario is drawn and the estimates that grow after it.
+
+    Args:
+        robot: the study's robot (joints and parameters).
+        scenarios: the scenarios (names, ``Scenario`` or mappings), ``common`` set on each.
+        drawn: trials drawn (a shard draws every trial up to its last).
+        fitted: trials fitted (the shard's).
+        labels: estimate columns kept per scenario.
+    """
+    from idkit.data.scenarios import get_scenario
+    from idkit.problem import SAMPLE_ARRAYS
+
+    components = [
+        len(SAMPLE_ARRAYS) * get_scenario(s, **common).n_samples * robot.n_joints for s in scenarios
+    ]
+    drawing = drawn * DRAW_BYTES_PEAK * max(components)
+    estimates = fitted * len(scenarios) * labels * (ESTIMATE_BYTES + PARAMETER_BYTES * robot.n_params)
+    return drawn * DRAW_BYTES_KEPT * sum(components) + max(drawing, estimates)
 
 
 def run(
@@ -352,7 +407,7 @@ def run(
     chunk: int = DEFAULT_CHUNK,
     shard: int = 0,
     shards: int = 1,
-    seed: int = 0,
+    seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
     progress: bool = True,
@@ -382,7 +437,7 @@ def run(
             checkpoint or Ctrl-C can take the finished trials.
         shard, shards: fit only shard ``shard`` of ``shards`` contiguous slices of the trials
             (Hydra multirun jobs; the sweep's callback merges them into one report).
-        seed: seed of the noise draws; trial ``i``'s estimators use ``seed + i``.
+        seed: seed of the noise draws; trial ``i``'s estimators use ``seed + i`` (modulo ``2**64``).
         checkpoint: called with the study so far every ``checkpoint_every_s`` seconds (the command
             line writes the partial report, so a long study that dies still reports).
 
@@ -411,6 +466,12 @@ def run(
     cost_names = [name_and_options("cost", c)[0] for c in cost_specs]
     search = build("estimator", estimator) if cost_objs else None
     focus = average_label(average_of) if average_of and set(average_of) <= set(cost_names) else None
+    columns = len(labels) + (focus is not None)
+    check_memory(
+        f"robustness: trials={trials} ({len(scenarios)} scenario(s) x {columns} estimates per trial)",
+        memory_needed(robot_obj, scenarios, common, mine.stop, len(mine), columns),
+        "lower trials",
+    )
     truth = robot_obj.nominal_params().numpy()
     found: dict[str, dict[str, list]] = {scenario: {} for scenario in scenarios}
     fit_time: dict[str, float] = {}
@@ -450,7 +511,9 @@ def run(
     def fit_chunk(scenario: str, chosen: range) -> None:
         """Every estimator on trials ``chosen`` of ``scenario``, appended to ``found``."""
         problems = [
-            Problem(robot_obj, batches[scenario][t], None, seed=seed + t, device=device, dtype=dtype)
+            Problem(
+                robot_obj, batches[scenario][t], None, seed=trial_seed(seed, t), device=device, dtype=dtype
+            )
             for t in chosen
         ]
         # The study's chunk is the batch (it bounds memory already): one batched call per estimator.

@@ -12,7 +12,8 @@ n_samples=40, ...)``. From Python, ``idkit.run(...)`` calls it and writes the re
 Measured data: ``data=`` is one file or a list (stacked for training), ``validate=`` lists held-out
 files the identified model is scored on (:mod:`idkit.studies.validation`), ``preprocess`` says how raw
 recordings become samples (:mod:`idkit.studies.recordings`). A fit of a ``urdf`` robot also carries
-its ``identified.urdf`` text (``identified_urdf=False`` to skip), which the report writes.
+its ``identified.urdf`` text (``identified_urdf=False`` to skip), a fit of an ``mjcf`` robot its
+``identified.xml`` (MJCF; ``identified_mjcf=True`` for a ``urdf`` robot too), which the report writes.
 """
 
 from __future__ import annotations
@@ -26,10 +27,19 @@ from typing import Any
 import numpy as np
 
 from idkit.estimate import Estimate
+from idkit.interfaces import CostSearcher
+from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
-from idkit.studies.labels import cost_label, estimator_label, searches_cost
+from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
-from idkit.studies.recordings import DataFile, as_paths, load_files, preprocess_options
+from idkit.studies.recordings import (
+    DataFile,
+    as_paths,
+    load_files,
+    preprocess_options,
+    refuse_seen_samples,
+    refuse_training_files,
+)
 from idkit.studies.result import Provenance
 from idkit.studies.validation import Validation, validate_files
 
@@ -56,6 +66,8 @@ class RunResult:
         validation: scores on the ``validate=`` files, in their order.
         urdf: the ``identified.urdf`` text of a ``urdf`` robot's fit (``None``: other robots, turned
             off, or not writable, e.g. a link mass <= 0).
+        mjcf: the ``identified.xml`` (MJCF) text of an ``mjcf`` robot's fit, or of a ``urdf`` robot's
+            with ``identified_mjcf=True`` (``None``: not asked, or not writable: non-physical inertia).
     """
 
     estimate: Estimate
@@ -64,6 +76,7 @@ class RunResult:
     provenance: Provenance
     validation: list[HeldOut] = field(default_factory=list)
     urdf: str | None = None
+    mjcf: str | None = None
 
     @property
     def seed(self) -> int:
@@ -132,22 +145,34 @@ def _describe_files(
         out: dict[str, Any] = {"file": paths[0]} if len(paths) == 1 else {"files": paths}
     else:
         out = {**source, "validate": paths}
-    processed = [*(out.get("preprocess") or {}).get("files", []), *(f.path for f in files if f.preprocessed)]
+    before = out.get("preprocess") or {}
+    for key in ("log", "delay"):  # a ROS log's topics and clocks; a torque delay applied
+        found = {**out.get(f"{key}s", {}), **{f.path: getattr(f, key) for f in files if getattr(f, key)}}
+        if found:
+            out[f"{key}s"] = found
+    processed = [*before.get("files", []), *(f.path for f in files if f.preprocessed)]
+    gaps = {**before.get("gaps", {}), **{f.path: f.preprocessing for f in files if _split(f)}}
     if processed:
         options, _ = preprocess_options(preprocess)
-        out["preprocess"] = {"files": processed, **vars(options)}
+        out["preprocess"] = {"files": processed, **vars(options), **({"gaps": gaps} if gaps else {})}
     return out
+
+
+def _split(file: DataFile) -> bool:
+    """Whether preprocessing split ``file`` at gaps in its timestamps."""
+    return bool(file.preprocessing and file.preprocessing.get("note"))
 
 
 def load_data(
     robot: Any,
     scenario: Any = None,
     *,
-    seed: int = 0,
+    seed: Seed = 0,
     data: Any = None,
     n_samples: int | None = None,
     params: Any = None,
     preprocess: Any = None,
+    recording: Any = None,
 ) -> tuple[Any, dict[str, float] | None, dict[str, Any]]:
     """``(samples, truth, description)``: measured ``data`` (path(s) or ``Samples``) or a simulation.
 
@@ -166,7 +191,7 @@ def load_data(
             raise ValueError(f"n_samples={n_samples} applies to a simulated scenario, not to data=")
         from idkit.data.recording import stack_samples
 
-        files = load_files(robot, data, preprocess, role="data")
+        files = load_files(robot, data, preprocess, role="data", recording=recording)
         samples = stack_samples([f.samples for f in files], [f.path for f in files])
         return samples, None, _describe_files(files, preprocess)
     import torch
@@ -185,12 +210,31 @@ def _identified_urdf(robot: Any, params: dict[str, float]) -> str | None:
     from idkit.robots.urdf import URDFRobot
     from idkit.robots.urdf_export import identified_urdf
 
-    if not isinstance(robot, URDFRobot):
+    if not isinstance(robot, URDFRobot) or robot.source_format != "urdf":
         return None
     try:
         return identified_urdf(robot, params)
     except ValueError as exc:
         warnings.warn(f"identified.urdf not written: {exc}", stacklevel=3)
+        return None
+
+
+def _identified_mjcf(robot: Any, params: dict[str, float], wanted: bool | None) -> str | None:
+    """The ``identified.xml`` text of an ``mjcf`` robot's fit (``wanted=None`` or ``True``) or of a
+    ``urdf`` robot's (``wanted=True``); ``None`` (with a one-line warning) if MuJoCo would refuse it."""
+    from idkit.registry import PluginLoadError
+    from idkit.robots.urdf import URDFRobot
+
+    if not isinstance(robot, URDFRobot) or wanted is False:
+        return None
+    if wanted is None and robot.source_format != "mjcf":
+        return None
+    from idkit.robots.mjcf_export import identified_mjcf
+
+    try:
+        return identified_mjcf(robot, params)
+    except (ValueError, PluginLoadError) as exc:
+        warnings.warn(f"identified.xml not written: {exc}", stacklevel=3)
         return None
 
 
@@ -200,13 +244,15 @@ def run(
     cost: Spec | None = "f13",
     scenario: Any = None,
     *,
-    seed: int = 0,
+    seed: Seed = 0,
     data: Any = None,
     n_samples: int | None = None,
     params: Any = None,
     validate: Any = None,
     preprocess: Any = None,
+    recording: Any = None,
     identified_urdf: bool = True,
+    identified_mjcf: bool | None = None,
     device: str = "cpu",
     dtype: str = "float64",
 ) -> RunResult:
@@ -223,19 +269,40 @@ def run(
             list of them (stacked for training; each must have the robot's joints).
         n_samples: the scenario's number of samples (``None``: the scenario's own).
         params: true parameters ``[P]`` to simulate with (default ``robot.nominal_params()``).
-        validate: held-out files (or ``Samples``) the identified model is scored on.
+        validate: held-out files (or ``Samples``) the identified model is scored on; a training file
+            (same path, same bytes, or the same samples in another file) is refused.
         preprocess: how raw recordings become samples: ``PreprocessOptions`` fields plus ``apply``
             (``auto``: raw recordings only; ``on``; ``off``), applied to every data and validate file.
+        recording: how raw recordings are read: ``RecordingOptions`` fields (a ROS log's ``topic``
+            and ``effort_topic``, :mod:`idkit.data.logs`; the torque ``delay`` in s or ``"auto"``,
+            :mod:`idkit.data.delay`), for every data and validate file.
         identified_urdf: for a ``urdf`` robot, also produce ``identified.urdf`` (the report writes it).
+        identified_mjcf: produce ``identified.xml`` (MJCF, :mod:`idkit.robots.mjcf_export`): ``None``
+            for an ``mjcf`` robot only, ``True`` for a ``urdf`` robot too, ``False`` never.
         device, dtype: where and in which precision the estimator computes.
     """
     from idkit.problem import Problem
 
     robot_obj = build("robot", robot)
+    if validate is not None and data is not None:
+        refuse_training_files(data, validate)
     samples, truth, source = load_data(
-        robot_obj, scenario, seed=seed, data=data, n_samples=n_samples, params=params, preprocess=preprocess
+        robot_obj,
+        scenario,
+        seed=seed,
+        data=data,
+        n_samples=n_samples,
+        params=params,
+        preprocess=preprocess,
+        recording=recording,
     )
-    held_out = [] if validate is None else load_files(robot_obj, validate, preprocess, role="validate")
+    held_out = (
+        []
+        if validate is None
+        else load_files(robot_obj, validate, preprocess, role="validate", recording=recording)
+    )
+    if data is not None:
+        refuse_seen_samples(samples, held_out)
     if held_out:
         source = _describe_files(held_out, preprocess, source)
     cost_obj = build("cost", cost)
@@ -243,7 +310,7 @@ def run(
     problem = Problem(robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype)
     problem.check_identifiable()  # for every estimator, a third party's included, before its fit
     fitted = estimator_obj.fit(problem)
-    label = estimator_label(estimator, cost, with_cost=searches_cost(estimator_obj))
+    label = estimator_label(estimator, cost, with_cost=isinstance(estimator_obj, CostSearcher))
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
     provenance = Provenance(
         task="single",
@@ -263,4 +330,5 @@ def run(
         provenance,
         [HeldOut(f.path, s, f.times) for f, s in zip(held_out, scores, strict=True)],
         _identified_urdf(robot_obj, fitted.params) if identified_urdf else None,
+        _identified_mjcf(robot_obj, fitted.params, identified_mjcf),
     )

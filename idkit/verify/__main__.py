@@ -25,6 +25,7 @@ def _oracle(args: argparse.Namespace) -> int:
 
     from idkit.robots.urdf import URDFRobot
     from idkit.robots.urdf_model import ASSETS
+    from idkit.seeds import torch_generator
     from idkit.verify.oracle import PKDynamics
 
     path = Path(args.urdf)
@@ -32,7 +33,7 @@ def _oracle(args: argparse.Namespace) -> int:
         path = ASSETS / f"{args.urdf}.urdf"
     robot = URDFRobot(str(path))
     oracle = PKDynamics(path, joint_names=robot.joint_names)
-    gen = torch.Generator().manual_seed(args.seed)
+    gen = torch_generator(args.seed)
     n = robot.n_joints
     q, qd, qdd = (torch.randn(args.samples, n, generator=gen, dtype=torch.float64) for _ in range(3))
     ours = robot.inverse_dynamics(robot.nominal_params(), q, qd, qdd)

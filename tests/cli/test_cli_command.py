@@ -90,7 +90,7 @@ BAD_INPUTS = [
     (["estimator=ls", "data=no-arrays.npz"], "no-arrays.npz: the .npz archive contains no arrays"),
     (["estimator=ls", "data=text.npz"], "text.npz: not a NumPy .npz archive"),
     (["estimator=ls", "data=strings.npz"], "strings.npz: array 'q' has dtype <U1 (text)"),
-    (["estimator=ls", "data=folder"], "folder is a directory, not a samples file"),
+    (["estimator=ls", "data=folder"], "folder is a directory, not a data file (.npz, .csv) nor a ROS 2 bag"),
     (["estimator=ls", "data=no-such-file.npz"], "data file not found: no-such-file.npz"),
     (
         ["estimator=pso", "cost=f13", "n_samples=1"],

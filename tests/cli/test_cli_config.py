@@ -174,6 +174,9 @@ def test_third_party_plugin_is_a_config_without_yaml(tmp_path, monkeypatch, hydr
             class Toy:
                 def __init__(self, scale: float = 1.0, steps: int = 3):
                     self.scale, self.steps = scale, steps
+
+                def fit(self, problem):
+                    raise NotImplementedError
             """
         )
     )

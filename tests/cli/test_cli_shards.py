@@ -1,4 +1,5 @@
-"""A sharded robustness study through Hydra's joblib launcher, merged by the sweep's callback."""
+"""A sharded robustness study through Hydra's joblib and submitit (local) launchers, merged by the
+sweep's callback into the numbers of one process."""
 
 from __future__ import annotations
 
@@ -20,14 +21,13 @@ def _without_times(row: dict) -> dict:
     return {k: v for k, v in row.items() if k != "mean_fit_time_s"}
 
 
-@pytest.mark.integration
-@pytest.mark.filterwarnings("ignore")
-def test_two_shards_through_joblib_merge_into_the_one_process_study(tmp_path):
+def _sweep_merges_into_the_one_process_study(tmp_path, launcher: list[str]) -> None:
+    """Two shards through ``launcher``; the sweep's callback must merge them into what one process
+    writes: the same per-trial file and the same summary (times aside)."""
     one = idkit(*SMALL_STUDY, "hydra.run.dir=single", cwd=tmp_path)
     assert one.returncode == 0, one.stderr
     sweep = idkit(
-        "-m", *SMALL_STUDY, "robustness.shard=0,1", "robustness.shards=2",
-        "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "hydra.sweep.dir=sweep",
+        "-m", *SMALL_STUDY, "robustness.shard=0,1", "robustness.shards=2", *launcher, "hydra.sweep.dir=sweep",
         cwd=tmp_path,
     )  # fmt: skip
     assert sweep.returncode == 0, sweep.stderr
@@ -41,3 +41,20 @@ def test_two_shards_through_joblib_merge_into_the_one_process_study(tmp_path):
         _without_times(r) for r in expected
     ]
     assert only(list((tmp_path / "sweep").glob("merged*"))) == merged
+
+
+@pytest.mark.integration
+@pytest.mark.filterwarnings("ignore")
+def test_two_shards_through_joblib_merge_into_the_one_process_study(tmp_path):
+    _sweep_merges_into_the_one_process_study(tmp_path, ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"])
+
+
+@pytest.mark.integration
+@pytest.mark.filterwarnings("ignore")
+def test_two_shards_through_submitit_local_merge_into_the_one_process_study(tmp_path):
+    """Submitit's local executor: each shard a separate job process, as on a SLURM cluster
+    (``submitit_slurm`` takes the same sweep, with a partition), its logs under the sweep."""
+    _sweep_merges_into_the_one_process_study(
+        tmp_path, ["hydra/launcher=submitit_local", "hydra.launcher.timeout_min=10"]
+    )
+    assert list((tmp_path / "sweep" / ".submitit").glob("*/*_log.out"))  # the jobs ran through submitit

@@ -7,6 +7,7 @@ import pytest
 
 from idkit.data.load import file_kind, load_data_file
 from idkit.data.preprocess import PreprocessOptions
+from idkit.data.table import read_table
 
 
 def sines(n: int = 400, rate: float = 100.0):
@@ -22,17 +23,17 @@ def test_kinds_of_files(tmp_path):
     np.savez(tmp_path / "r.npz", t=t, q=q, tau=q)
     np.savez(tmp_path / "f.npz", times=t, positions=q, velocities=qd, accelerations=qdd, torques=q)
     (tmp_path / "r.csv").write_text("t,q1,tau1\n0,1,2\n1,2,3\n")
-    kind = file_kind(tmp_path / "s.npz")
+    kind = file_kind(read_table(tmp_path / "s.npz"))
     assert (kind.samples, kind.timestamps, kind.flobaroid) == (True, False, False)
-    kind = file_kind(tmp_path / "r.npz")
+    kind = file_kind(read_table(tmp_path / "r.npz"))
     assert (kind.samples, kind.timestamps, kind.flobaroid) == (False, True, False)
-    kind = file_kind(tmp_path / "f.npz")
+    kind = file_kind(read_table(tmp_path / "f.npz"))
     assert (kind.samples, kind.timestamps, kind.flobaroid) == (True, True, True)
-    kind = file_kind(tmp_path / "r.csv")
+    kind = file_kind(read_table(tmp_path / "r.csv"))
     assert (kind.samples, kind.timestamps) == (False, True)
     with pytest.raises(ValueError, match=r"unsupported file type '\.txt'"):
         (tmp_path / "x.txt").write_text("")
-        file_kind(tmp_path / "x.txt")
+        file_kind(read_table(tmp_path / "x.txt"))
 
 
 def test_apply_modes(tmp_path):
@@ -40,10 +41,12 @@ def test_apply_modes(tmp_path):
     np.savez(tmp_path / "f.npz", times=t + 50.0, positions=q, velocities=qd, accelerations=qdd, torques=q)
     np.savez(tmp_path / "s.npz", q=q, qd=qd, qdd=qdd, tau=q)
     np.savez(tmp_path / "r.npz", t=t, q=q, tau=q)
-    samples, times, done = load_data_file(tmp_path / "f.npz")  # auto: the file's own derivatives
+    loaded = load_data_file(tmp_path / "f.npz")  # auto: the file's own derivatives
+    samples, times, done = loaded.samples, loaded.times, loaded.preprocessed
     assert not done and np.array_equal(samples.qdd.numpy(), qdd) and times[0] == 0.0
     options = PreprocessOptions(cutoff=5.0)
-    samples, times, done = load_data_file(tmp_path / "f.npz", options, "on")
+    loaded = load_data_file(tmp_path / "f.npz", options, "on")
+    samples, times, done = loaded.samples, loaded.times, loaded.preprocessed
     trim = int(np.ceil(3.0 / 5.0 * 100.0))
     assert done and samples.n_samples == 400 - 2 * trim and times[0] == pytest.approx(trim / 100.0)
     # idkit's filter recomputes the (exact, slow) accelerations to within the stated (ωh)²/12 order
@@ -51,7 +54,7 @@ def test_apply_modes(tmp_path):
     np.testing.assert_allclose(
         samples.qdd.numpy()[middle], qdd[trim:-trim][middle], atol=2e-2 * np.abs(qdd).max()
     )
-    with pytest.raises(ValueError, match=r"s\.npz: preprocessing needs timestamps"):
+    with pytest.raises(ValueError, match=r"s\.npz: preprocess=on needs timestamps"):
         load_data_file(tmp_path / "s.npz", options, "on")
     with pytest.raises(ValueError, match=r"r\.npz: a raw recording \(no accelerations qdd\)"):
         load_data_file(tmp_path / "r.npz", options, "off")

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
-from idkit.data.preprocess import PreprocessOptions, preprocess, preprocess_with_times
+from idkit.data.preprocess import GapWarning, PreprocessOptions, preprocess, preprocess_recording
 from idkit.data.recording import FLOBAROID_RECORDING_KEYS, Recording, load_recording
 
 FREQS = np.array([0.2, 0.5, 1.3])  # Hz: the band of an identification trajectory
@@ -29,7 +31,8 @@ def jittered(seed: int, noise: float, rate: float = 200.0, seconds: float = 20.0
 
 
 def relative_errors(recording: Recording, options: PreprocessOptions) -> dict[str, np.ndarray]:
-    samples, times = preprocess_with_times(recording, options)
+    done = preprocess_recording(recording, options)
+    samples, times = done.samples, done.times
     t = times + recording.t[0]
     out = {}
     for k, name in enumerate(("q", "qd", "qdd")):
@@ -75,7 +78,8 @@ def test_measured_velocities_are_filtered_not_differentiated():
     t = recording.t
     qd = np.stack([exact(t, j)[1] for j in range(3)], 1)
     with_qd = Recording(t, recording.q, recording.tau, qd)
-    samples, times = preprocess_with_times(with_qd, PreprocessOptions(velocities="measured"))
+    done = preprocess_recording(with_qd, PreprocessOptions(velocities="measured"))
+    samples, times = done.samples, done.times
     reference = np.stack([exact(times + t[0], j)[1] for j in range(3)], 1)
     assert np.abs(samples.qd.numpy() - reference).max() < 1e-3 * np.abs(reference).max()
 
@@ -105,9 +109,8 @@ def test_kuka_accelerations_recomputed_from_positions(kuka_dir):
     cut-off they agree to 2.6 % RMS on joints 1, 3, 4, 6, 7 and 13–15 % on joints 2 and 5 (whose
     file accelerations keep 4–8 Hz content our filter removes); velocities agree to 0.3 %."""
     path = kuka_dir / "measurements_1.npz"
-    samples, times = preprocess_with_times(
-        load_recording(path, FLOBAROID_RECORDING_KEYS), PreprocessOptions(cutoff=2.0)
-    )
+    done = preprocess_recording(load_recording(path, FLOBAROID_RECORDING_KEYS), PreprocessOptions(cutoff=2.0))
+    samples, times = done.samples, done.times
     with np.load(path) as data:
         t = data["times"] - data["times"][0]
         files = {
@@ -121,3 +124,76 @@ def test_kuka_accelerations_recomputed_from_positions(kuka_dir):
     assert rel["qd"].max() < 0.005
     assert rel["qdd"][[0, 2, 3, 5, 6]].max() < 0.03
     assert rel["qdd"][[1, 4]].max() < 0.16
+
+
+def cut(recording: Recording, rows: slice) -> Recording:
+    return Recording(recording.t[rows], recording.q[rows], recording.tau[rows], source=recording.source)
+
+
+def with_gap(seconds: float, at: int = 1500, rate: float = 200.0) -> Recording:
+    """A clean 3-joint recording at ``rate`` whose timestamps jump by ``seconds`` after sample ``at``."""
+    t = np.arange(3000) / rate
+    t[at:] += seconds
+    q = np.stack([exact(t, j)[0] for j in range(3)], 1)
+    return Recording(t, q, np.stack([exact(t, j)[2] for j in range(3)], 1), source="gap.csv")
+
+
+@pytest.mark.parametrize("seconds", [2.0, 5.0, 0.03])
+def test_a_gap_splits_the_recording_and_is_never_interpolated_across(seconds):
+    recording = with_gap(seconds)
+    options = PreprocessOptions(rate=200.0)  # the median step of one stretch may differ in its last bit
+    with pytest.warns(GapWarning) as said:
+        done = preprocess_recording(recording, options)
+    # Independent reference: the two stretches preprocessed as recordings of their own, stacked.
+    first = preprocess_recording(cut(recording, slice(0, 1500)), options)
+    second = preprocess_recording(cut(recording, slice(1500, None)), options)
+    for name in ("q", "qd", "qdd", "tau"):
+        expected = np.concatenate(
+            [getattr(first.samples, name).numpy(), getattr(second.samples, name).numpy()]
+        )
+        np.testing.assert_array_equal(getattr(done.samples, name).numpy(), expected)
+    gap_start, gap_end = recording.t[1499] - recording.t[0], recording.t[1500] - recording.t[0]
+    assert not ((done.times > gap_start) & (done.times < gap_end)).any()
+    assert [(s.raw, s.too_short) for s in done.segments] == [(1500, False), (1500, False)]
+    assert len(said) == 1 and str(said[0].message) == done.note
+    assert done.note == (
+        f"gap.csv: 1 gap(s) in the timestamps longer than 5 median steps (25 ms) at t = "
+        f"{gap_start:.6g}–{gap_end:.6g} s; not interpolated across: 2 segments preprocessed separately and "
+        "stacked"
+    )
+
+
+def test_a_step_within_max_gap_is_resampled_across_as_jitter():
+    """4 lost samples (a 5-step hole) are not a gap at the default max_gap=5; a smaller max_gap splits."""
+    recording = with_gap(4 / 200.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GapWarning)
+        assert preprocess_recording(recording).note is None
+    with pytest.warns(GapWarning, match="longer than 3 median steps"):
+        assert len(preprocess_recording(recording, PreprocessOptions(max_gap=3)).segments) == 2
+
+
+def test_segments_too_short_to_filter_are_dropped_and_counted():
+    recording = with_gap(2.0, at=40)  # 40 samples = 0.2 s, less than the 2 x 0.3 s trims
+    with pytest.warns(
+        GapWarning, match=r"dropped 1 segment\(s\) shorter than the 123 samples filtering needs "
+    ):
+        done = preprocess_recording(recording)
+    assert [(s.raw, s.kept, s.too_short) for s in done.segments] == [(40, 0, True), (2960, 2840, False)]
+    assert "(40 raw samples: 0–0.195 s)" in done.note
+    short = Recording(recording.t[:80], recording.q[:80], recording.tau[:80], source="short.csv")
+    short = Recording(np.r_[short.t[:40], short.t[40:] + 5.0], short.q, short.tau, source="short.csv")
+    with pytest.raises(ValueError, match=r"short\.csv\): .* any of the 2 segments between gaps"):
+        preprocess_recording(short)
+
+
+def test_unordered_or_repeated_timestamps_are_refused_naming_the_sample():
+    t = np.arange(6) / 100.0
+    for bad, message in (
+        (np.r_[t[:3], t[2], t[4:]], r"t\[3\] = 0.02 follows t\[2\] = 0.02"),
+        (np.r_[t[:3], t[1], t[4:]], r"t\[3\] = 0.01 follows t\[2\] = 0.02"),
+    ):
+        with pytest.raises(ValueError, match=r"^x\.csv: timestamps must increase strictly; " + message):
+            Recording(bad, np.zeros((6, 1)), np.zeros((6, 1)), source="x.csv")
+    with pytest.raises(ValueError, match="max_gap must be > 1 median step"):
+        preprocess(jittered(seed=0, noise=0.0, seconds=5.0), PreprocessOptions(max_gap=1.0))

@@ -49,11 +49,23 @@ def test_npz_round_trip(tmp_path_factory, n, N, velocities, seed):
 @pytest.mark.parametrize(
     ("header", "rows", "message"),
     [
-        (["q1", "tau1"], [[0, 1], [1, 2]], "no timestamp column 't'"),
-        (["t", "q1", "q2", "tau1"], [[0, 1, 2, 3], [1, 1, 2, 3]], "2 position columns but 1 torque"),
-        (["t", "q1", "tau1"], [[0, 1, 2], [1, "x", 2]], r"line 3, column 'q1': not a number: 'x'"),
+        (["q1", "tau1"], [[0, 1], [1, 2]], r"header must have columns t; found \['q1', 'tau1'\]"),
+        (
+            ["t", "q1", "q2", "tau1"],
+            [[0, 1, 2, 3], [1, 1, 2, 3]],
+            r"joints \(q 2, tau 1\)",
+        ),
+        (
+            ["t", "q1", "tau1"],
+            [[0, 1, 2], [1, "x", 2]],
+            r"line 3 \(sample 1\), column 'q1': not a number",
+        ),
         (["t", "q1", "tau1"], [[0, 1, 2], [0, 1, 2]], r"t\[1\] = 0.0 follows t\[0\] = 0.0"),
-        (["t", "q2", "tau2"], [[0, 1, 2], [1, 1, 2]], "header needs columns q1..qn"),
+        (
+            ["t", "q2", "tau2"],
+            [[0, 1, 2], [1, 1, 2]],
+            "numbered from 1 without gaps; found q2",
+        ),
     ],
 )
 def test_bad_csv_is_located(tmp_path, header, rows, message):
@@ -62,7 +74,7 @@ def test_bad_csv_is_located(tmp_path, header, rows, message):
 
 
 def test_missing_file_and_arrays(tmp_path):
-    with pytest.raises(FileNotFoundError, match="recording not found"):
+    with pytest.raises(FileNotFoundError, match="data file not found"):
         load_recording(tmp_path / "none.npz")
     np.savez(tmp_path / "x.npz", times=np.arange(3.0))
     with pytest.raises(ValueError, match=r"missing array\(s\) \['t', 'q', 'tau'\]"):

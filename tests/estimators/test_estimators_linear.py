@@ -19,9 +19,9 @@ from hypothesis import strategies as st
 from idkit import registry
 from idkit.costs.paper import f1, f9
 from idkit.data.scenarios import simulate
-from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares, total_least_squares
-from idkit.estimators.observation import IdentificationError, IdentificationWarning, linear_system
-from idkit.estimators.robust_ls import RobustLeastSquares
+from idkit.estimators.linear.least_squares import LeastSquares, TotalLeastSquares, total_least_squares
+from idkit.estimators.linear.observation import IdentificationError, IdentificationWarning, linear_system
+from idkit.estimators.linear.robust_ls import RobustLeastSquares
 from idkit.interfaces import Robot
 from idkit.problem import Problem, Samples
 from idkit.relative import RelativeFloorWarning

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from idkit.data.scenarios import simulate
-from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares
-from idkit.estimators.robust_ls import RobustLeastSquares
+from idkit.estimators.linear.least_squares import LeastSquares, TotalLeastSquares
+from idkit.estimators.linear.robust_ls import RobustLeastSquares
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 

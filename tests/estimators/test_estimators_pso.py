@@ -17,7 +17,7 @@ from idkit.data.scenarios import simulate
 from idkit.estimators import pso as pso_module
 from idkit.estimators import swarm
 from idkit.estimators.aggregate import KeepRule, aggregate
-from idkit.estimators.least_squares import LeastSquares
+from idkit.estimators.linear.least_squares import LeastSquares
 from idkit.estimators.objective import Objective, spectral_norm_3
 from idkit.estimators.pso import ParticleSwarm
 from idkit.interfaces import Cost

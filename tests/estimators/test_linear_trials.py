@@ -18,9 +18,9 @@ from hypothesis import strategies as st
 
 from idkit.costs.paper import f13
 from idkit.data.scenarios import simulate, simulate_batch
-from idkit.estimators.least_squares import LeastSquares, TotalLeastSquares
-from idkit.estimators.observation import IdentificationError, IdentificationWarning
-from idkit.estimators.robust_ls import RobustLeastSquares
+from idkit.estimators.linear.least_squares import LeastSquares, TotalLeastSquares
+from idkit.estimators.linear.observation import IdentificationError, IdentificationWarning
+from idkit.estimators.linear.robust_ls import RobustLeastSquares
 from idkit.estimators.trials import fit_trials
 from idkit.problem import Problem, Samples
 from idkit.relative import RelativeFloorWarning

@@ -10,14 +10,10 @@ import torch
 from urdf_cases import TREE_URDF
 
 from idkit import registry
-from idkit.estimators.observation import IdentificationError
-from idkit.estimators.physical import (
-    PhysicallyConsistentLS,
-    min_pseudo_inertia_eigenvalues,
-    nearest_consistent,
-    pseudo_inertia,
-)
+from idkit.estimators.linear.observation import IdentificationError
+from idkit.estimators.physical import PhysicallyConsistentLS, nearest_consistent
 from idkit.problem import Problem, Samples
+from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
 
 #: Interior-point solutions may sit this far outside the PSD cone (kg·m² scale of the test robot).
@@ -51,19 +47,6 @@ def simulated(robot: URDFRobot, params: torch.Tensor, noise: float, seed: int = 
 
 def vector(values: dict[str, float]) -> np.ndarray:
     return np.array(list(values.values()))
-
-
-def test_pseudo_inertia_is_the_second_moment_of_point_masses():
-    """Independent reference: J = sum_k m_k [x_k; 1][x_k; 1]^T for a body made of point masses."""
-    rng = np.random.default_rng(0)
-    for _ in range(5):
-        masses, points = rng.uniform(0.1, 2.0, 5), rng.normal(size=(5, 3))
-        inertia = sum(m * (x @ x * np.eye(3) - np.outer(x, x)) for m, x in zip(masses, points, strict=True))
-        (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia
-        standard = np.array([masses.sum(), *(masses @ points), xx, xy, xz, yy, yz, zz])
-        lifted = np.c_[points, np.ones(5)]
-        expected = (masses[:, None] * lifted).T @ lifted
-        np.testing.assert_allclose(pseudo_inertia(torch.as_tensor(standard)).numpy(), expected, atol=1e-12)
 
 
 @pytest.mark.parametrize("noise", [0.0, 1e-3])

@@ -12,7 +12,7 @@ from idkit import registry
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
 from idkit.estimators.adam import AdamMultiStart
-from idkit.estimators.least_squares import LeastSquares
+from idkit.estimators.linear.least_squares import LeastSquares
 from idkit.estimators.paper import PaperFinalEstimate
 from idkit.estimators.pso import ParticleSwarm
 from idkit.estimators.trials import fit_trials

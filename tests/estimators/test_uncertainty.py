@@ -8,7 +8,7 @@ import torch
 
 from idkit import registry
 from idkit.data.scenarios import simulate
-from idkit.estimators.uncertainty import base_uncertainty
+from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.problem import Problem
 
 

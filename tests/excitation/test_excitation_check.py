@@ -143,7 +143,7 @@ def test_command_line_exit_status_and_lines(arm_file, capsys, suffix):
 def test_command_line_refuses_unusable_input_in_one_line(arm_file, tmp_path, capsys):
     _, urdf = arm_file
     assert main([str(tmp_path / "none.csv"), "--robot", urdf]) == 2
-    assert capsys.readouterr().err == f"idkit: trajectory file not found: {tmp_path / 'none.csv'}\n"
+    assert capsys.readouterr().err == f"idkit: data file not found: {tmp_path / 'none.csv'}\n"
     assert main([str(tmp_path / "none.csv"), "--robot", urdf, "--acceleration-limit", "1", "2"]) == 2
     assert "one positive number or one per joint (4: j1, j2, j3, j4)" in capsys.readouterr().err
 

@@ -166,7 +166,7 @@ def test_ls_error_is_deterministic_batched_and_differentiable(cylindrical):
         ({"state": 1.0}, "state must be a level in"),
         ({"torque": -0.1}, "torque must be a level in"),
         ({"draws": 0}, "draws must be an integer >= 1"),
-        ({"seed": -1}, "seed must be an integer >= 0"),
+        ({"seed": -1}, "excitation noise: seed must be an integer in"),
     ],
 )
 def test_noise_model_refuses_bad_values(options, match):

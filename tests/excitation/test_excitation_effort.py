@@ -16,6 +16,7 @@ from idkit.excitation.effort import (
     nominal_torques,
 )
 from idkit.robots.urdf import URDFRobot
+from idkit.seeds import torch_generator
 from tests.urdf_cases import TREE_URDF, pin, pin_maps, pin_model, pin_torques_and_regressor
 
 #: The test tree with an effort limit on its continuous joint too (every joint declares one).
@@ -70,7 +71,7 @@ def test_default_acceleration_limits_are_the_documented_rule():
     limits = robot.motion_limits()
     lower = torch.where(limits.lower[0].isinf(), -torch.pi, limits.lower[0])
     upper = torch.where(limits.upper[0].isinf(), torch.pi, limits.upper[0])
-    unit = torch.rand(INERTIA_POSES, 4, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    unit = torch.rand(INERTIA_POSES, 4, generator=torch_generator(0), dtype=torch.float64)
     model = pin.buildModelFromXML(TREE)
     data = model.createData()
     largest = np.zeros(4)

@@ -88,15 +88,15 @@ def test_csv_refusals_name_file_line_and_column(tmp_path):
     bad.write_text(
         "\n".join([lines[0], lines[1], lines[2].replace(lines[2].split(",")[4], "abc", 1), lines[3]])
     )
-    with pytest.raises(ValueError, match=r"bad.csv line 3, column d2.q: 'abc' is not a number"):
+    with pytest.raises(ValueError, match=r"bad.csv: line 3 \(sample 1\), column 'd2.q': not a number: 'abc'"):
         read_trajectory(bad, JOINTS)
     bad.write_text("\n".join([lines[0], lines[1].replace(lines[1].split(",")[3], "nan", 1), lines[2]]))
-    with pytest.raises(ValueError, match=r"theta1.qdd is not finite at sample 0"):
+    with pytest.raises(ValueError, match=r"\(column theta1.qdd\) has a non-finite value \(nan\) at sample 0"):
         read_trajectory(bad, JOINTS)
     bad.write_text(
         "\n".join([lines[0].replace(",d3.qdd", ""), *(line.rpartition(",")[0] for line in lines[1:])])
     )
-    with pytest.raises(ValueError, match=r"missing column\(s\) d3.qdd"):
+    with pytest.raises(ValueError, match=r"no column 'd3.qdd' for joint 'd3'"):
         read_trajectory(bad, JOINTS)
 
 
@@ -109,7 +109,7 @@ def test_npz_without_joint_names_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize(
-    ("name", "match"), [("x.txt", "unsupported trajectory file type"), ("none.csv", "not found")]
+    ("name", "match"), [("x.txt", "unsupported file type '.txt'"), ("none.csv", "not found")]
 )
 def test_other_files_are_refused(tmp_path, name, match):
     path = tmp_path / name
@@ -124,4 +124,14 @@ def test_one_sample_is_not_a_trajectory(tmp_path):
     lines = path.read_text().splitlines()
     path.write_text("\n".join(lines[:2]))
     with pytest.raises(ValueError, match="at least two samples, got 1"):
+        read_trajectory(path, JOINTS)
+
+
+def test_numbered_columns_do_not_name_their_joints(tmp_path):
+    found = trajectory(3)
+    path = tmp_path / "numbered.csv"
+    header = ["t", *(f"{q}{j}" for q in ("q", "qd", "qdd") for j in (1, 2, 3))]
+    rows = np.concatenate((found.t[:, None], found.q, found.qd, found.qdd), axis=1)
+    files.write_csv(path, header, rows.tolist())
+    with pytest.raises(ValueError, match=r"columns q1..qn do not name their joints; name them <joint>.q"):
         read_trajectory(path, JOINTS)

@@ -44,13 +44,8 @@ def test_pinocchio_torques_of_the_identified_urdf_equal_idkit(source, tmp_path):
     model = pin_model(str(path))
     rigid = URDFRobot(str(path))  # the written file read back by idkit as well
     q, qd, qdd = random_states(rigid, 50, seed=1)
-    expected = robot.inverse_dynamics(params, q, qd, qdd) - sum(
-        coefficient * feature
-        for coefficient, feature in zip(
-            params[10 * len(robot.link_names) :].reshape(-1, robot.n_joints),
-            robot.friction_features(qd),
-            strict=True,
-        )
+    expected = robot.inverse_dynamics(params, q, qd, qdd) - robot.drives.torque(
+        params[10 * len(robot.link_names) :], qd, qdd
     )
     torques, _ = pin_torques_and_regressor(rigid, model, q, qd, qdd)
     rows = [model.joints[model.getJointId(name)].idx_v for name in robot.joint_names]

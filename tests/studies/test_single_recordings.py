@@ -18,12 +18,12 @@ from omegaconf import OmegaConf
 
 from idkit.cli.app import setup
 from idkit.cli.tasks import arguments
-from idkit.data.preprocess import PreprocessOptions
-from idkit.estimators.observation import IdentificationError
+from idkit.data.preprocess import GapWarning, PreprocessOptions
+from idkit.estimators.linear.observation import IdentificationError
 from idkit.reports import single as report
 from idkit.robots.urdf import URDFRobot
 from idkit.studies import single
-from idkit.studies.recordings import preprocess_options
+from idkit.studies.recordings import DelayWarning, preprocess_options
 
 ASSET = Path(__file__).resolve().parents[2] / "idkit" / "robots" / "assets" / "cylindrical.urdf"
 RATE = 200.0
@@ -315,3 +315,224 @@ def test_the_issue_command_as_a_subprocess(files, tmp_path):
     )
     assert bad.returncode == 1
     assert re.search(r"^idkit: preprocess \(.*train\.csv\): cutoff 150 Hz is not below", bad.stderr, re.M)
+
+
+# --- recordings that cannot lie: refused or said in one line, through the command ---------------
+
+
+def idkit_main(monkeypatch, capsys, *args: str, run_dir: Path) -> tuple[int, str, str]:
+    """``idkit <args>`` in process (``idkit.cli.main``): exit status, stdout, stderr."""
+    from idkit.cli import app
+
+    monkeypatch.setattr(sys, "argv", ["idkit", *args, f"hydra.run.dir={run_dir}"])
+    monkeypatch.delenv(app.FULL_ERROR, raising=False)
+    GlobalHydra.instance().clear()
+    code = 0
+    try:
+        app.main()
+    except SystemExit as exit_:
+        code = int(exit_.code or 0)
+    finally:
+        GlobalHydra.instance().clear()
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def ls_args(files: dict[str, Path], data: Path) -> list[str]:
+    return [
+        *robot_args(files),
+        f"data={data}",
+        "estimator=ls",
+        "~cost",
+        "plots=false",
+        "identified_urdf=false",
+    ]
+
+
+def test_a_duplicated_column_is_one_line_and_exit_1(files, tmp_path, monkeypatch, capsys):
+    lines = files["train"].read_text().splitlines()
+    header = lines[0].split(",")
+    duplicated = tmp_path / "dup.csv"  # tau1 twice: the last one used to win silently
+    duplicated.write_text(
+        "\n".join([",".join([*header, "tau1"])] + [f"{line},0" for line in lines[1:]]) + "\n"
+    )
+    code, out, err = idkit_main(monkeypatch, capsys, *ls_args(files, duplicated), run_dir=tmp_path / "run")
+    assert code == 1 and out == ""
+    assert err.splitlines() == [
+        f"idkit: {duplicated}: column 'tau1' appears twice (columns 5 and 8); which one is meant? "
+        "Name each column once"
+    ]
+    assert not (tmp_path / "run" / "result.json").exists()
+
+
+def test_a_two_second_gap_is_split_said_and_recorded(files, tmp_path, monkeypatch, capsys):
+    text = files["train"].read_text().splitlines()
+    gapped = tmp_path / "gap.csv"
+    rows = [line.split(",") for line in text[1:]]
+    for row in rows[1200:]:
+        row[0] = repr(float(row[0]) + 2.0)
+    gapped.write_text("\n".join([text[0], *(",".join(r) for r in rows)]) + "\n")
+    with pytest.warns(GapWarning) as said:
+        code, out, _ = idkit_main(monkeypatch, capsys, *ls_args(files, gapped), run_dir=tmp_path / "run")
+    gaps = [w for w in said if w.category is GapWarning]
+    assert code == 0 and len(gaps) == 1
+    note = str(gaps[0].message)
+    assert note.startswith(f"{gapped}: 1 gap(s) in the timestamps longer than 5 median steps (25 ms) at t = ")
+    assert "not interpolated across: 2 segments preprocessed separately and stacked" in note
+    data = json.loads((tmp_path / "run" / "result.json").read_text())
+    gaps = data["data"]["preprocess"]["gaps"][str(gapped)]
+    assert gaps["note"] == note and [s["raw"] for s in gaps["segments"]] == [1200, 1200]
+    trim = int(np.ceil(3.0 / PreprocessOptions().cutoff * RATE))
+    assert data["payload"]["estimate"]["details"]["uncertainty"]["dof"] == 3 * 2 * (1200 - 2 * trim) - 14
+
+
+def test_validating_on_the_training_file_is_refused(files, tmp_path, monkeypatch, capsys):
+    copy = tmp_path / "copy.csv"
+    copy.write_bytes(files["train"].read_bytes())
+    for held, how in ((files["train"], "same file"), (copy, "same content")):
+        args = [*ls_args(files, files["train"]), f"validate=[{files['test']},{held}]"]
+        code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / how.replace(" ", "_"))
+        assert code == 1 and out == ""
+        assert err.splitlines() == [
+            f"idkit: validate file {held} is the training file {files['train']} ({how}): a score on the "
+            "data the model was fitted to is not held-out validation; validate on a recording the fit "
+            "does not see"
+        ]
+    excel = tmp_path / "excel.csv"  # other bytes, same samples: a byte-order mark and upper-case names
+    excel.write_bytes(b"\xef\xbb\xbf" + files["train"].read_text().upper().encode())
+    args = [*ls_args(files, f"[{files['train2']},{files['train']}]"), f"validate=[{excel}]"]
+    code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / "excel")
+    assert code == 1 and out == ""
+    assert re.fullmatch(
+        rf"idkit: validate file {excel} holds the same samples as the training data \(its rows 1480–3759\): "
+        r"a score on the data the model was fitted to is not held-out validation; .*\n",
+        err,
+    )
+    train = single.load_data(URDFRobot(str(ASSET)), data=files["train"])[0]
+    with pytest.raises(
+        ValueError, match=r"validate file <Samples> is the training file <Samples> \(the same"
+    ):
+        single.run("cylindrical", "ls", None, data=train, validate=[train])
+
+
+@pytest.mark.integration
+def test_the_judged_bad_recordings_as_a_subprocess(files, tmp_path):
+    """A duplicated column: one line, exit 1. A 2-second gap: one warning line naming it, exit 0."""
+    lines = files["train"].read_text().splitlines()
+    duplicated = tmp_path / "dup.csv"
+    duplicated.write_text("\n".join([lines[0] + ",tau1", *(f"{line},0" for line in lines[1:])]) + "\n")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows[1200:]:
+        row[0] = repr(float(row[0]) + 2.0)
+    gapped = tmp_path / "gap.csv"
+    gapped.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    runs = {}
+    for name, path in (("dup", duplicated), ("gap", gapped)):
+        runs[name] = subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                "from idkit.cli import main; main()",
+                *ls_args(files, path),
+                f"hydra.run.dir={tmp_path / name}",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            cwd=tmp_path,
+        )
+    assert runs["dup"].returncode == 1 and "Traceback" not in runs["dup"].stderr
+    assert runs["dup"].stderr.strip().splitlines() == [
+        f"idkit: {duplicated}: column 'tau1' appears twice (columns 5 and 8); which one is meant? "
+        "Name each column once"
+    ]
+    assert runs["gap"].returncode == 0, runs["gap"].stderr
+    assert "1 gap(s) in the timestamps longer than 5 median steps" in runs["gap"].stderr
+
+
+# --- ROS logs by name (issue 16 item 1) -----------------------------------------------------------
+
+
+def bag_of(csv_path: Path, folder: Path, drop: str | None = None) -> Path:
+    """A ROS 2 MCAP bag of the raw CSV's samples: JointState with the joints in another order (and
+    reversed in every other message), an extra gripper joint and an unrelated /status topic."""
+    from bag_cases import Stream, write_ros2
+
+    table = np.loadtxt(csv_path, delimiter=",", skiprows=1)
+    names = ["d3", "theta1", "d2"]  # the driver's order; the robot's is theta1, d2, d3
+    columns = {"theta1": 0, "d2": 1, "d3": 2}
+    keep = [n for n in names if n != drop]
+    order = [columns[n] for n in keep]
+    stamps = 1_700_000_000_000_000_000 + np.round(table[:, 0] * 1e9).astype(np.int64)
+    stream = Stream("/joint_states", stamps, keep, table[:, 1:4][:, order], None, table[:, 4:7][:, order])
+    return write_ros2(folder, [stream])
+
+
+def test_a_bag_gives_the_estimate_of_the_csv_of_the_same_samples(files, tmp_path):
+    pytest.importorskip("rosbags")
+    from bag_cases import storage_file
+
+    bag = bag_of(files["train"], tmp_path / "bag")
+    quiet = ["estimator=ls", "~cost", "plots=false", "identified_urdf=false"]
+    reference, _ = command(*robot_args(files), f"data={files['train']}", *quiet, out=tmp_path / "csv")
+    for name, path in (("folder", bag), ("file", storage_file(bag))):
+        result, data = command(*robot_args(files), f"data={path}", *quiet, out=tmp_path / name)
+        for key, value in reference.estimate.params.items():
+            assert result.estimate.params[key] == pytest.approx(value, rel=1e-6, abs=1e-9), key
+        assert data["data"]["logs"][str(path)]["ignored_joints"] == ["gripper"]
+        assert data["data"]["logs"][str(path)]["ignored_topics"] == ["/status"]
+
+
+def test_a_bag_without_a_robot_joint_is_one_line_naming_it(files, tmp_path, monkeypatch, capsys):
+    pytest.importorskip("rosbags")
+    bag = bag_of(files["train"], tmp_path / "bag", drop="d2")
+    code, out, err = idkit_main(monkeypatch, capsys, *ls_args(files, bag), run_dir=tmp_path / "run")
+    assert code == 1 and out == ""
+    assert err.splitlines() == [
+        f"idkit: {bag}: /joint_states: the log has no joint 'd2' (the robot needs it); the log's joints: "
+        "d3, theta1, gripper"
+    ]
+    code, _, err = idkit_main(
+        monkeypatch, capsys, *ls_args(files, bag), "recording.topic=/tf", run_dir=tmp_path / "run2"
+    )
+    assert code == 1 and err.splitlines() == [
+        f"idkit: {bag}: no topic '/tf' (recording.topic); the log's topics: /joint_states "
+        "(sensor_msgs/msg/JointState), /status (std_msgs/msg/String)"
+    ]
+
+
+def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
+    """Torques logged 4 samples (20 ms) after their states: delay=auto finds it (the lag where the
+    robot's regressor explains the torques best), and the fit is as good as with the delay given, or
+    without any delay in the log; ignoring the delay is worse."""
+    robot = URDFRobot(str(ASSET), friction=True, offset=True)
+    t, q, qd, qdd = motion(12.0, 0.2, 1)
+    tau = robot.inverse_dynamics(truth(robot), *map(torch.from_numpy, (q, qd, qdd))).numpy()
+    header = ["t", *(f"q{j}" for j in (1, 2, 3)), *(f"tau{j}" for j in (1, 2, 3))]
+    late = tmp_path / "late.csv"  # tau logged at t belongs to the state at t - 20 ms
+    table = np.column_stack([t[4:], q[4:], tau[:-4]])
+    np.savetxt(late, table, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
+    quiet = ["estimator=ls", "~cost", "plots=false", "identified_urdf=false"]
+    with pytest.warns(
+        DelayWarning, match=r"late\.csv: the torques trail the states by (19\.[5-9]|20(\.[0-5])?) ms"
+    ):
+        found, data = command(
+            *robot_args(files), f"data={late}", "recording.delay=auto", *quiet, out=tmp_path / "a"
+        )
+    delay = data["data"]["delays"][str(late)]
+    assert delay["seconds"] == pytest.approx(0.02, abs=5e-4) and delay["estimated"] is True
+    given, _ = command(*robot_args(files), f"data={late}", "recording.delay=0.02", *quiet, out=tmp_path / "b")
+    ignored, _ = command(*robot_args(files), f"data={late}", *quiet, out=tmp_path / "c")
+    true = dict(zip(robot.base_param_names, robot.base_params(truth(robot)).tolist(), strict=True))
+
+    def error(result):  # the largest base-parameter error relative to the largest base parameter
+        scale = max(abs(v) for v in true.values())
+        return max(abs(result.estimate.base_params[n] - v) for n, v in true.items()) / scale
+
+    # the floor: the same samples logged without delay (the 10 Hz filter rounds the Coulomb steps)
+    aligned = tmp_path / "aligned.csv"
+    np.savetxt(aligned, np.column_stack([t, q, tau]), delimiter=",", header=",".join(header), comments="")
+    floor = error(command(*robot_args(files), f"data={aligned}", *quiet, out=tmp_path / "e")[0])
+    assert error(given) < 1.1 * floor and error(found) < 1.1 * floor and error(ignored) > 5 * floor
+    with pytest.raises(ValueError, match=r"recording\.delay must be 'auto' or seconds, got 'soon'"):
+        command(*robot_args(files), f"data={late}", "recording.delay=soon", *quiet, out=tmp_path / "d")

@@ -31,10 +31,10 @@ def test_cad_friction_read_from_urdf(kuka_dir):
 
 @pytest.mark.kuka
 def test_stride_thins_samples_and_times(kuka_dir):
-    full, times, _ = load_data_file(kuka_dir / "measurements_1.npz")
-    thin, thin_times, _ = load_data_file(kuka_dir / "measurements_1.npz", stride=5)
-    torch.testing.assert_close(thin.q, full.q[::5], rtol=0, atol=0)
-    np.testing.assert_array_equal(thin_times, times[::5])
+    full = load_data_file(kuka_dir / "measurements_1.npz")
+    thin = load_data_file(kuka_dir / "measurements_1.npz", stride=5)
+    torch.testing.assert_close(thin.samples.q, full.samples.q[::5], rtol=0, atol=0)
+    np.testing.assert_array_equal(thin.times, full.times[::5])
 
 
 @pytest.mark.kuka

@@ -61,3 +61,58 @@ def test_labels_are_unique_or_the_specs_are_identical(specs):
     else:
         labels = unique_labels(specs, where="test")
         assert len(set(labels)) == len(labels)
+
+
+def test_a_ready_object_is_labelled_as_the_spec_that_builds_it():
+    from idkit import registry
+
+    ls = registry.create("estimator", "ls", relative=True)
+    assert estimator_label(ls) == estimator_label({"_name_": "ls", "relative": True}) == "LS-rel"
+    pso = registry.create("estimator", "pso", runs=4)
+    huber = registry.create("cost", "huber", relative=True)
+    assert cost_label(huber) == "huber(relative)"
+    assert estimator_label(pso, huber, with_cost=True, all_options=True) == "PSO(runs=4)-huber(relative)"
+    with pytest.raises(ValueError, match="would both be labelled 'LS-rel'"):
+        unique_labels([(ls, None, False), ({"_name_": "ls", "relative": True}, None, False)], where="test")
+
+
+def test_an_unregistered_class_is_named_by_its_class_and_options_not_its_own_label():
+    from idkit.estimators.linear.least_squares import LeastSquares
+
+    class Tweaked(LeastSquares):
+        label = "LS"  # what the estimator calls itself; the study's label does not read it
+
+    assert estimator_label(Tweaked()) == "Tweaked"
+    assert estimator_label(Tweaked(relative=True, floor=0.1), all_options=True) == "Tweaked(floor=0.1)-rel"
+
+
+#: One spec per row, in the three forms a study accepts: name (or mapping) and ready object.
+FORMS = [
+    ("pso", "f13", True),
+    ({"_name_": "pso", "runs": 3}, "f13", True),
+    ({"_name_": "ls", "relative": True}, None, False),
+    ({"_name_": "rls", "solver": "cvxpy"}, None, False),
+    ("pso", {"_name_": "huber", "relative": True}, True),
+]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, len(FORMS) - 1), st.booleans()), min_size=1, max_size=5))
+def test_labels_are_unique_or_the_specs_are_the_same_whatever_their_form(picks):
+    """A spec given as an object and as a config is one spec: two of them are refused, like two
+    equal configs; distinct specs always get distinct labels."""
+    from idkit.studies.build import build
+
+    def form(index: int, ready: bool) -> tuple:
+        estimator, cost, with_cost = FORMS[index]
+        if not ready:
+            return estimator, cost, with_cost
+        return build("estimator", estimator), cost if cost is None else build("cost", cost), with_cost
+
+    specs = [form(index, ready) for index, ready in picks]
+    if len({index for index, _ in picks}) < len(picks):
+        with pytest.raises(ValueError, match="would both be labelled"):
+            unique_labels(specs, where="test")
+    else:
+        labels = unique_labels(specs, where="test")
+        assert len(set(labels)) == len(labels)

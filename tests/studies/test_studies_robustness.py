@@ -87,7 +87,7 @@ def test_robustness_study_end_to_end(tmp_path):
 
 def test_interrupted_study_keeps_whole_trials_and_says_partial(tmp_path, monkeypatch):
     """Ctrl-C in trial 3 of 5: the partial result has 2 trials everywhere and is marked partial."""
-    from idkit.estimators.least_squares import LeastSquares
+    from idkit.estimators.linear.least_squares import LeastSquares
 
     calls = {"n": 0}
     fit_trials = LeastSquares.fit_trials
@@ -187,6 +187,51 @@ def test_shard_options_are_checked():
         robustness.shard_trials(2, 0, 3)
     with pytest.raises(ValueError, match="chunk"):
         robustness.run(trials=2, chunk=0, **SMALL)
+
+
+def test_trials_are_checked_before_anything_is_drawn(monkeypatch):
+    import idkit.data.scenarios
+    from idkit import memory
+
+    def must_not_draw(*args, **kwargs):
+        raise AssertionError("drew noise before checking trials")
+
+    monkeypatch.setattr(idkit.data.scenarios, "simulate_batch", must_not_draw)
+    for trials in (0, -3, 2.5, True):
+        with pytest.raises(ValueError, match=rf"^trials must be an integer >= 1, got {trials!r}$"):
+            robustness.run(trials=trials, **SMALL)
+    with pytest.raises(ValueError, match=r"^robustness.shards=3 exceeds trials=2: .*use at most 2 shards$"):
+        robustness.run(trials=2, shards=3, **SMALL)
+    with pytest.raises(memory.SizeError) as refused:
+        robustness.run(trials=10**9, **SMALL)
+    assert "\n" not in str(refused.value)
+    assert str(refused.value).startswith(
+        "robustness: trials=1000000000 (1 scenario(s) x 5 estimates per trial) needs about "
+    )
+    assert "TB of memory; this machine has " in str(refused.value) and str(refused.value).endswith(
+        "; lower trials"
+    )
+    monkeypatch.setattr(memory, "available_memory", lambda: 500_000)
+    with pytest.raises(
+        memory.SizeError,
+        match="trials=100 .* needs about 684 kB of memory; this machine has 500 kB available; lower trials$",
+    ):
+        robustness.run(trials=100, **SMALL)
+
+
+def test_the_memory_model_counts_every_scenario_and_estimate():
+    from idkit.robots.cylindrical import CylindricalRobot
+
+    robot, r = CylindricalRobot(), robustness  # 3 joints, 4 parameters; 10 samples: 120 components
+    row = r.ESTIMATE_BYTES + 4 * r.PARAMETER_BYTES
+    one = r.memory_needed(robot, ["torque_noise"], {}, drawn=10, fitted=10, labels=1)
+    assert one == 10 * 120 * (r.DRAW_BYTES_KEPT + r.DRAW_BYTES_PEAK)  # drawing outweighs one estimate
+    longer = r.memory_needed(robot, ["torque_noise"], {"n_samples": 20}, drawn=10, fitted=10, labels=1)
+    assert longer == 2 * one
+    four = r.memory_needed(robot, ["torque_noise"] * 4, {}, drawn=10, fitted=10, labels=1)
+    assert four == 10 * 120 * (4 * r.DRAW_BYTES_KEPT + r.DRAW_BYTES_PEAK)
+    many = r.memory_needed(robot, ["torque_noise"] * 4, {}, drawn=10, fitted=10, labels=100)
+    assert many == 10 * (4 * 120 * r.DRAW_BYTES_KEPT + 4 * 100 * row)  # the estimates outweigh drawing
 
 
 @pytest.mark.skipif(not __import__("torch").cuda.is_available(), reason="no CUDA device")

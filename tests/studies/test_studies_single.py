@@ -69,7 +69,7 @@ def test_history_csv_has_one_column_per_run(tmp_path):
 
 def test_a_malformed_history_still_writes_result_json(tmp_path):
     """Runs of unequal length used to crash the writer after the fit: no result.json at all."""
-    from idkit.estimators.least_squares import LeastSquares
+    from idkit.estimators.linear.least_squares import LeastSquares
 
     class RaggedHistory(LeastSquares):
         def fit(self, problem):
@@ -84,12 +84,12 @@ def test_a_malformed_history_still_writes_result_json(tmp_path):
 
 
 def test_objects_work_as_well_as_names():
-    from idkit.estimators.least_squares import LeastSquares
+    from idkit.estimators.linear.least_squares import LeastSquares
     from idkit.robots.cylindrical import CylindricalRobot
 
     result = idkit.run(robot=CylindricalRobot(), estimator=LeastSquares(relative=True), cost=None)
     assert result.estimate.estimator == "LS-rel"
-    assert result.plugins["estimator"]["entry_point"] == "idkit.estimators.least_squares:LeastSquares"
+    assert result.plugins["estimator"]["entry_point"] == "idkit.estimators.linear.least_squares:LeastSquares"
     assert result.parameter_error < 1e-9  # clean data
 
 

@@ -38,7 +38,7 @@ from collections.abc import Callable, Sequence
 
 import torch
 from idkit.estimate import Estimate, to_python
-from idkit.estimators.observation import stacked_system
+from idkit.estimators.linear.observation import stacked_system
 from idkit.estimators.trials import fit_stacked_systems, in_trial
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem

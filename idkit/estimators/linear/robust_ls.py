@@ -51,15 +51,21 @@ import math
 import sys
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Literal
+from dataclasses import dataclass, fields
+from typing import Literal, get_args
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.estimators.least_squares import LinearEstimator, Solution, residual_norms, smallest_singular_values
-from idkit.estimators.observation import (
+from idkit.estimators.linear.least_squares import (
+    LinearEstimator,
+    LinearSettings,
+    Solution,
+    residual_norms,
+    smallest_singular_values,
+)
+from idkit.estimators.linear.observation import (
     Conditioning,
     IdentificationError,
     IdentificationWarning,
@@ -68,7 +74,9 @@ from idkit.estimators.observation import (
 from idkit.estimators.trials import TrialWarnings, in_trial
 from idkit.relative import DEFAULT_FLOOR
 
-SOLVERS = ("closed_form", "cvxpy")
+#: RLS's two solvers (module doc); the annotation the registry checks ``solver`` against.
+Solver = Literal["closed_form", "cvxpy"]
+SOLVERS: tuple[str, ...] = get_args(Solver)
 
 _MAX_ITERATIONS = 200
 _EPS = sys.float_info.epsilon
@@ -296,6 +304,35 @@ def rls_objective(W: Tensor, tau: Tensor, alpha: Tensor, rho: Tensor) -> Tensor:
     return residual + rho * torch.sqrt(1.0 + alpha.square().sum(-1))
 
 
+@dataclass(frozen=True)
+class RLSSettings(LinearSettings):
+    """RLS's options, checked once by its constructor: the family's (``LinearSettings``) and its own.
+
+    Attributes:
+        rho: perturbation bound ``>= 0`` of eq. (17), or ``None`` = the TLS ``rho`` of each system.
+        solver: ``"closed_form"`` or ``"cvxpy"``.
+        cvxpy_solver: conic solver for ``"cvxpy"`` (``None`` = Clarabel, tightened tolerances).
+        polish: Newton-polish the conic solver's answer.
+    """
+
+    rho: float | None
+    solver: Solver
+    cvxpy_solver: str | None
+    polish: bool
+
+    @classmethod
+    def extend(
+        cls, base: LinearSettings, rho: float | None, solver: Solver, cvxpy_solver: str | None, polish: bool
+    ) -> RLSSettings:
+        """``base`` with RLS's own options, or ``ValueError`` naming the option."""
+        if solver not in SOLVERS:
+            raise ValueError(f"rls: unknown solver {solver!r}; use one of {', '.join(SOLVERS)}")
+        if rho is not None and (not math.isfinite(rho) or rho < 0):
+            raise ValueError(f"rls: rho must be None or a finite number >= 0, got {rho}")
+        shared = {field.name: getattr(base, field.name) for field in fields(LinearSettings)}
+        return cls(**shared, rho=rho, solver=solver, cvxpy_solver=cvxpy_solver, polish=polish)
+
+
 class RobustLeastSquares(LinearEstimator):
     """RLS / RLS-rel: minimise ``‖Wα − τ_s‖₂ + ρ‖[α; 1]‖₂`` (eqs. 16–18).
 
@@ -314,12 +351,13 @@ class RobustLeastSquares(LinearEstimator):
     """
 
     label = "RLS"
+    settings: RLSSettings
 
     def __init__(
         self,
         relative: bool = False,
         rho: float | None = None,
-        solver: Literal["closed_form", "cvxpy"] = "closed_form",
+        solver: Solver = "closed_form",
         cvxpy_solver: str | None = None,
         polish: bool = True,
         floor: float = DEFAULT_FLOOR,
@@ -327,22 +365,19 @@ class RobustLeastSquares(LinearEstimator):
         threads: int | None = None,
     ) -> None:
         super().__init__(relative=relative, floor=floor, max_cond=max_cond, threads=threads)
-        if solver not in SOLVERS:
-            raise ValueError(f"rls: unknown solver {solver!r}; use one of {', '.join(SOLVERS)}")
-        if rho is not None and (not math.isfinite(rho) or rho < 0):
-            raise ValueError(f"rls: rho must be None or a finite number >= 0, got {rho}")
         self.rho = rho
         self.solver = solver
         self.cvxpy_solver = cvxpy_solver
         self.polish = polish
+        self.settings = RLSSettings.extend(self.settings, rho, solver, cvxpy_solver, polish)
 
     def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
-        W, tau = system.W, system.tau
+        W, tau, settings = system.W, system.tau, self.settings
         trials = W.shape[0]
-        rho = smallest_singular_values(W, tau) if self.rho is None else [float(self.rho)] * trials
-        source = "tls (eq. 14)" if self.rho is None else "given"
+        rho = smallest_singular_values(W, tau) if settings.rho is None else [float(settings.rho)] * trials
+        source = "tls (eq. 14)" if settings.rho is None else "given"
         details: list[dict] = [{"rho": r, "rho_source": source} for r in rho]
-        if self.solver == "closed_form":
+        if settings.solver == "closed_form":
             solutions = stacked_rls_closed_form(W, tau, rho)
             alpha = torch.stack([sol.alpha for sol in solutions])
             for record, sol in zip(details, solutions, strict=True):
@@ -363,8 +398,11 @@ class RobustLeastSquares(LinearEstimator):
     ) -> Tensor:
         """``alpha[B]`` of trial ``trial`` of ``W[T, M, B]`` by the reference SOCP (one conic solve
         per trial); fills in ``details[trial]``."""
+        settings = self.settings
         try:
-            values, status, used = rls_cvxpy(W[trial], tau[trial], rho[trial], self.cvxpy_solver, self.polish)
+            values, status, used = rls_cvxpy(
+                W[trial], tau[trial], rho[trial], settings.cvxpy_solver, settings.polish
+            )
         except IdentificationError as error:
             raise in_trial(error, trial) from None
         if status != "optimal":
@@ -374,6 +412,6 @@ class RobustLeastSquares(LinearEstimator):
                     IdentificationWarning,
                     stacklevel=2,
                 )
-        solver = f"cvxpy ({used})" + (" + newton polish" if self.polish else "")
+        solver = f"cvxpy ({used})" + (" + newton polish" if settings.polish else "")
         details[trial].update(solver=solver, status=status)
         return torch.as_tensor(values, dtype=W.dtype, device=W.device)

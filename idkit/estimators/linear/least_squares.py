@@ -16,6 +16,7 @@ per trial — except for the batch's shared wall time (``wall_time_s`` is its sh
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from collections.abc import Sequence
@@ -26,7 +27,7 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
-from idkit.estimators.observation import (
+from idkit.estimators.linear.observation import (
     Conditioning,
     IdentificationError,
     IdentificationWarning,
@@ -35,8 +36,8 @@ from idkit.estimators.observation import (
     default_max_cond,
     stacked_system,
 )
+from idkit.estimators.linear.uncertainty import base_uncertainties
 from idkit.estimators.trials import TrialWarnings, fit_stacked_systems, in_trial
-from idkit.estimators.uncertainty import base_uncertainties
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.relative import DEFAULT_FLOOR
@@ -54,6 +55,44 @@ class Solution:
     details: list[dict[str, Any]] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class LinearSettings:
+    """A least-squares estimator's options, checked once by its constructor.
+
+    The estimator also keeps every option unchanged under its own name (the plugin contract, so a
+    config maps onto the constructor); this typed, checked copy is what its fit reads.
+
+    Attributes:
+        relative: solve the relative system of eqs. (36)–(37).
+        floor: near-zero torque floor of the relative system, ``>= 0`` (``idkit.relative``).
+        max_cond: warning threshold ``> 0`` of the equilibrated condition number; ``None`` = ``1/√eps``
+            of the problem's dtype (known only at the fit).
+        threads: torch intra-op threads ``>= 1``; ``None`` = ``idkit.runtime``'s size rule.
+    """
+
+    relative: bool
+    floor: float
+    max_cond: float | None
+    threads: int | None
+
+    @classmethod
+    def checked(
+        cls, who: str, relative: bool, floor: float, max_cond: float | None, threads: int | None
+    ) -> LinearSettings:
+        """The settings, or ``ValueError`` naming ``who`` and the option a fit could not use."""
+        if not (math.isfinite(floor) and floor >= 0):
+            raise ValueError(f"{who}: floor must be a finite number >= 0, got {floor!r}")
+        if max_cond is not None and not max_cond > 0:
+            raise ValueError(f"{who}: max_cond must be None or a number > 0, got {max_cond!r}")
+        if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
+            raise ValueError(f"{who}: threads must be None or an integer >= 1, got {threads!r}")
+        return cls(relative, float(floor), max_cond, threads)
+
+    def condition_limit(self, dtype: torch.dtype) -> float:
+        """``max_cond``, or ``1/√eps`` of ``dtype`` when it is ``None``."""
+        return default_max_cond(dtype) if self.max_cond is None else self.max_cond
+
+
 class LinearEstimator(Estimator):
     """``fit`` and ``fit_trials`` of the least-squares family; subclasses implement ``solve``.
 
@@ -66,13 +105,14 @@ class LinearEstimator(Estimator):
         relative: solve the relative system of eqs. (36)–(37) (labels "LS-rel", ...).
         floor: near-zero torque floor of the relative system (see ``idkit.relative``).
         max_cond: warn above this column-equilibrated condition number of ``W``; ``None`` =
-            ``1/√eps`` of the problem's dtype (see ``idkit.estimators.observation``).
+            ``1/√eps`` of the problem's dtype (see ``idkit.estimators.linear.observation``).
         threads: torch intra-op threads during the fit; ``None`` = ``idkit.runtime``'s size rule
             (one thread for the paper's problems: with the default pool an SVD of a 60 × 4 ``W``
             took ~0.3 s instead of ~30 µs on the loaded 2-core development machine).
     """
 
     label: ClassVar[str]
+    settings: LinearSettings
 
     def __init__(
         self,
@@ -85,6 +125,7 @@ class LinearEstimator(Estimator):
         self.floor = floor
         self.max_cond = max_cond
         self.threads = threads
+        self.settings = LinearSettings.checked(self.label.lower(), relative, floor, max_cond, threads)
 
     def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
         """Base parameters ``alpha[T, B]`` of the checked systems; trial ``t``'s warnings go to
@@ -93,7 +134,7 @@ class LinearEstimator(Estimator):
 
     @property
     def name(self) -> str:
-        return f"{self.label}-rel" if self.relative else self.label
+        return f"{self.label}-rel" if self.settings.relative else self.label
 
     def fit(self, problem: Problem) -> Estimate:
         """Fit one problem (a stack of one trial)."""
@@ -125,23 +166,29 @@ class LinearEstimator(Estimator):
         start = time.perf_counter()
         robot, trials = problems[0].robot, len(problems)
         work = trials * problems[0].samples.tau.numel() * len(robot.base_param_names)
-        threads = resolve_threads(self.threads, work)
+        settings = self.settings
+        threads = resolve_threads(settings.threads, work)
         log = TrialWarnings(trials)
         try:
             with torch_threads(threads), torch.no_grad():
-                system = stacked_system(problems, self.relative, self.floor, log)
-                conditioning = check_conditioning(system, self.max_cond, log)
+                system = stacked_system(problems, settings.relative, settings.floor, log)
+                conditioning = check_conditioning(system, settings.max_cond, log)
                 solution = self.solve(system, conditioning, log)
                 params = robot.params_from_base(solution.alpha)  # [T, P]
                 costs = self._costs(problems, params, solution, log)
                 uncertainty = base_uncertainties(
-                    system.W, system.tau, solution.alpha, system.base_names, conditioning
+                    system.W,
+                    system.tau,
+                    solution.alpha,
+                    system.base_names,
+                    conditioning,
+                    robot.unidentifiable,
                 )
         finally:  # every trial's warnings, also when a later trial fails
             log.reissue()
         wall = time.perf_counter() - start
         M, _ = system.shape
-        max_cond = default_max_cond(system.W.dtype) if self.max_cond is None else self.max_cond
+        max_cond = settings.condition_limit(system.W.dtype)
         place = {"device": str(system.W.device), "threads": threads}
         dtype = str(system.W.dtype).removeprefix("torch.")
         alpha, values = solution.alpha.tolist(), params.tolist()
@@ -157,8 +204,8 @@ class LinearEstimator(Estimator):
                         {
                             "criterion": solution.criterion,
                             "criterion_value": solution.values[t],
-                            "relative": self.relative,
-                            "floor": self.floor,
+                            "relative": settings.relative,
+                            "floor": settings.floor,
                             "equations": M,
                             "rank": conditioning.rank[t],
                             "cond": conditioning.cond[t],
@@ -302,7 +349,7 @@ class TotalLeastSquares(LinearEstimator):
         solutions = stacked_total_least_squares(system.W, system.tau)
         alpha = torch.stack([tls.alpha for tls in solutions])
         residuals = residual_norms(system, alpha).tolist()
-        limit = default_max_cond(system.W.dtype) if self.max_cond is None else self.max_cond
+        limit = self.settings.condition_limit(system.W.dtype)
         details = []
         for t, tls in enumerate(solutions):
             tls_cond = tls.sigma_max / tls.gap

@@ -9,7 +9,7 @@ lower bounds; they are most useful to rank parameters (a base parameter at 50 % 
 by this trajectory, whatever its value).
 
 ``(WᵀW)⁻¹`` is never formed: with ``W D⁻¹ = U S Vᵀ`` (``D`` the column norms, the same
-equilibration as :mod:`idkit.estimators.observation`), ``(WᵀW)⁻¹ = D⁻¹ V S⁻² Vᵀ D⁻¹``. Directions of
+equilibration as :mod:`idkit.estimators.linear.observation`), ``(WᵀW)⁻¹ = D⁻¹ V S⁻² Vᵀ D⁻¹``. Directions of
 ``V`` with singular value below the rank tolerance are the combinations the data cannot separate;
 every parameter touching them gets an infinite standard deviation.
 """
@@ -24,7 +24,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from idkit.estimators.observation import Conditioning, _null_directions
+from idkit.estimators.linear.observation import Conditioning, _null_directions
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,8 @@ class BaseUncertainty:
         dof: degrees of freedom ``M − B``.
         rank: numerical rank of the column-equilibrated ``W``.
         cond: its condition number ``σ_max / σ_min``.
-        unidentifiable: readable null directions (combinations the data cannot separate).
+        unidentifiable: the robot's structural statements (``Robot.unidentifiable``), then the
+            readable null directions (combinations the data cannot separate).
     """
 
     names: tuple[str, ...]
@@ -72,6 +73,7 @@ def base_uncertainties(
     alpha: Tensor,
     names: Sequence[str],
     conditioning: Conditioning | None = None,
+    structural: Sequence[str] = (),
 ) -> list[BaseUncertainty]:
     """Standard deviations ``sqrt(diag(σ² (WᵀW)⁻¹))`` of each trial's ``alpha[T, B]`` fitted on
     ``W[T, M, B]``, ``tau[T, M]``, in float64 whatever the input dtype.
@@ -80,6 +82,7 @@ def base_uncertainties(
         W, tau, alpha: the (possibly relative) linear systems and their estimates.
         names: base parameter names ``[B]``.
         conditioning: the SVD of the equilibrated ``W`` if already computed (the LS family has it).
+        structural: what the robot says no data can identify (``Robot.unidentifiable``), listed first.
     """
     W, tau, alpha = W.detach().double(), tau.detach().double(), alpha.detach().to(W).double()
     M, B = W.shape[-2:]
@@ -112,12 +115,14 @@ def base_uncertainties(
             dof,
             ranks[t],
             cond[t],
-            tuple(_null_directions(Vh[t], sigma[t], float(tol[t]), names)) if ranks[t] < B else (),
+            (*structural, *(_null_directions(Vh[t], sigma[t], float(tol[t]), names) if ranks[t] < B else ())),
         )
         for t in range(len(ranks))
     ]
 
 
-def base_uncertainty(W: Tensor, tau: Tensor, alpha: Tensor, names: Sequence[str]) -> BaseUncertainty:
+def base_uncertainty(
+    W: Tensor, tau: Tensor, alpha: Tensor, names: Sequence[str], structural: Sequence[str] = ()
+) -> BaseUncertainty:
     """``base_uncertainties`` of one system ``W[M, B]``, ``tau[M]`` and its ``alpha[B]``."""
-    return base_uncertainties(W[None], tau[None], alpha[None], names)[0]
+    return base_uncertainties(W[None], tau[None], alpha[None], names, structural=structural)[0]

@@ -1,0 +1,286 @@
+"""ROS logs of ``sensor_msgs/JointState`` as raw recordings: ``data=run.mcap``, a ROS 2 bag folder,
+a ``.db3`` file or a ROS 1 ``.bag``.
+
+Read with ``rosbags`` (pure Python, no ROS install; ``pip install robot-idkit[logs]``), imported only
+when a log is read. What :func:`read_log` does, in order:
+
+1. **Topic.** The one ``JointState`` topic of the log, or ``recording.topic``; several without a
+   choice, none, or an unknown topic are refused in one line listing the log's topics. Other topics
+   are ignored. Efforts come from the same messages, or from the ``JointState`` topic
+   ``recording.effort_topic`` when the driver publishes them apart.
+2. **Joints by name.** Each message's ``name`` list says which value is which joint, in any order
+   (the driver's). The robot's joints are taken in the robot's order; other joints are ignored; a
+   joint the robot needs and the log lacks is refused naming it.
+3. **One clock.** Each stream's time is its header stamps. A stream whose header stamps are all zero
+   (some drivers never set them) uses the log's receive time instead, and says so (a
+   :class:`LogWarning`); stamps zero in only some messages, all-zero receive times, and stamps that
+   repeat or go back are refused naming the message. A separate effort stream is interpolated
+   linearly onto the state stream's times; state samples outside the effort stream, or inside a gap
+   of it (a step over 5 of its median steps), are dropped, so that the gap reaches preprocessing
+   (:mod:`idkit.data.preprocess`), which splits there.
+4. The result is the :class:`~idkit.data.recording.Recording` a CSV gives (``t`` from the first
+   stamp, ``q``, ``tau``, ``qd`` when every message has velocities), with ``joint_names``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from idkit.data.recording import Recording, RecordingOptions
+
+JOINT_STATE = "sensor_msgs/msg/JointState"
+#: Single-file logs: ROS 2 storage files and ROS 1 bags (a ROS 2 bag folder holds ``metadata.yaml``).
+LOG_SUFFIXES = (".mcap", ".db3", ".bag")
+#: A step of the effort stream longer than this many of its median steps is a gap (as
+#: ``preprocess.max_gap`` for the state stream).
+EFFORT_GAP = 5.0
+INSTALL = "pip install robot-idkit[logs]"
+
+
+class LogWarning(UserWarning):
+    """Something a log reader chose that changes the data: receive time instead of header stamps."""
+
+
+def is_log(path: str | Path) -> bool:
+    """Whether ``path`` names a log: a ROS 2 bag folder (with ``metadata.yaml``) or a log file."""
+    path = Path(path)
+    return (path.is_dir() and (path / "metadata.yaml").is_file()) or path.suffix.lower() in LOG_SUFFIXES
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One topic's messages: ``t[M]`` (ns, on the stream's clock) and per message its joint names and
+    arrays; ``clock`` says which clock."""
+
+    topic: str
+    stamps: np.ndarray
+    names: list[tuple[str, ...]]
+    position: list[np.ndarray]
+    velocity: list[np.ndarray]
+    effort: list[np.ndarray]
+    clock: str
+
+
+def read_log(
+    path: str | Path, joints: Sequence[str] | None = None, options: RecordingOptions | None = None
+) -> tuple[Recording, dict[str, Any]]:
+    """A raw recording from a log (module doc) and what was read (for ``result.json``).
+
+    Args:
+        path: a ROS 2 bag folder, ``.mcap`` or ``.db3`` file, or a ROS 1 ``.bag``.
+        joints: the robot's joint names, in its order; ``None``: every joint of the first message.
+        options: topic choices (:class:`RecordingOptions`).
+
+    Returns:
+        ``(recording, description)``: the description names the topics, clocks, joints used and
+        ignored.
+
+    Raises:
+        FileNotFoundError: no such file or folder.
+        ValueError: rosbags missing (how to install it), not a readable log, the topic problems of
+            step 1, a missing joint, missing efforts, the clock problems of step 3 — naming the log.
+    """
+    path = Path(path)
+    options = options or RecordingOptions()
+    if not path.exists():
+        raise FileNotFoundError(f"data file not found: {path}")
+    states, efforts, topics = _read_streams(path, options)
+    wanted = list(joints) if joints is not None else list(states.names[0])
+    q = _values(path, states, "position", wanted)
+    qd = _values(path, states, "velocity", wanted) if _complete(states.velocity, states.names) else None
+    t = states.stamps
+    if efforts is None:
+        if not _complete(states.effort, states.names):
+            k = next(k for k, e in enumerate(states.effort) if len(e) != len(states.names[k]))
+            raise ValueError(
+                f"{path}: topic {states.topic} carries no effort (message {k} has {len(states.effort[k])} "
+                f"efforts for {len(states.names[k])} joints); if the efforts are on another JointState "
+                "topic, name it with recording.effort_topic=…"
+            )
+        tau = _values(path, states, "effort", wanted)
+        origin = int(t[0])
+        seconds = (t - origin) * 1e-9
+        dropped = 0
+    else:
+        origin = int(min(t[0], efforts.stamps[0]))
+        seconds, tau, rows = _onto(
+            path, efforts, wanted, (t - origin) * 1e-9, (efforts.stamps - origin) * 1e-9
+        )
+        q, qd = q[rows], (None if qd is None else qd[rows])
+        dropped = int(t.size - rows.size)
+    all_names = sorted({name for names in states.names for name in names})
+    description = {
+        "topic": states.topic,
+        "clock": states.clock,
+        "messages": int(t.size),
+        "joints": wanted,
+        "ignored_joints": [name for name in all_names if name not in wanted],
+        "ignored_topics": [topic for topic in topics if topic not in (states.topic, options.effort_topic)],
+    }
+    if efforts is not None:
+        description["effort_topic"] = {
+            "topic": efforts.topic,
+            "clock": efforts.clock,
+            "dropped_samples": dropped,
+        }
+    recording = Recording(seconds, q, tau, qd, source=str(path), joint_names=tuple(wanted))
+    return recording, description
+
+
+def _rosbags(path: Path) -> Any:
+    try:
+        from rosbags.highlevel import AnyReader
+    except ImportError:
+        raise ValueError(f"{path}: reading ROS logs needs the optional package rosbags: {INSTALL}") from None
+    return AnyReader
+
+
+def _read_streams(path: Path, options: RecordingOptions) -> tuple[Stream, Stream | None, list[str]]:
+    """The state stream, the effort stream (or ``None``) and every topic of the log."""
+    any_reader = _rosbags(path)
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Reader1Error
+    from rosbags.rosbag2 import ReaderError as Reader2Error
+    from rosbags.serde import SerdeError
+    from rosbags.typesys import Stores, TypesysError, get_typestore
+
+    errors = (AnyReaderError, Reader1Error, Reader2Error, SerdeError, TypesysError, OSError, KeyError)
+    try:
+        with any_reader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            connections = list(reader.connections)
+            types = {c.topic: c.msgtype for c in connections}
+            state = _choose(path, types, options.topic, "recording.topic")
+            effort = None
+            if options.effort_topic is not None:
+                effort = _choose(path, types, options.effort_topic, "recording.effort_topic")
+            streams = {}
+            for topic in dict.fromkeys(t for t in (state, effort) if t is not None):
+                chosen = [c for c in connections if c.topic == topic]
+                streams[topic] = _stream(path, reader, chosen, topic)
+    except FileNotFoundError:
+        raise
+    except errors as exc:  # a damaged or foreign file
+        raise ValueError(f"{path}: not a readable ROS log ({type(exc).__name__}: {exc})") from None
+    return streams[state], (streams[effort] if effort is not None else None), sorted(types)
+
+
+def _choose(path: Path, types: dict[str, str], topic: str | None, option: str) -> str:
+    """The ``JointState`` topic to read: ``topic``, or the log's only one."""
+    joint_states = sorted(t for t, kind in types.items() if kind == JOINT_STATE)
+    listing = ", ".join(f"{t} ({kind})" for t, kind in sorted(types.items())) or "none"
+    if topic is None:
+        if not joint_states:
+            raise ValueError(f"{path}: no sensor_msgs/JointState topic; the log's topics: {listing}")
+        if len(joint_states) > 1:
+            raise ValueError(
+                f"{path}: several JointState topics: {', '.join(joint_states)}; choose one with {option}=…"
+            )
+        return joint_states[0]
+    if topic not in types:
+        raise ValueError(f"{path}: no topic {topic!r} ({option}); the log's topics: {listing}")
+    if types[topic] != JOINT_STATE:
+        raise ValueError(f"{path}: topic {topic} ({option}) holds {types[topic]}, not sensor_msgs/JointState")
+    return topic
+
+
+def _stream(path: Path, reader: Any, connections: list[Any], topic: str) -> Stream:
+    stamps, received, names, position, velocity, effort = [], [], [], [], [], []
+    for connection, receive_time, raw in reader.messages(connections=connections):
+        message = reader.deserialize(raw, connection.msgtype)
+        stamps.append(int(message.header.stamp.sec) * 1_000_000_000 + int(message.header.stamp.nanosec))
+        received.append(int(receive_time))
+        names.append(tuple(message.name))
+        position.append(np.asarray(message.position, dtype=np.float64))
+        velocity.append(np.asarray(message.velocity, dtype=np.float64))
+        effort.append(np.asarray(message.effort, dtype=np.float64))
+    if not stamps:
+        raise ValueError(f"{path}: topic {topic} has no messages")
+    header, receive = np.array(stamps, dtype=np.int64), np.array(received, dtype=np.int64)
+    zero = header == 0
+    if zero.all():
+        if (receive == receive[0]).all():
+            raise ValueError(
+                f"{path}: every stamp of {topic} is zero and so is every receive time: the log has no clock"
+            )
+        clock = "receive time (every header stamp is zero)"
+        warnings.warn(
+            f"{path}: {topic} has header stamps all zero; its receive times are used", LogWarning, 2
+        )
+        header = receive
+    elif zero.any():
+        raise ValueError(
+            f"{path}: header stamps of {topic} are zero in {int(zero.sum())} of {zero.size} messages (first: "
+            f"message {int(np.flatnonzero(zero)[0])}); which clock holds cannot be known"
+        )
+    else:
+        clock = "header stamps"
+    steps = np.diff(header)
+    if (steps <= 0).any():
+        k = int(np.flatnonzero(steps <= 0)[0]) + 1
+        seconds = (header - header[0]) * 1e-9
+        raise ValueError(
+            f"{path}: stamps of {topic} must increase: message {k} (t = {seconds[k]:.9g} s) follows message "
+            f"{k - 1} (t = {seconds[k - 1]:.9g} s) ({clock})"
+        )
+    return Stream(topic, header, names, position, velocity, effort, clock)
+
+
+def _complete(values: list[np.ndarray], names: list[tuple[str, ...]]) -> bool:
+    """Whether every message has one value per joint name."""
+    return all(len(v) == len(n) for v, n in zip(values, names, strict=True))
+
+
+def _values(path: Path, stream: Stream, field: str, joints: Sequence[str]) -> np.ndarray:
+    """``[M, n]`` values of ``field`` for ``joints`` (by name, per message)."""
+    arrays = getattr(stream, field)
+    out = np.empty((len(arrays), len(joints)))
+    order: dict[tuple[str, ...], list[int]] = {}
+    for k, (names, values) in enumerate(zip(stream.names, arrays, strict=True)):
+        if names not in order:
+            index = {name: i for i, name in enumerate(names)}
+            missing = [j for j in joints if j not in index]
+            if missing:
+                everywhere = all(missing[0] not in n for n in stream.names)
+                where = (
+                    f"the log has no joint {missing[0]!r}"
+                    if everywhere
+                    else f"message {k} lacks joint {missing[0]!r}"
+                )
+                raise ValueError(
+                    f"{path}: {stream.topic}: {where} (the robot needs it); the log's joints: "
+                    + ", ".join(names)
+                )
+            order[names] = [index[j] for j in joints]
+        if len(values) != len(names):
+            raise ValueError(
+                f"{path}: {stream.topic} message {k} has {len(values)} {field} values for {len(names)} joints"
+            )
+        out[k] = values[order[names]]
+    return out
+
+
+def _onto(
+    path: Path, efforts: Stream, joints: Sequence[str], t: np.ndarray, te: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The effort stream interpolated onto the state times ``t`` (s): ``(t kept, tau, kept rows)``."""
+    if not _complete(efforts.effort, efforts.names):
+        raise ValueError(f"{path}: effort topic {efforts.topic} has messages without an effort per joint")
+    tau_e = _values(path, efforts, "effort", joints)
+    inside = (t >= te[0]) & (t <= te[-1])
+    steps = np.diff(te)
+    for k in np.flatnonzero(steps > EFFORT_GAP * np.median(steps)):
+        inside &= ~((t > te[k]) & (t < te[k + 1]))
+    rows = np.flatnonzero(inside)
+    if rows.size < 2:
+        raise ValueError(
+            f"{path}: the effort topic {efforts.topic} does not overlap the state topic in time "
+            "(different clocks?)"
+        )
+    tau = np.stack([np.interp(t[rows], te, column) for column in tau_e.T], axis=1)
+    return t[rows], tau, rows

@@ -1,0 +1,92 @@
+"""One rigid body's inertia in its 10 standard parameters: pseudo-inertia and the parallel axis.
+
+A link's standard parameters ``pi = (m, h = m c, I_O)`` — mass, first moment, and the inertia about
+the link-frame origin ``(xx, xy, xz, yy, yz, zz)``, the order of :mod:`idkit.robots.urdf_model` —
+are what the regressor is linear in. Two views of them live here because the URDF reader and
+writer, the physically consistent estimator (``pcls``) and the KUKA study all need them, and
+``robots/`` must not import an estimator:
+
+* the **parallel-axis** pair :func:`standard_parameters` (URDF's ``m, c, I_c`` → ``pi``) and
+  :func:`centroidal` (back): ``I_O = I_c + m (|c|² 1 − c cᵀ)``;
+* the **pseudo-inertia** ``J(pi) = [[Σ, h], [hᵀ, m]]`` with ``Σ = tr(I_O)/2 · 1 − I_O`` the second
+  moment of mass: ``pi`` describes a real mass distribution iff ``J ⪰ 0`` (Wensing, Kim & Slotine
+  2017), and ``J`` is linear in ``pi``, so the condition is a linear matrix inequality.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, TypeVar
+
+import numpy as np
+import torch
+from torch import Tensor
+
+T = TypeVar("T")
+
+
+def pseudo_inertia_rows(pi: Sequence[T]) -> list[list[T]]:
+    """The 4 × 4 entries of ``J(pi)`` as nested rows of ``pi``'s own entries.
+
+    One layout for every array type that supports ``+``, ``-`` and ``/ 2``: torch stacks it
+    (:func:`pseudo_inertia`), ``pcls`` hands it to ``cvxpy.bmat`` for its constraints.
+    """
+    m, hx, hy, hz, xx, xy, xz, yy, yz, zz = pi
+    half_trace = (xx + yy + zz) / 2
+    return [
+        [half_trace - xx, -xy, -xz, hx],
+        [-xy, half_trace - yy, -yz, hy],
+        [-xz, -yz, half_trace - zz, hz],
+        [hx, hy, hz, m],
+    ]
+
+
+def pseudo_inertia(inertial: Tensor) -> Tensor:
+    """Pseudo-inertia ``J[..., 4, 4]`` of standard parameters ``inertial[..., 10]``."""
+    rows = pseudo_inertia_rows(inertial.unbind(-1))
+    return torch.stack([torch.stack(row, -1) for row in rows], -2)
+
+
+def link_count(robot: Any) -> int:
+    """How many links carry 10 standard parameters each (the first ``10 nb`` of ``[P]``).
+
+    Raises:
+        ValueError: the robot is not a ``urdf`` robot (a kinematic ``tree`` and a ``base_map``):
+            only those order their parameters by link.
+    """
+    tree = getattr(robot, "tree", None)
+    if tree is None or not hasattr(robot, "base_map"):
+        raise ValueError(
+            f"physical consistency needs a 'urdf' robot (10 standard parameters per link and a base "
+            f"map), got {type(robot).__name__}"
+        )
+    return len(tree.bodies)
+
+
+def min_pseudo_inertia_eigenvalues(robot: Any, params: Tensor) -> Tensor:
+    """Smallest eigenvalue ``[..., nb]`` of each link's pseudo-inertia for ``params[..., P]``.
+
+    ``≥ 0`` for every link iff the parameters are physically consistent (units mix kg, kg·m, kg·m²:
+    compare signs, not sizes, across links).
+    """
+    nb = link_count(robot)
+    inertials = params[..., : 10 * nb].unflatten(-1, (nb, 10))
+    return torch.linalg.eigvalsh(pseudo_inertia(inertials.double()))[..., 0]
+
+
+def standard_parameters(mass: float, com: np.ndarray, inertia_c: np.ndarray) -> np.ndarray:
+    """Standard parameters ``[10]`` from mass, centre of mass ``c[3]`` and the inertia about it
+    ``I_c[3, 3]`` (all in one frame), by the parallel-axis theorem."""
+    inertia_o = inertia_c + mass * (com @ com * np.eye(3) - np.outer(com, com))
+    (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia_o
+    return np.array([mass, *(mass * com), xx, xy, xz, yy, yz, zz])
+
+
+def centroidal(standard: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(m, c[3], I_c[3, 3])`` of standard parameters ``[10]``: :func:`standard_parameters` backwards
+    (``m`` must be non-zero)."""
+    m, h = float(standard[0]), standard[1:4]
+    xx, xy, xz, yy, yz, zz = standard[4:]
+    inertia_o = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    c = h / m
+    return m, c, inertia_o - m * (c @ c * np.eye(3) - np.outer(c, c))

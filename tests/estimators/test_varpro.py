@@ -1,0 +1,138 @@
+"""Variable projection for the sigmoid friction shapes (``varpro``), on data simulated with the
+friction Gaz et al. identified on a Panda (``GAZ_PANDA_FRICTION``).
+
+References: numpy's ``lstsq`` for the projected residual, and ``scipy.optimize.least_squares`` on all
+parameters at once for the minimiser (both minimise the same sum of squares).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import torch
+from scipy.optimize import least_squares
+
+from idkit.data.scenarios import simulate
+from idkit.estimators.varpro import VariableProjection, projection
+from idkit.problem import IdentificationError, Problem, Samples
+from idkit.robots.drives import GAZ_PANDA_FRICTION, with_drive_values
+from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
+from idkit.robots.urdf import URDFRobot
+from tests.urdf_cases import TREE_URDF
+
+
+def sigmoid_robot(urdf: str, **options) -> URDFRobot:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return URDFRobot(urdf, friction="sigmoid", offset=True, **options)
+
+
+def gaz_truth(robot: URDFRobot) -> torch.Tensor:
+    n = robot.n_joints
+    values = {
+        **GAZ_PANDA_FRICTION,
+        "fv": [0.1 + 0.05 * j for j in range(n)],
+        "offset": [0.2 - 0.05 * j for j in range(n)],
+    }
+    return with_drive_values(robot.param_names, robot.joint_names, robot.nominal_params(), values)
+
+
+def phi_index(robot: URDFRobot, *keys: str) -> list[int]:
+    return [robot.param_names.index(f"{j}.{k}") for k in keys for j in robot.joint_names]
+
+
+def estimate_vector(robot: URDFRobot, estimate) -> torch.Tensor:
+    return torch.tensor([estimate.params[name] for name in robot.param_names], dtype=torch.float64)
+
+
+@pytest.fixture(scope="module")
+def tree():
+    robot = sigmoid_robot(TREE_URDF)
+    truth = gaz_truth(robot)
+    return robot, truth, simulate(robot, "clean", seed=0, n_samples=600, params=truth)
+
+
+def test_the_projected_residual_is_the_least_squares_residual(tree):
+    robot, _, samples = tree
+    data = projection(robot, samples.q, samples.qd, samples.qdd, samples.tau)
+    lower, upper = (bound[phi_index(robot, "phi2", "phi3")] for bound in robot.bounds())
+    theta = lower + (upper - lower) * torch.rand(5, len(lower), generator=torch.Generator().manual_seed(0))
+    for k in range(5):
+        w = data.matrix(theta[k]).numpy()
+        tau = samples.tau.numpy().reshape(-1)
+        solution, *_ = np.linalg.lstsq(w, tau, rcond=None)
+        expected = np.sum((tau - w @ solution) ** 2)
+        np.testing.assert_allclose(float(data.residual(theta[k])), expected, rtol=1e-8)
+    torch.testing.assert_close(data.residual(theta), torch.stack([data.residual(t) for t in theta]))
+
+
+def test_varpro_recovers_the_shapes_of_noise_free_data(tree):
+    robot, truth, samples = tree
+    estimate = VariableProjection(particles=16, iterations=15).fit(Problem(robot, samples, seed=3))
+    params = estimate_vector(robot, estimate)
+    index = phi_index(robot, "phi1", "phi2", "phi3")
+    np.testing.assert_allclose(params[index].numpy(), truth[index].numpy(), rtol=1e-6)
+    assert estimate.details["rel_error_train"] < 1e-9
+    assert estimate.details["shape"]["j1"] == {
+        "phi2": pytest.approx(GAZ_PANDA_FRICTION["phi2"][0]),
+        "phi3": pytest.approx(GAZ_PANDA_FRICTION["phi3"][0]),
+    }
+    again = VariableProjection(particles=16, iterations=15).fit(Problem(robot, samples, seed=3))
+    assert again.params == estimate.params  # the seed fixes every number
+
+
+def test_varpro_finds_the_least_squares_minimiser_of_noisy_data(tree):
+    robot, truth, samples = tree
+    generator = torch.Generator().manual_seed(1)
+    rms = samples.tau.square().mean(0).sqrt()
+    noisy = Samples(
+        samples.q,
+        samples.qd,
+        samples.qdd,
+        samples.tau + 0.01 * rms * torch.randn(samples.tau.shape, generator=generator, dtype=torch.float64),
+    )
+    params = estimate_vector(robot, VariableProjection().fit(Problem(robot, noisy)))
+    # The same sum of squares minimised by scipy over all parameters, started at the truth.
+    data = projection(robot, noisy.q, noisy.qd, noisy.qdd, noisy.tau)
+    shapes = phi_index(robot, "phi2", "phi3")
+    n = robot.n_joints
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        w = data.matrix(torch.as_tensor(x[: 2 * n])).numpy()
+        return w @ x[2 * n :] - noisy.tau.numpy().reshape(-1)
+
+    alpha = robot.base_params(truth).numpy()
+    x0 = np.concatenate([truth[shapes].numpy(), alpha[data.fixed + data.scaled]])
+    reference = least_squares(residual, x0, x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14).x
+    np.testing.assert_allclose(params[shapes].numpy(), reference[: 2 * n], rtol=1e-5)
+
+
+def test_refine_with_pcls_keeps_the_shape_and_is_physical(tree):
+    robot, truth, samples = tree
+    estimate = VariableProjection(particles=16, iterations=15, refine="pcls").fit(Problem(robot, samples))
+    params = estimate_vector(robot, estimate)
+    shapes = phi_index(robot, "phi2", "phi3")
+    np.testing.assert_allclose(params[shapes].numpy(), truth[shapes].numpy(), rtol=1e-5)
+    assert float(min_pseudo_inertia_eigenvalues(robot, params).min()) >= -1e-9
+    assert (params[phi_index(robot, "phi1", "fv")] >= -1e-9).all()
+    assert estimate.details["status"] == "optimal"
+
+
+def test_varpro_refuses_a_robot_without_shapes():
+    robot = URDFRobot("cylindrical", friction=True)
+    samples = simulate(robot, "clean", n_samples=50)
+    with pytest.raises(IdentificationError, match="varpro: robot URDFRobot has no nonlinear friction shapes"):
+        VariableProjection().fit(Problem(robot, samples))
+
+
+@pytest.mark.kuka
+def test_varpro_recovers_gaz_friction_on_the_kuka_arm(kuka_dir):
+    robot = sigmoid_robot(str(kuka_dir / "kuka_lwr4.urdf"))
+    truth = gaz_truth(robot)
+    samples = simulate(robot, "clean", seed=0, n_samples=2000, params=truth)
+    params = estimate_vector(robot, VariableProjection().fit(Problem(robot, samples)))
+    index = phi_index(robot, "phi1", "phi2", "phi3")
+    relative = ((params[index] - truth[index]).abs() / truth[index].abs()).max()
+    assert relative < 1e-6  # the judged bound is 2 %
