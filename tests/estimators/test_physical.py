@@ -59,7 +59,7 @@ def test_pcls_equals_ls_when_ls_is_consistent(noise):
         robot, base_params=torch.as_tensor(vector(ls.base_params)), samples=problem.samples
     )
     assert projected.data_term < 1e-2  # LS is consistent: < (0.01 % torque change)^2 away
-    pcls = registry.create("estimator", "pcls").fit(problem)
+    pcls = registry.create("estimator", "pcls", prior_weight=0.0).fit(problem)
     a_ls, a_pcls = vector(ls.base_params), vector(pcls.base_params)
     if noise == 0.0:
         np.testing.assert_allclose(a_pcls, a_ls, rtol=0, atol=1e-6 * np.abs(a_ls).max())
@@ -76,7 +76,7 @@ def test_pcls_is_consistent_where_ls_is_not():
     params[10] = -1.0  # link b: negative mass
     problem = Problem(robot, simulated(robot, params, noise=1e-2, seed=1))
     ls = registry.create("estimator", "ls").fit(problem)
-    pcls = PhysicallyConsistentLS().fit(problem)
+    pcls = PhysicallyConsistentLS(prior_weight=0.0).fit(problem)
     p = torch.as_tensor(vector(pcls.params))
     eig = min_pseudo_inertia_eigenvalues(robot, p)
     assert (eig > -EIGEN_TOL).all()
@@ -90,7 +90,7 @@ def test_pcls_is_consistent_where_ls_is_not():
 def test_prior_pulls_towards_cad():
     robot = tree_robot()
     problem = Problem(robot, simulated(robot, true_params(robot) * 1.3, noise=0.05, seed=2))
-    free = PhysicallyConsistentLS().fit(problem)
+    free = PhysicallyConsistentLS(prior_weight=0.0).fit(problem)
     pulled = PhysicallyConsistentLS(prior_weight=1e4).fit(problem)
     # What the prior guarantees: it is a barrier (-log det), so every link stays strictly inside the
     # PSD cone (finite divergence), and by optimality of both programs the pulled fit trades data

@@ -21,7 +21,16 @@ from idkit.options import OptionError
         ("ls", {"max_cond": 0.0}, "ls: max_cond must be None or a number > 0, got 0.0"),
         ("rls", {"threads": 0}, "rls: threads must be None or an integer >= 1, got 0"),
         ("rls", {"rho": -1.0}, "rls: rho must be None or a finite number >= 0, got -1.0"),
-        ("pcls", {"prior_weight": -1.0}, "pcls: prior_weight must be a finite number >= 0, got -1.0"),
+        (
+            "pcls",
+            {"prior_weight": -1.0},
+            "pcls: prior_weight must be a finite number >= 0 or 'auto', got -1.0",
+        ),
+        (
+            "pcls",
+            {"prior_weight": "soon"},
+            "pcls: prior_weight must be a finite number >= 0 or 'auto', got 'soon'",
+        ),
         ("pcls", {"min_mass": -0.5}, r"pcls: min_mass must be None or a finite number >= 0 \(kg\), got -0.5"),
     ],
 )
@@ -67,7 +76,7 @@ def test_settings_are_resolved_once_and_frozen_while_the_options_stay_as_given()
     )
     assert isinstance(rls.settings, LinearSettings)
     pcls = registry.create("estimator", "pcls")
-    assert pcls.settings == ConsistentSettings(0.0, None, "auto", AUTO_SOLVERS)
+    assert pcls.settings == ConsistentSettings("auto", None, "auto", AUTO_SOLVERS)
     assert registry.create("estimator", "pcls", solver="scs").settings.conic_solvers == ("SCS",)
     with pytest.raises(dataclasses.FrozenInstanceError):
         pcls.settings.solver = "scs"
