@@ -316,8 +316,9 @@ def band_limit(
     The filter of step 2 (Butterworth of ``order`` run forwards and backwards) on each stretch between
     gaps (steps longer than ``max_gap`` median steps, never filtered across): the stretch is resampled
     linearly onto a uniform grid of the median step, filtered, and read back at its own timestamps, so
-    irregular, decimated or already uniform samples all get the same band. A stretch shorter than the
-    filter's edge padding is padded as far as it goes.
+    irregular, decimated or already uniform samples all get the same band. Each end is padded by odd
+    extension over ``3 / cutoff`` s (as far as the stretch goes), the filter's settling time: with
+    ``sosfiltfilt``'s default 15 samples a 0.3 Hz sine came out 0.9 % wrong at the ends, with this 2e-5.
 
     Raises:
         ValueError: ``cutoff`` not below the Nyquist frequency of the median step.
@@ -343,7 +344,7 @@ def band_limit(
             out[rows] = values[rows]
             continue
         uniform = np.stack([np.interp(grid, local, column) for column in values[rows].T], axis=1)
-        pad = min(3 * (2 * len(sos) + 1), grid.size - 1)
+        pad = min(int(np.ceil(3.0 / (cutoff * median) - 1e-9)), grid.size - 1)
         filtered = signal.sosfiltfilt(sos, uniform, axis=0, padlen=pad)
         out[rows] = np.stack([np.interp(local, grid, column) for column in filtered.T], axis=1)
     return out

@@ -202,3 +202,33 @@ def test_stribeck_friction_never_drives_the_joint():
     fit = torch.as_tensor(vector(estimate.params))
     assert (fit[start : start + n] + fit[start + 2 * n :] >= -1e-9).all()
     assert (fit[start + 2 * n :] < 0).any()
+
+
+def test_prior_weight_auto_follows_cad_only_as_far_as_the_data_allow():
+    """prior_weight=auto (the default): on data simulated from the CAD model itself the prior is right
+    and cross-validation leans on it; with inertias 30 % off CAD and little noise the data win."""
+    robot = tree_robot()
+    nb = len(robot.link_names)
+    off = true_params(robot).clone()
+    off[: 10 * nb] *= 1.3
+    right = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.05, seed=3)))
+    wrong = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, off, 1e-3, seed=3)))
+    assert right.details["prior_weight"] >= 1000 and wrong.details["prior_weight"] <= 100
+    for fit in (right, wrong):
+        cv = fit.details["prior_weight_cv"]
+        assert cv["candidates"] == [0, 1, 3, 10, 30, 100, 300, 1000, 3000, 10000]
+        assert all(len(folds) == 5 for folds in cv["per_fold"])
+        # the one-standard-error rule: the chosen weight is within one standard error of the best,
+        # every larger one is not
+        chosen = cv["candidates"].index(cv["chosen"])
+        distances = cv["standard_errors_from_best"]
+        assert distances[chosen] <= 1 and all(d > 1 for d in distances[chosen + 1 :])
+        assert min(distances) == 0 and cv["scores"][distances.index(0)] == min(cv["scores"])
+    assert right.estimator == "PCLS"
+
+
+def test_prior_weight_auto_on_too_few_samples_is_zero_and_says_why():
+    robot = tree_robot()
+    fit = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.01, n=20)))
+    assert fit.details["prior_weight"] == 0.0
+    assert fit.details["prior_weight_cv"]["reason"].startswith("20 samples are too few to cross-validate")

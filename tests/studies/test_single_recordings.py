@@ -150,6 +150,33 @@ def test_data_list_is_stacked_and_each_file_preprocessed_alone(files, tmp_path):
     assert data["payload"]["validation"] == {} and result.validation == []
 
 
+def test_the_cutoff_changes_the_model_but_not_the_yardstick(files, tmp_path):
+    """Held-out torques are compared in one fixed band whatever the training cut-off: the measured
+    torques scored are the same samples' raw torques, the metric and band the same; the held-out
+    states (and so the prediction) follow the cut-off."""
+    runs = {}
+    for cutoff in (4, 12):
+        runs[cutoff], _ = command(
+            *robot_args(files),
+            f"data={files['train']}",
+            f"validate=[{files['test']}]",
+            "estimator=ls",
+            "~cost",
+            f"preprocess.cutoff={cutoff}",
+            "plots=false",
+            "identified_urdf=false",
+            out=tmp_path / str(cutoff),
+        )
+    low, high = (runs[c].validation[0] for c in (4, 12))
+    assert low.scores.metric == high.scores.metric and low.scores.band == high.scores.band == 6.0
+    common, a, b = np.intersect1d(
+        np.round(low.times * RATE), np.round(high.times * RATE), return_indices=True
+    )
+    assert common.size > 1500
+    np.testing.assert_array_equal(low.scores.measured[a], high.scores.measured[b])
+    assert not np.allclose(low.scores.predicted[a], high.scores.predicted[b], rtol=1e-6, atol=0)
+
+
 def test_samples_files_are_used_as_they_are_unless_preprocess_on(files, tmp_path):
     """auto: a file with qdd keeps its own derivatives; on: it is preprocessed from its timestamps."""
     robot = URDFRobot(str(ASSET), friction=True, offset=True)
@@ -199,6 +226,7 @@ def test_the_preprocess_group_is_the_options_dataclass(files):
     ("overrides", "message"),
     [
         (["preprocess.cutoff=150"], r"cutoff 150 Hz is not below the Nyquist frequency 100 Hz"),
+        (["preprocess.cutoff=soon"], r"^preprocess\.cutoff must be 'auto' or a number of Hz, got 'soon'$"),
         (["preprocess=off"], r"train\.csv: a raw recording \(no accelerations qdd\); preprocess it"),
         (["preprocess.cutof=5"], None),  # Hydra refuses the unknown key itself
     ],
