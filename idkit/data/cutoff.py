@@ -38,7 +38,7 @@ from torch import Tensor
 
 from idkit.data.preprocess import GapWarning, PreprocessOptions, band_limit, preprocess_recording
 from idkit.data.recording import Recording
-from idkit.problem import Samples
+from idkit.problem import SAMPLE_ARRAYS, Samples
 
 #: Cut-offs tried (Hz), log-spaced: identification motion lives below ~2 Hz, and a cut-off above
 #: ~25 Hz only lets noise into the accelerations. Those at or above a quarter of the sampling rate are
@@ -46,6 +46,9 @@ from idkit.problem import Samples
 CANDIDATES_HZ = (2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
 #: Contiguous blocks per recording (module doc, step 3).
 FOLDS = 5
+#: The cross-validation evaluates every ``stride``-th sample, keeping this many samples per second per
+#: Hz of the highest candidate cut-off (``_cross_validated``).
+RATE_PER_CUTOFF = 4.0
 
 #: ``regressor(samples) -> W[N, n, B]``: the robot's base regressor at the samples' states.
 Regressor = Callable[[Samples], Tensor]
@@ -150,27 +153,43 @@ def choose_cutoff(
 def _cross_validated(
     runs: dict[float, list[Any]], regressor: Regressor, band: float, folds: int
 ) -> dict[float, float]:
-    """Step 2-5 of the module doc for every candidate: ``{cutoff: ‖band(E)‖ / ‖band(T)‖}``."""
+    """Step 2-5 of the module doc for every candidate: ``{cutoff: ‖band(E)‖ / ‖band(T)‖}``.
+
+    The fits and predictions use every ``stride``-th scored sample, ``stride`` keeping at least
+    :data:`RATE_PER_CUTOFF` × the highest candidate (100 Hz of 200 Hz data, a tenth of 1 kHz data):
+    the states are band-limited below it, and the regressor, the bulk of the cost, is evaluated on
+    fewer samples. The measured torques are band-limited at their full rate first (thinning them
+    would fold their noise into the band); ``band(E) = band(T) − band(prediction)`` (linear)."""
     most_trimmed = runs[min(runs)]
+    reference = []  # per recording: (scored times, band-limited measured torques, stride)
+    for run, first in zip(runs[max(runs)], most_trimmed, strict=True):
+        rows = _common(run.times, first.times)
+        step = float(np.median(np.diff(run.times)))
+        stride = max(1, int(1.0 / (step * RATE_PER_CUTOFF * max(runs))))
+        reference.append((run.times[rows], band_limit(run.times[rows], run.raw_tau[rows], band), stride))
+    total = sum(float(np.sum(measured[::stride] ** 2)) for _, measured, stride in reference)
     scores = {}
     for cutoff, done in runs.items():
-        blocks, held = [], []
-        for reference, run in zip(most_trimmed, done, strict=True):
-            step = float(np.median(np.diff(run.times))) if run.times.size > 1 else 1.0
-            rows = np.isin(np.round(run.times / step), np.round(reference.times / step))
-            times = run.times[rows]
-            W = regressor(run.samples).detach().cpu().double().numpy()[rows]
+        blocks = []
+        for (times, _, stride), run in zip(reference, done, strict=True):
+            rows = np.flatnonzero(_common(run.times, times))[::stride]
+            thinned = Samples(*(getattr(run.samples, k)[rows] for k in SAMPLE_ARRAYS))
+            W = regressor(thinned).detach().cpu().double().numpy()
             edges = np.linspace(times[0], times[-1], folds + 1)[1:-1]
-            fold = np.searchsorted(edges, times, side="right")
+            fold = np.searchsorted(edges, run.times[rows], side="right")
             blocks.append((W, run.samples.tau.numpy()[rows], fold))
-            held.append((times, run.raw_tau[rows]))
         predicted = _out_of_fold(blocks, folds)
-        error = total = 0.0
-        for (times, measured), guess in zip(held, predicted, strict=True):
-            error += float(np.sum(band_limit(times, measured - guess, band) ** 2))
-            total += float(np.sum(band_limit(times, measured, band) ** 2))
+        error = 0.0
+        for (times, measured, stride), guess in zip(reference, predicted, strict=True):
+            error += float(np.sum((measured[::stride] - band_limit(times[::stride], guess, band)) ** 2))
         scores[cutoff] = float(np.sqrt(error / total)) if total > 0 else float("inf")
     return scores
+
+
+def _common(times: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """Mask of ``times`` that are also in ``kept`` (both on one uniform grid; trims differ)."""
+    step = float(np.median(np.diff(times))) if times.size > 1 else 1.0
+    return np.isin(np.round(times / step), np.round(kept / step))
 
 
 def _out_of_fold(blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]], folds: int) -> list[np.ndarray]:
