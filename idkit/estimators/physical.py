@@ -544,6 +544,7 @@ def cross_validated_weight(
         )
     K = robot.base_map.numpy()
     scores, per_fold, squared = {}, {}, {}
+    failures: list[IdentificationError] = []
     for weight in candidates:
         errors = []
         try:
@@ -553,17 +554,15 @@ def cross_validated_weight(
                 Rk, bk, rest_k = blocks[k]
                 residual = Rk @ (K @ params) - bk
                 errors.append(float(residual @ residual) + rest_k)
-        except IdentificationError:
+        except IdentificationError as exc:  # a weight the solver cannot handle drops out
+            failures.append(exc)
             scores[weight], per_fold[weight] = float("inf"), []
             continue
         squared[weight] = np.array(errors) / sum(totals)
         scores[weight] = float(np.sqrt(squared[weight].sum()))
         per_fold[weight] = [float(np.sqrt(e / t)) for e, t in zip(errors, totals, strict=True)]
-    if not squared:
-        raise IdentificationError(
-            "pcls: prior_weight=auto: every candidate failed on some fold "
-            f"({', '.join(f'{w:g}' for w in candidates)})"
-        )
+    if not squared:  # infeasible constraints, or a solver that fails whatever the weight: its own words
+        raise failures[0]
     best = min(squared, key=lambda w: scores[w])
     distance = {}
     for weight, parts in squared.items():
