@@ -87,14 +87,19 @@ class CutoffChoice:
         }
 
 
-def candidates(recordings: Sequence[Recording], options: PreprocessOptions) -> list[float]:
-    """The cut-offs of :data:`CANDIDATES_HZ` below a quarter of every recording's (decimated) rate."""
+def lowest_rate(recordings: Sequence[Recording], options: PreprocessOptions) -> float:
+    """The lowest sampling rate (Hz) the recordings will have after preprocessing (resampled at
+    ``options.rate`` or their median rate, then decimated)."""
     rates = [
         float(options.rate) if options.rate is not None else 1.0 / float(np.median(np.diff(r.t)))
         for r in recordings
     ]
-    ceiling = min(rates) / (4 * max(options.decimate, 1))
-    return [c for c in CANDIDATES_HZ if c < ceiling]
+    return min(rates) / max(options.decimate, 1)
+
+
+def candidates(recordings: Sequence[Recording], options: PreprocessOptions) -> list[float]:
+    """The cut-offs of :data:`CANDIDATES_HZ` below a quarter of every recording's (decimated) rate."""
+    return [c for c in CANDIDATES_HZ if c < lowest_rate(recordings, options) / 4]
 
 
 def choose_cutoff(

@@ -605,7 +605,10 @@ class PhysicallyConsistentLS(Estimator):
     )
 
     def __init__(
-        self, prior_weight: float | str = "auto", min_mass: float | None = None, solver: Solver = "auto"
+        self,
+        prior_weight: float | Literal["auto"] = "auto",
+        min_mass: float | None = None,
+        solver: Solver = "auto",
     ) -> None:
         self.prior_weight = prior_weight
         self.min_mass = min_mass

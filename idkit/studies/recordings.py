@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from idkit.data.cutoff import CutoffChoice, choose_cutoff
+from idkit.data.cutoff import CutoffChoice, choose_cutoff, lowest_rate
 from idkit.data.delay import shift_torques, torque_delay
 from idkit.data.load import DataFile, Source, from_source, read_source
 from idkit.data.preprocess import FILTER_CUTOFF_HZ, PreprocessOptions
@@ -188,12 +188,7 @@ def _auto_cutoff(robot: Robot, recordings: list[Recording], options: PreprocessO
 
     if not recordings:
         return fixed("no training file is a raw recording to choose from")
-    rates = [
-        (float(options.rate) if options.rate is not None else 1.0 / float(np.median(np.diff(r.t))))
-        / max(options.decimate, 1)
-        for r in recordings
-    ]
-    band = min(SCORE_BAND_HZ, BAND_OF_RATE * min(rates))
+    band = min(SCORE_BAND_HZ, BAND_OF_RATE * lowest_rate(recordings, options))
 
     import torch
 

@@ -26,11 +26,6 @@ from idkit.options import OptionError
             {"prior_weight": -1.0},
             "pcls: prior_weight must be a finite number >= 0 or 'auto', got -1.0",
         ),
-        (
-            "pcls",
-            {"prior_weight": "soon"},
-            "pcls: prior_weight must be a finite number >= 0 or 'auto', got 'soon'",
-        ),
         ("pcls", {"min_mass": -0.5}, r"pcls: min_mass must be None or a finite number >= 0 \(kg\), got -0.5"),
     ],
 )
@@ -48,6 +43,20 @@ def test_a_string_choice_outside_its_literal_is_one_line_listing_the_choices(nam
     message = str(caught.value)
     assert "\n" not in message
     assert message.startswith(f"estimator {name!r} option 'solver' must be {choices}, got 'CLARABEL' (str)")
+
+
+def test_a_prior_weight_that_is_neither_a_number_nor_auto_is_one_line():
+    with pytest.raises(
+        OptionError, match=r"^estimator 'pcls' option 'prior_weight' must be a float or 'auto'"
+    ):
+        registry.create("estimator", "pcls", prior_weight="soon")
+    assert registry.create("estimator", "pcls", prior_weight="300").settings.prior_weight == 300.0
+    from idkit.estimators.physical import PhysicallyConsistentLS
+
+    with pytest.raises(
+        ValueError, match=r"^pcls: prior_weight must be a finite number >= 0 or 'auto', got 'soon'$"
+    ):
+        PhysicallyConsistentLS(prior_weight="soon")  # type: ignore[arg-type]
 
 
 def test_pcls_refuses_an_unknown_solver_from_python_too():
