@@ -52,7 +52,8 @@ class DataFile:
     them), ``times[N]`` (s from the file's start, or ``None``), whether idkit ``preprocessed`` it, and
     what preprocessing reported (``preprocessing``: the segments between gaps and a ``note``) and, for a
     ROS log, what was read (``log``: topics, clocks, joints used and ignored); ``delay``: the torque
-    delay applied to a raw recording (seconds, samples dropped)."""
+    delay applied to a raw recording (seconds, samples dropped); ``raw_tau`` ``[N, n]``: the measured
+    torques at ``times`` before any filter (``None``: ``samples.tau`` are those, the file's own)."""
 
     path: str
     samples: Samples
@@ -61,6 +62,27 @@ class DataFile:
     preprocessing: dict[str, Any] | None = None
     log: dict[str, Any] | None = None
     delay: dict[str, Any] | None = None
+    raw_tau: np.ndarray | None = None
+
+    @property
+    def measured_tau(self) -> np.ndarray:
+        """The measured torques ``[N, n]`` as recorded (resampled, never filtered), float64."""
+        if self.raw_tau is not None:
+            return self.raw_tau
+        return self.samples.tau.detach().cpu().double().numpy()
+
+
+@dataclass(frozen=True)
+class Source:
+    """A data file read but not yet preprocessed: the raw ``recording`` that preprocessing will turn
+    into samples, or the ``samples`` used as they are (with their ``times``, if the file has any);
+    ``log``: what was read from a ROS log."""
+
+    path: str
+    recording: Recording | None
+    samples: Samples | None = None
+    times: np.ndarray | None = None
+    log: dict[str, Any] | None = None
 
 
 def file_kind(table: Table) -> FileKind:
@@ -80,7 +102,7 @@ def load_data_file(
     log: RecordingOptions | None = None,
     delay: float = 0.0,
 ) -> DataFile:
-    """Samples from one file (module doc).
+    """Samples from one file (module doc): :func:`read_source`, then :func:`from_source`.
 
     Args:
         path: ``.npz`` or ``.csv`` file of samples or of a raw recording, or a ROS log
@@ -98,13 +120,24 @@ def load_data_file(
             ``"auto"``) for a file with neither accelerations nor timestamps — naming the file; what
             the readers refuse.
     """
+    return from_source(read_source(path, apply, joints, log), options, stride, delay)
+
+
+def read_source(
+    path: str | Path,
+    apply: str = "auto",
+    joints: Sequence[str] | None = None,
+    log: RecordingOptions | None = None,
+) -> Source:
+    """Read one file: the raw recording that ``apply`` says to preprocess, or the samples to use as
+    they are (arguments and errors as :func:`load_data_file`)."""
     if apply not in APPLY:
         raise ValueError(f"preprocess.apply must be one of {', '.join(APPLY)}, got {apply!r}")
     if is_log(path):
         if apply == "off":
             raise ValueError(f"{path}: a ROS log is a raw recording (no accelerations); preprocess it")
         recording, description = read_log(path, joints, log)
-        return _preprocessed(path, recording, options, stride, delay, description)
+        return Source(str(path), recording, log=description)
     table = read_table(path)
     kind = file_kind(table)
     run = apply == "on" or (apply == "auto" and not kind.samples)
@@ -113,17 +146,12 @@ def load_data_file(
             raise ValueError(
                 f"{path}: a raw recording (no accelerations qdd); preprocess it (preprocess=auto or on)"
             )
-        if delay != 0:
-            raise ValueError(
-                f"{path}: recording.delay={delay:g} shifts a raw recording's torques, but this file holds "
-                "samples used as they are (preprocess=on reads it as a recording)"
-            )
         samples, _ = samples_from_table(table, FLOBAROID_KEYS if kind.flobaroid else None, joints)
         times = None
         if kind.timestamps:
             t = table.vector(FLOBAROID_RECORDING_KEYS["t"] if kind.flobaroid else "t")
-            times = (t - t[0])[::stride]
-        return DataFile(str(path), _thin(samples, stride), times, False)
+            times = t - t[0]
+        return Source(str(path), None, samples, times)
     if not kind.timestamps:
         found = ", ".join(table.names()[:12]) + (" …" if len(table.names()) > 12 else "")
         if kind.samples:
@@ -136,7 +164,24 @@ def load_data_file(
             f"qdd and no timestamps t; it has {found}"
         )
     recording = recording_from_table(table, FLOBAROID_RECORDING_KEYS if kind.flobaroid else None, joints)
-    return _preprocessed(path, recording, options, stride, delay)
+    return Source(str(path), recording)
+
+
+def from_source(
+    source: Source, options: PreprocessOptions | None = None, stride: int = 1, delay: float = 0.0
+) -> DataFile:
+    """The :class:`DataFile` of a read file: its recording preprocessed with ``options`` (its torques
+    shifted back by ``delay`` s first), or its samples as they are; every ``stride``-th sample."""
+    if source.recording is not None:
+        return _preprocessed(source.path, source.recording, options, stride, delay, source.log)
+    if delay != 0:
+        raise ValueError(
+            f"{source.path}: recording.delay={delay:g} shifts a raw recording's torques, but this file holds "
+            "samples used as they are (preprocess=on reads it as a recording)"
+        )
+    assert source.samples is not None
+    times = None if source.times is None else source.times[::stride]
+    return DataFile(source.path, _thin(source.samples, stride), times, False)
 
 
 def _preprocessed(
@@ -151,7 +196,9 @@ def _preprocessed(
     done = preprocess_recording(recording, options)
     shifted = {"seconds": delay, "dropped_samples": dropped} if delay else None
     thinned = _thin(done.samples, stride)
-    return DataFile(str(path), thinned, done.times[::stride], True, done.to_dict(), log, shifted)
+    return DataFile(
+        str(path), thinned, done.times[::stride], True, done.to_dict(), log, shifted, done.raw_tau[::stride]
+    )
 
 
 def _thin(samples: Samples, stride: int) -> Samples:

@@ -47,8 +47,8 @@ class RecordingOptions:
             log's only one (:mod:`idkit.data.logs`).
         effort_topic: a ``JointState`` topic carrying the efforts, if not ``topic``.
         delay: seconds by which the torques trail the states (the torque at ``t`` is read at
-            ``t + delay``), or ``"auto"``: estimated by cross-correlation with the robot's a-priori
-            model (:mod:`idkit.data.delay`). ``0``: none.
+            ``t + delay``), or ``"auto"``: the lag at which the robot's regressor explains the
+            shifted torques best (:mod:`idkit.data.delay`). ``0``: none.
     """
 
     topic: str | None = None

@@ -88,7 +88,16 @@ def _validation_lines(result: RunResult) -> list[str]:
     if not result.validation:
         return []
     n = len(result.validation[0].scores.rms)
-    lines = ["", "held-out validation: RMS torque error per joint, ‖E‖/‖T‖ over all joints"]
+    bands = {held.scores.band for held in result.validation}
+    band = bands.pop() if len(bands) == 1 else "mixed"
+    compared = (
+        "unfiltered torques"
+        if band is None
+        else "torques compared below the scoring band, per file"
+        if band == "mixed"
+        else f"torques compared below {band:g} Hz"
+    )
+    lines = ["", f"held-out validation: RMS torque error per joint, ‖E‖/‖T‖ over all joints ({compared})"]
     lines.append(f"{'file':<32}" + "".join(f"{'j' + str(j + 1):>9}" for j in range(n)) + f"{'‖E‖/‖T‖':>10}")
     for held in result.validation:
         cells = "".join(f"{v:9.3g}" for v in held.scores.rms)

@@ -16,10 +16,11 @@ the URDF's ``<dynamics friction= damping=>`` values as Coulomb and viscous coeff
 carries the smallest pseudo-inertia eigenvalue over the links (``min_eig``, ``< 0``: not physically
 consistent) and how many links are negative.
 
-The recordings are read by :func:`idkit.data.load.load_data_file` (the files' own derivatives by
-default; ``preprocess={apply: on, ...}`` recomputes them with idkit's filter) and scored by
-:func:`idkit.studies.validation.validate`. Metrics (per recording; ``E = measured − predicted`` over
-``N`` samples and ``n = 7`` joints):
+The recordings are read by :func:`idkit.studies.recordings.load_training` (the files' own derivatives
+by default; ``preprocess={apply: on, ...}`` recomputes them with idkit's filter, its ``cutoff=auto``
+chosen on the training recording) and scored by :func:`idkit.studies.validation.validate_file`: the
+measured and predicted torques compared in the fixed scoring band (6 Hz, on the files' timestamps).
+Metrics (per recording; ``E = measured − predicted`` over ``N`` samples and ``n = 7`` joints):
 
 * ``rms_j`` = ``sqrt(mean_t E_tj²)`` (N·m) and ``rel_j = rms_j / sqrt(mean_t τ_tj²)``;
 * ``rel_all = ‖E‖_F / ‖T‖_F``, dominated by the big joints 2 and 4 (≈ 25 and 11 N·m RMS);
@@ -55,9 +56,9 @@ from idkit.robots.urdf import URDFRobot
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.labels import unique_labels
-from idkit.studies.recordings import DataFile, load_files, preprocess_options
+from idkit.studies.recordings import DataFile, load_files, load_training
 from idkit.studies.result import Provenance, StudyInterrupted
-from idkit.studies.validation import Validation, score, validate
+from idkit.studies.validation import Validation, score, validate_file
 
 URDF_NAME = "kuka_lwr4.urdf"
 #: The estimators run by default: the linear family (RLS in closed form; the cvxpy SOCP has the
@@ -71,6 +72,7 @@ DEFAULT_ESTIMATORS: tuple[Spec, ...] = (
     {"_name_": "rls", "solver": "closed_form"},
     {"_name_": "pso", "runs": 4, "history": False},
     {"_name_": "adam", "starts": 4, "history": False},
+    {"_name_": "pcls", "prior_weight": 0.0},
     "pcls",
     {"_name_": "pcls", "prior_weight": 300.0},
 )
@@ -214,7 +216,14 @@ def _repeat_rows(
                     "recording": name,
                     "split": "test",
                     "fit_time_s": 0.0,
-                    **scores(score(samples.tau.numpy(), reference.tau.numpy(), robot.effort_limits)),
+                    **scores(
+                        score(
+                            recordings[name].measured_tau,
+                            recordings[train].measured_tau,
+                            robot.effort_limits,
+                            recordings[name].times,
+                        )
+                    ),
                     "min_eig": None,
                     "links_negative": None,
                 }
@@ -279,7 +288,13 @@ def run(
     variants = [_model(spec) for spec in models]
     names = (train, *test)
     rigid = URDFRobot(str(urdf))
-    loaded = load_files(rigid, [data_dir / f"{name}.npz" for name in names], preprocess, stride=stride)
+    # an automatic cut-off is chosen with the richest model variant's regressor
+    richest = URDFRobot(str(urdf), friction=any(v[0] for v in variants), offset=any(v[1] for v in variants))
+    training = load_training(richest, data_dir / f"{train}.npz", preprocess, stride=stride)
+    held = load_files(
+        rigid, [data_dir / f"{name}.npz" for name in test], training.preprocess, "validate", stride
+    )
+    loaded = [*training.files, *held]
     recordings = dict(zip(names, loaded, strict=True))
     as_recorded = load_files(rigid, [data_dir / f"{name}.npz" for name in names], {"apply": "off"})
     checks = {name: data_check(f.samples, f.times) for name, f in zip(names, as_recorded, strict=True)}
@@ -291,7 +306,9 @@ def run(
     cost = build("cost", search_cost)
     data = {"dir": str(data_dir), "train": train, "test": list(test), "stride": stride}
     if any(f.preprocessed for f in loaded):
-        data["preprocess"] = vars(preprocess_options(preprocess)[0])
+        data["preprocess"] = {k: v for k, v in training.preprocess.items() if k != "apply"}
+        if training.cutoff is not None:
+            data["preprocess"]["cutoff_choice"] = training.cutoff.to_dict()
     provenance = Provenance(
         task="kuka",
         label="kuka held-out torques",
@@ -311,7 +328,7 @@ def run(
     traces, keep = None, None
     if shown is not None and shown.times is not None:
         keep = (shown.times >= plot_window[0]) & (shown.times <= plot_window[1])
-        traces = Traces(test[0], shown.times[keep], shown.samples.tau[keep].numpy(), {})
+        traces = Traces(test[0], shown.times[keep], shown.measured_tau[keep], {})
 
     def result() -> KukaStudy:
         repeats = _repeat_rows(recordings, train, test, rigid) if rows else []
@@ -345,7 +362,7 @@ def run(
             for label, params, elapsed in fits:
                 physical = consistency(robot, params)
                 for name, recording in recordings.items():
-                    scored = validate(robot, recording.samples, params)
+                    scored = validate_file(robot, params, recording)
                     rows.append(
                         {
                             "model": label,

@@ -1,11 +1,17 @@
 """The ``data=`` and ``validate=`` files of a study: loaded, preprocessed and checked against the robot.
 
 One or several files (``data=a.npz`` or ``data=[a.npz, b.csv, run.mcap]``) are each read by
-:func:`idkit.data.load.load_data_file` (samples as they are, raw recordings through the
+:func:`idkit.data.load.read_source` (samples as they are, raw recordings through the
 ``preprocess`` options), checked to have the robot's number of joints, and — for training — stacked
 into one ``Samples`` (:func:`idkit.data.recording.stack_samples`; each file is filtered on its own, so
 no filter runs across a seam). A ``validate=`` file that is a training file — the same path, the
 same bytes, or the same samples — is refused: its score would not be held-out validation.
+
+``preprocess.cutoff=auto`` (the default) is resolved by :func:`load_training` from the training
+recordings alone (:func:`idkit.data.cutoff.choose_cutoff`, scored in the validation's band), said in
+one line (a :class:`CutoffNote`) and then used for every file, the held-out ones too: their states are
+made as the training states were. Held-out files keep every sample (``decimate`` and ``min_speed``
+select training samples only), so their score covers the whole recording.
 """
 
 from __future__ import annotations
@@ -14,19 +20,21 @@ import hashlib
 import os
 import warnings
 from collections.abc import Mapping
-from dataclasses import fields, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from idkit.data.delay import torque_delay
-from idkit.data.load import DataFile, load_data_file
-from idkit.data.preprocess import PreprocessOptions
-from idkit.data.recording import RecordingOptions
+from idkit.data.cutoff import CutoffChoice, choose_cutoff, lowest_rate
+from idkit.data.delay import shift_torques, torque_delay
+from idkit.data.load import DataFile, Source, from_source, read_source
+from idkit.data.preprocess import FILTER_CUTOFF_HZ, PreprocessOptions
+from idkit.data.recording import Recording, RecordingOptions
 from idkit.interfaces import Robot
 from idkit.problem import SAMPLE_ARRAYS, Samples
 from idkit.studies.build import plain
+from idkit.studies.validation import BAND_OF_RATE, SCORE_BAND_HZ
 
 
 def preprocess_options(spec: Any) -> tuple[PreprocessOptions, str]:
@@ -40,7 +48,7 @@ def preprocess_options(spec: Any) -> tuple[PreprocessOptions, str]:
     """
     spec = plain(spec)
     if spec is None:
-        return PreprocessOptions(), "auto"
+        return PreprocessOptions(cutoff="auto"), "auto"
     if isinstance(spec, PreprocessOptions):
         return spec, "on"
     if not isinstance(spec, Mapping):
@@ -54,6 +62,14 @@ def preprocess_options(spec: Any) -> tuple[PreprocessOptions, str]:
             f"preprocess.{unknown[0]} is not a preprocessing option; "
             f"they are apply, {', '.join(sorted(known))}"
         )
+    cutoff = options.get("cutoff", "auto")
+    if cutoff != "auto":
+        try:
+            options["cutoff"] = float(cutoff)
+        except (TypeError, ValueError):
+            raise ValueError(f"preprocess.cutoff must be 'auto' or a number of Hz, got {cutoff!r}") from None
+    else:
+        options["cutoff"] = "auto"
     return PreprocessOptions(**options), apply
 
 
@@ -97,6 +113,98 @@ def as_paths(files: Any) -> list[Any]:
     return list(files)
 
 
+class CutoffNote(UserWarning):
+    """The low-pass cut-off was chosen automatically (``preprocess.cutoff=auto``): which, and why."""
+
+
+@dataclass(frozen=True)
+class Training:
+    """The ``data=`` files loaded for training.
+
+    Attributes:
+        files: each file's samples (a raw recording preprocessed at ``options.cutoff``).
+        preprocess: the ``preprocess`` node with the cut-off resolved: the held-out files are
+            preprocessed with it, so their states are made as the training states were.
+        cutoff: how ``cutoff=auto`` was resolved (``None``: a cut-off was given).
+    """
+
+    files: list[DataFile]
+    preprocess: dict[str, Any]
+    cutoff: CutoffChoice | None
+
+
+def load_training(
+    robot: Robot, files: Any, preprocess: Any = None, stride: int = 1, recording: Any = None
+) -> Training:
+    """Load the ``data=`` files (:func:`load_files`), resolving ``preprocess.cutoff=auto`` from them.
+
+    The raw recordings among them choose the cut-off (:func:`idkit.data.cutoff.choose_cutoff` with
+    the robot's base regressor, scored in the band held-out files are scored in); without one, or for
+    a robot without a linear regressor, it is :data:`~idkit.data.preprocess.FILTER_CUTOFF_HZ`, and the
+    reason says why. When any file is preprocessed, a :class:`CutoffNote` says the choice in one line.
+    """
+    options, apply = preprocess_options(preprocess)
+    log = recording_options(recording)
+    paths = as_paths(files)
+    joints = list(robot.joint_names)
+    sources = [
+        path if isinstance(path, Samples) else read_source(os.fspath(path), apply, joints, log)
+        for path in paths
+    ]
+    choice = None
+    if options.cutoff == "auto":
+        raw = [s for s in sources if isinstance(s, Source) and s.recording is not None]
+        for source in raw:
+            _check_joints(robot, source.path, source.recording.n_joints, "data")
+        recordings = [_aligned(robot, source, options, log) for source in raw]
+        choice = _auto_cutoff(robot, recordings, options)
+        options = replace(options, cutoff=choice.cutoff)
+        if recordings:
+            warnings.warn(choice.line(), CutoffNote, stacklevel=2)
+    resolved = {"apply": apply, **vars(options)}
+    return Training(
+        load_files(robot, sources, resolved, stride=stride, recording=recording), resolved, choice
+    )
+
+
+def _aligned(robot: Robot, source: Source, options: PreprocessOptions, log: RecordingOptions) -> Recording:
+    """A training recording with its torques shifted back by ``recording.delay`` for choosing the
+    cut-off; ``delay=auto`` is estimated here at the default cut-off (and again at the chosen one)."""
+    assert source.recording is not None
+    delay = log.delay
+    if delay == "auto":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            provisional = from_source(source, replace(options, cutoff=FILTER_CUTOFF_HZ))
+        delay, _ = _estimated_delay(robot, provisional)
+    return shift_torques(source.recording, float(delay))[0]
+
+
+def _auto_cutoff(robot: Robot, recordings: list[Recording], options: PreprocessOptions) -> CutoffChoice:
+    """``cutoff=auto`` for ``recordings``: cross-validated, or the fixed default with the reason."""
+
+    def fixed(why: str) -> CutoffChoice:
+        return CutoffChoice(FILTER_CUTOFF_HZ, f"auto: {why}; the default {FILTER_CUTOFF_HZ:g} Hz", {}, 0.0, 0)
+
+    if not recordings:
+        return fixed("no training file is a raw recording to choose from")
+    band = min(SCORE_BAND_HZ, BAND_OF_RATE * lowest_rate(recordings, options))
+
+    import torch
+
+    def regressor(samples: Samples) -> torch.Tensor:
+        with torch.no_grad():
+            return robot.regressor(samples.q, samples.qd, samples.qdd)
+
+    try:
+        regressor(Samples(*(torch.zeros(1, robot.n_joints, dtype=torch.float64),) * 4))
+    except NotImplementedError:
+        return fixed(f"robot {type(robot).__name__} has no linear regressor to cross-validate filters with")
+    # in joint torque, as the fit will see them (robot.effort_scale)
+    recordings = [replace(r, tau=robot.joint_torques(torch.as_tensor(r.tau)).numpy()) for r in recordings]
+    return choose_cutoff(recordings, regressor, options, band)
+
+
 def load_files(
     robot: Robot,
     files: Any,
@@ -106,46 +214,57 @@ def load_files(
     recording: Any = None,
 ) -> list[DataFile]:
     """Load every file of ``data=`` or ``validate=`` (``role``) for ``robot``; ``stride`` thins them;
-    ``recording`` (the ``recording`` config node) says which topics of a ROS log to read.
+    ``recording`` (the ``recording`` config node) says which topics of a ROS log to read. ``files``
+    may hold :class:`~idkit.data.load.Source` objects already read. A ``validate`` file keeps every
+    sample (``decimate`` and ``min_speed`` apply to training files).
 
     The recorded efforts become joint torques here (``robot.joint_torques``: a ``urdf`` robot's
     ``effort_scale``), so fits, validation errors (N·m) and identified models are in joint torque.
 
     Raises:
-        ValueError: an empty list, or a file whose number of joints is not the robot's (naming the
-            file, both counts and the robot's joints); what the loader refuses.
+        ValueError: an empty list, ``cutoff=auto`` (resolved by :func:`load_training`), or a file
+            whose number of joints is not the robot's (naming the file, both counts and the robot's
+            joints); what the loader refuses.
     """
     options, apply = preprocess_options(preprocess)
+    if role == "validate":
+        options = replace(options, decimate=1, min_speed=0.0)
     log = recording_options(recording)
     paths = as_paths(files)
     if not paths:
         raise ValueError(f"{role}= is an empty list; give a file or a list of files")
+    joints = list(robot.joint_names)
     loaded = []
     for path in paths:
         if isinstance(path, Samples):
             item = DataFile("<Samples>", path, None, False)
         else:
-            path = os.fspath(path)
+            source = path if isinstance(path, Source) else read_source(os.fspath(path), apply, joints, log)
+            if source.recording is not None and options.cutoff == "auto":
+                raise ValueError(
+                    f"{role} file {source.path}: preprocess.cutoff=auto is resolved on the training data"
+                )
             delay = 0.0 if log.delay == "auto" else float(log.delay)
             with warnings.catch_warnings():
                 if log.delay == "auto":  # the first reading only serves the estimate: say things once
                     warnings.simplefilter("ignore")
-                item = load_data_file(path, options, apply, stride, list(robot.joint_names), log, delay)
-        _check_joints(robot, item, role)
+                item = from_source(source, options, stride, delay)
+        _check_joints(robot, item.path, item.samples.n_joints, role)
         if log.delay == "auto" and item.preprocessed:
-            item = _with_estimated_delay(robot, item, options, apply, stride, log)
+            item = _with_estimated_delay(robot, item, source, options, stride)
         loaded.append(item)
     # Where recorded efforts become joint torques (robot.effort_scale): every figure after is in N·m.
     return [replace(f, samples=replace(f.samples, tau=robot.joint_torques(f.samples.tau))) for f in loaded]
 
 
-def _check_joints(robot: Robot, item: DataFile, role: str) -> None:
-    if item.samples.n_joints != robot.n_joints:
+def _check_joints(robot: Robot, path: str, joints: int, role: str) -> None:
+    """Refuse a file whose number of ``joints`` is not the robot's, naming both."""
+    if joints != robot.n_joints:
         source = getattr(robot, "urdf", None)
         shown = isinstance(source, str) and "<" not in source
         which = f"robot {type(robot).__name__}" + (f" ({source})" if shown else "")
         raise ValueError(
-            f"{role} file {item.path} has {item.samples.n_joints} joints but {which} has "
+            f"{role} file {path} has {joints} joints but {which} has "
             f"{robot.n_joints}: {', '.join(robot.joint_names)}"
         )
 
@@ -154,16 +273,9 @@ class DelayWarning(UserWarning):
     """A torque delay was estimated and applied to a recording."""
 
 
-def _with_estimated_delay(
-    robot: Robot,
-    item: DataFile,
-    options: PreprocessOptions,
-    apply: str,
-    stride: int,
-    log: RecordingOptions,
-) -> DataFile:
-    """``item`` read again with its torques shifted by the delay at which the robot's regressor
-    explains them best (:func:`idkit.data.delay.torque_delay`)."""
+def _estimated_delay(robot: Robot, item: DataFile) -> tuple[float, float]:
+    """``(delay, explained)``: the lag (s) at which the robot's regressor explains ``item``'s torques
+    best, and the share it explains there (:func:`idkit.data.delay.torque_delay`)."""
     import torch
 
     samples = item.samples
@@ -175,11 +287,17 @@ def _with_estimated_delay(
             f"{item.path}: recording.delay=auto needs a robot with a linear regressor; give the delay in s"
         ) from None
     try:
-        delay, peak = torque_delay(robot.joint_torques(samples.tau).numpy(), regressor, item.times)
+        return torque_delay(robot.joint_torques(samples.tau).numpy(), regressor, item.times)
     except ValueError as exc:
         raise ValueError(f"{item.path}: {exc}") from None
-    joints = list(robot.joint_names)
-    shifted = load_data_file(item.path, options, apply, stride, joints, log, delay)
+
+
+def _with_estimated_delay(
+    robot: Robot, item: DataFile, source: Source, options: PreprocessOptions, stride: int
+) -> DataFile:
+    """``item`` preprocessed again with its torques shifted by :func:`_estimated_delay`."""
+    delay, peak = _estimated_delay(robot, item)
+    shifted = from_source(source, options, stride, delay)
     shifted = replace(shifted, delay={**(shifted.delay or {}), "estimated": True, "explained": peak})
     warnings.warn(
         f"{item.path}: the torques trail the states by {delay * 1e3:.3g} ms (recording.delay=auto: there "

@@ -36,6 +36,7 @@ from idkit.studies.recordings import (
     DataFile,
     as_paths,
     load_files,
+    load_training,
     preprocess_options,
     refuse_seen_samples,
     refuse_training_files,
@@ -154,7 +155,13 @@ def _describe_files(
     gaps = {**before.get("gaps", {}), **{f.path: f.preprocessing for f in files if _split(f)}}
     if processed:
         options, _ = preprocess_options(preprocess)
-        out["preprocess"] = {"files": processed, **vars(options), **({"gaps": gaps} if gaps else {})}
+        chosen = {"cutoff_choice": before["cutoff_choice"]} if "cutoff_choice" in before else {}
+        out["preprocess"] = {
+            "files": processed,
+            **vars(options),
+            **chosen,
+            **({"gaps": gaps} if gaps else {}),
+        }
     return out
 
 
@@ -176,10 +183,31 @@ def load_data(
 ) -> tuple[Any, dict[str, float] | None, dict[str, Any]]:
     """``(samples, truth, description)``: measured ``data`` (path(s) or ``Samples``) or a simulation.
 
+    For measured data, ``description["preprocess"]`` holds the options the files were preprocessed
+    with, a resolved ``cutoff=auto`` included (``cutoff_choice``: how it was chosen).
+
     Raises:
         ValueError: both ``scenario`` and ``data`` given (which one was meant?), ``n_samples``
             with ``data`` (a file has the samples it has), or a file the robot cannot use.
     """
+    samples, truth, description, _ = _load(
+        robot, scenario, seed, data, n_samples, params, preprocess, recording
+    )
+    return samples, truth, description
+
+
+def _load(
+    robot: Any,
+    scenario: Any,
+    seed: Seed,
+    data: Any,
+    n_samples: int | None,
+    params: Any,
+    preprocess: Any,
+    recording: Any,
+) -> tuple[Any, dict[str, float] | None, dict[str, Any], Any]:
+    """:func:`load_data`, and the ``preprocess`` node with the cut-off the training data resolved
+    (``preprocess`` itself for a simulation): the held-out files are preprocessed with it."""
     if data is not None:
         if scenario is not None:
             shown = [p if isinstance(p, (str, Path)) else type(p).__name__ for p in as_paths(data)]
@@ -189,11 +217,8 @@ def load_data(
             )
         if n_samples is not None:
             raise ValueError(f"n_samples={n_samples} applies to a simulated scenario, not to data=")
-        from idkit.data.recording import stack_samples
-
-        files = load_files(robot, data, preprocess, role="data", recording=recording)
-        samples = stack_samples([f.samples for f in files], [f.path for f in files])
-        return samples, None, _describe_files(files, preprocess)
+        samples, description, resolved = _measured(robot, data, preprocess, recording)
+        return samples, None, description, resolved
     import torch
 
     from idkit.data.scenarios import get_scenario, simulate
@@ -202,7 +227,23 @@ def load_data(
     samples = simulate(robot, sc, seed=seed, params=params)
     true = torch.as_tensor(params, dtype=torch.float64) if params is not None else robot.nominal_params()
     truth = dict(zip(robot.param_names, true.tolist(), strict=True))
-    return samples, truth, {"scenario": sc.as_dict()}
+    return samples, truth, {"scenario": sc.as_dict()}, preprocess
+
+
+def _measured(
+    robot: Any, data: Any, preprocess: Any, recording: Any
+) -> tuple[Any, dict[str, Any], dict[str, Any]]:
+    """``(samples, description, preprocess)`` of the ``data=`` files: stacked samples, ``result.json``'s
+    ``data``, and the ``preprocess`` node with the cut-off resolved (for the held-out files)."""
+    from idkit.data.recording import stack_samples
+
+    training = load_training(robot, data, preprocess, recording=recording)
+    files = training.files
+    samples = stack_samples([f.samples for f in files], [f.path for f in files])
+    description = _describe_files(files, training.preprocess)
+    if training.cutoff is not None and "preprocess" in description:
+        description["preprocess"]["cutoff_choice"] = training.cutoff.to_dict()
+    return samples, description, training.preprocess
 
 
 def _identified_urdf(robot: Any, params: dict[str, float], payload: Any = None) -> str | None:
@@ -287,25 +328,18 @@ def run(
     robot_obj = build("robot", robot)
     if validate is not None and data is not None:
         refuse_training_files(data, validate)
-    samples, truth, source = load_data(
-        robot_obj,
-        scenario,
-        seed=seed,
-        data=data,
-        n_samples=n_samples,
-        params=params,
-        preprocess=preprocess,
-        recording=recording,
+    samples, truth, source, resolved = _load(
+        robot_obj, scenario, seed, data, n_samples, params, preprocess, recording
     )
     held_out = (
         []
         if validate is None
-        else load_files(robot_obj, validate, preprocess, role="validate", recording=recording)
+        else load_files(robot_obj, validate, resolved, role="validate", recording=recording)
     )
     if data is not None:
         refuse_seen_samples(samples, held_out)
     if held_out:
-        source = _describe_files(held_out, preprocess, source)
+        source = _describe_files(held_out, resolved, source)
     cost_obj = build("cost", cost)
     estimator_obj = build("estimator", estimator)
     problem = Problem(robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype)
@@ -323,7 +357,7 @@ def run(
             for kind, spec in (("robot", robot), ("estimator", estimator), ("cost", cost))
         },
     )
-    scores = validate_files(robot_obj, fitted.params, [f.samples for f in held_out])
+    scores = validate_files(robot_obj, fitted.params, held_out)
     return RunResult(
         replace(fitted, estimator=label),
         truth,

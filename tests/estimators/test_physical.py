@@ -59,7 +59,7 @@ def test_pcls_equals_ls_when_ls_is_consistent(noise):
         robot, base_params=torch.as_tensor(vector(ls.base_params)), samples=problem.samples
     )
     assert projected.data_term < 1e-2  # LS is consistent: < (0.01 % torque change)^2 away
-    pcls = registry.create("estimator", "pcls").fit(problem)
+    pcls = registry.create("estimator", "pcls", prior_weight=0.0).fit(problem)
     a_ls, a_pcls = vector(ls.base_params), vector(pcls.base_params)
     if noise == 0.0:
         np.testing.assert_allclose(a_pcls, a_ls, rtol=0, atol=1e-6 * np.abs(a_ls).max())
@@ -76,7 +76,7 @@ def test_pcls_is_consistent_where_ls_is_not():
     params[10] = -1.0  # link b: negative mass
     problem = Problem(robot, simulated(robot, params, noise=1e-2, seed=1))
     ls = registry.create("estimator", "ls").fit(problem)
-    pcls = PhysicallyConsistentLS().fit(problem)
+    pcls = PhysicallyConsistentLS(prior_weight=0.0).fit(problem)
     p = torch.as_tensor(vector(pcls.params))
     eig = min_pseudo_inertia_eigenvalues(robot, p)
     assert (eig > -EIGEN_TOL).all()
@@ -90,7 +90,7 @@ def test_pcls_is_consistent_where_ls_is_not():
 def test_prior_pulls_towards_cad():
     robot = tree_robot()
     problem = Problem(robot, simulated(robot, true_params(robot) * 1.3, noise=0.05, seed=2))
-    free = PhysicallyConsistentLS().fit(problem)
+    free = PhysicallyConsistentLS(prior_weight=0.0).fit(problem)
     pulled = PhysicallyConsistentLS(prior_weight=1e4).fit(problem)
     # What the prior guarantees: it is a barrier (-log det), so every link stays strictly inside the
     # PSD cone (finite divergence), and by optimality of both programs the pulled fit trades data
@@ -202,3 +202,33 @@ def test_stribeck_friction_never_drives_the_joint():
     fit = torch.as_tensor(vector(estimate.params))
     assert (fit[start : start + n] + fit[start + 2 * n :] >= -1e-9).all()
     assert (fit[start + 2 * n :] < 0).any()
+
+
+def test_prior_weight_auto_follows_cad_only_as_far_as_the_data_allow():
+    """prior_weight=auto (the default): on data simulated from the CAD model itself the prior is right
+    and cross-validation leans on it; with inertias 30 % off CAD and little noise the data win."""
+    robot = tree_robot()
+    nb = len(robot.link_names)
+    off = true_params(robot).clone()
+    off[: 10 * nb] *= 1.3
+    right = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.05, seed=3)))
+    wrong = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, off, 1e-3, seed=3)))
+    assert right.details["prior_weight"] >= 1000 and wrong.details["prior_weight"] <= 100
+    for fit in (right, wrong):
+        cv = fit.details["prior_weight_cv"]
+        assert cv["candidates"] == [0, 1, 3, 10, 30, 100, 300, 1000, 3000, 10000]
+        assert all(len(folds) == 5 for folds in cv["per_fold"])
+        # the one-standard-error rule: the chosen weight is within one standard error of the best,
+        # every larger one is not
+        chosen = cv["candidates"].index(cv["chosen"])
+        distances = cv["standard_errors_from_best"]
+        assert distances[chosen] <= 1 and all(d > 1 for d in distances[chosen + 1 :])
+        assert min(distances) == 0 and cv["scores"][distances.index(0)] == min(cv["scores"])
+    assert right.estimator == "PCLS"
+
+
+def test_prior_weight_auto_on_too_few_samples_is_zero_and_says_why():
+    robot = tree_robot()
+    fit = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.01, n=20)))
+    assert fit.details["prior_weight"] == 0.0
+    assert fit.details["prior_weight_cv"]["reason"].startswith("20 samples are too few to cross-validate")

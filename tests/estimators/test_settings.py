@@ -21,7 +21,11 @@ from idkit.options import OptionError
         ("ls", {"max_cond": 0.0}, "ls: max_cond must be None or a number > 0, got 0.0"),
         ("rls", {"threads": 0}, "rls: threads must be None or an integer >= 1, got 0"),
         ("rls", {"rho": -1.0}, "rls: rho must be None or a finite number >= 0, got -1.0"),
-        ("pcls", {"prior_weight": -1.0}, "pcls: prior_weight must be a finite number >= 0, got -1.0"),
+        (
+            "pcls",
+            {"prior_weight": -1.0},
+            "pcls: prior_weight must be a finite number >= 0 or 'auto', got -1.0",
+        ),
         ("pcls", {"min_mass": -0.5}, r"pcls: min_mass must be None or a finite number >= 0 \(kg\), got -0.5"),
     ],
 )
@@ -39,6 +43,20 @@ def test_a_string_choice_outside_its_literal_is_one_line_listing_the_choices(nam
     message = str(caught.value)
     assert "\n" not in message
     assert message.startswith(f"estimator {name!r} option 'solver' must be {choices}, got 'CLARABEL' (str)")
+
+
+def test_a_prior_weight_that_is_neither_a_number_nor_auto_is_one_line():
+    with pytest.raises(
+        OptionError, match=r"^estimator 'pcls' option 'prior_weight' must be a float or 'auto'"
+    ):
+        registry.create("estimator", "pcls", prior_weight="soon")
+    assert registry.create("estimator", "pcls", prior_weight="300").settings.prior_weight == 300.0
+    from idkit.estimators.physical import PhysicallyConsistentLS
+
+    with pytest.raises(
+        ValueError, match=r"^pcls: prior_weight must be a finite number >= 0 or 'auto', got 'soon'$"
+    ):
+        PhysicallyConsistentLS(prior_weight="soon")  # type: ignore[arg-type]
 
 
 def test_pcls_refuses_an_unknown_solver_from_python_too():
@@ -67,7 +85,7 @@ def test_settings_are_resolved_once_and_frozen_while_the_options_stay_as_given()
     )
     assert isinstance(rls.settings, LinearSettings)
     pcls = registry.create("estimator", "pcls")
-    assert pcls.settings == ConsistentSettings(0.0, None, "auto", AUTO_SOLVERS)
+    assert pcls.settings == ConsistentSettings("auto", None, "auto", AUTO_SOLVERS)
     assert registry.create("estimator", "pcls", solver="scs").settings.conic_solvers == ("SCS",)
     with pytest.raises(dataclasses.FrozenInstanceError):
         pcls.settings.solver = "scs"

@@ -109,7 +109,12 @@ def test_the_issue_command_fits_validates_and_writes_identified_urdf(files, tmp_
     # held-out file to well under 1 %.
     assert validation["rel_all"] < 0.01 and len(validation["rms"]) == 3
     assert data["data"]["file"] == str(files["train"]) and data["data"]["validate"] == [str(files["test"])]
-    assert data["data"]["preprocess"]["cutoff"] == 10.0  # raw CSVs: preprocessed by default
+    # raw CSVs: preprocessed by default, at the cut-off the training data chose (recorded with its scores)
+    preprocessed = data["data"]["preprocess"]
+    choice = preprocessed["cutoff_choice"]
+    assert preprocessed["cutoff"] == choice["cutoff"] and f"{choice['cutoff']:g}" in choice["scores"]
+    assert choice["reason"].startswith("auto: lowest 5-fold cross-validated torque error")
+    assert validation["band_hz"] == 6.0 and "low-passed at 6 Hz" in validation["metric"]
     assert data["data"]["preprocess"]["files"] == [str(files["train"]), str(files["test"])]
     uncertainty = data["payload"]["estimate"]["details"]["uncertainty"]
     assert uncertainty["rank"] == len(robot.base_param_names)
@@ -138,12 +143,38 @@ def test_data_list_is_stacked_and_each_file_preprocessed_alone(files, tmp_path):
         "identified_urdf=false",
         out=tmp_path,
     )
-    options = PreprocessOptions()
-    trim = int(np.ceil(3.0 / options.cutoff * RATE))
+    trim = int(np.ceil(3.0 / data["data"]["preprocess"]["cutoff"] * RATE))
     expected = (12.0 * RATE - 2 * trim) + (8.0 * RATE - 2 * trim)
     assert data["payload"]["estimate"]["details"]["uncertainty"]["dof"] == 3 * expected - 14
     assert data["data"]["files"] == [str(files["train"]), str(files["train2"])]
     assert data["payload"]["validation"] == {} and result.validation == []
+
+
+def test_the_cutoff_changes_the_model_but_not_the_yardstick(files, tmp_path):
+    """Held-out torques are compared in one fixed band whatever the training cut-off: the measured
+    torques scored are the same samples' raw torques, the metric and band the same; the held-out
+    states (and so the prediction) follow the cut-off."""
+    runs = {}
+    for cutoff in (4, 12):
+        runs[cutoff], _ = command(
+            *robot_args(files),
+            f"data={files['train']}",
+            f"validate=[{files['test']}]",
+            "estimator=ls",
+            "~cost",
+            f"preprocess.cutoff={cutoff}",
+            "plots=false",
+            "identified_urdf=false",
+            out=tmp_path / str(cutoff),
+        )
+    low, high = (runs[c].validation[0] for c in (4, 12))
+    assert low.scores.metric == high.scores.metric and low.scores.band == high.scores.band == 6.0
+    common, a, b = np.intersect1d(
+        np.round(low.times * RATE), np.round(high.times * RATE), return_indices=True
+    )
+    assert common.size > 1500
+    np.testing.assert_array_equal(low.scores.measured[a], high.scores.measured[b])
+    assert not np.allclose(low.scores.predicted[a], high.scores.predicted[b], rtol=1e-6, atol=0)
 
 
 def test_samples_files_are_used_as_they_are_unless_preprocess_on(files, tmp_path):
@@ -188,13 +219,14 @@ def test_the_preprocess_group_is_the_options_dataclass(files):
     GlobalHydra.instance().clear()
     for name, node in groups.items():
         options, apply = preprocess_options(node)
-        assert (options, apply) == (PreprocessOptions(), name)
+        assert (options, apply) == (PreprocessOptions(cutoff="auto"), name)
 
 
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
         (["preprocess.cutoff=150"], r"cutoff 150 Hz is not below the Nyquist frequency 100 Hz"),
+        (["preprocess.cutoff=soon"], r"^preprocess\.cutoff must be 'auto' or a number of Hz, got 'soon'$"),
         (["preprocess=off"], r"train\.csv: a raw recording \(no accelerations qdd\); preprocess it"),
         (["preprocess.cutof=5"], None),  # Hydra refuses the unknown key itself
     ],
@@ -382,7 +414,7 @@ def test_a_two_second_gap_is_split_said_and_recorded(files, tmp_path, monkeypatc
     data = json.loads((tmp_path / "run" / "result.json").read_text())
     gaps = data["data"]["preprocess"]["gaps"][str(gapped)]
     assert gaps["note"] == note and [s["raw"] for s in gaps["segments"]] == [1200, 1200]
-    trim = int(np.ceil(3.0 / PreprocessOptions().cutoff * RATE))
+    trim = int(np.ceil(3.0 / data["data"]["preprocess"]["cutoff"] * RATE))
     assert data["payload"]["estimate"]["details"]["uncertainty"]["dof"] == 3 * 2 * (1200 - 2 * trim) - 14
 
 
@@ -404,7 +436,7 @@ def test_validating_on_the_training_file_is_refused(files, tmp_path, monkeypatch
     code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / "excel")
     assert code == 1 and out == ""
     assert re.fullmatch(
-        rf"idkit: validate file {excel} holds the same samples as the training data \(its rows 1480–3759\): "
+        rf"idkit: validate file {excel} holds the same samples as the training data \(its rows \d+–\d+\): "
         r"a score on the data the model was fitted to is not held-out validation; .*\n",
         err,
     )

@@ -61,3 +61,30 @@ def test_mismatched_inputs_are_named():
         validate(robot, samples, torch.ones(4))
     with pytest.raises(ValueError, match="exactly one of params"):
         validate(robot, samples)
+
+
+def test_torques_are_compared_in_the_fixed_band_on_their_timestamps():
+    """Above the 6 Hz band (sensor noise, vibration) nothing counts; inside it everything does."""
+    t = np.arange(4000) / 200.0
+    measured = np.stack([10 * np.sin(2 * np.pi * 0.3 * t), 5 * np.cos(2 * np.pi * 0.5 * t)], 1)
+    samples = Samples(*(torch.zeros(4000, 2, dtype=torch.float64),) * 3, torch.from_numpy(measured))
+    quiet_ends = np.hanning(t.size)[:, None]  # the padding at the ends would pass a kink of the error
+    above = measured + 0.5 * quiet_ends * np.sin(2 * np.pi * 30.0 * t)[:, None]
+    inside = measured + 0.5 * np.sin(2 * np.pi * 1.0 * t)[:, None]
+    high = validate(Constant(torch.from_numpy(above)), samples, torch.zeros(1), times=t)
+    low = validate(Constant(torch.from_numpy(inside)), samples, torch.zeros(1), times=t)
+    raw = 0.5 / np.sqrt(2) / np.sqrt((measured**2).mean())  # the unfiltered figure of a 0.5 sine error
+    assert high.band == low.band == 6.0
+    assert high.rel_all < 1e-6 and high.rel_all_raw == pytest.approx(np.sqrt(3 / 8) * raw, rel=1e-2)
+    assert low.rel_all == pytest.approx(raw, rel=1e-3) and low.rel_all_raw == pytest.approx(raw, rel=1e-3)
+    assert "both low-passed at 6 Hz" in high.to_dict()["metric"] and high.to_dict()["band_hz"] == 6.0
+    slow = validate(Constant(torch.from_numpy(inside)), samples, torch.zeros(1), times=t * 20)  # 10 Hz
+    assert slow.band == pytest.approx(4.0)  # 0.4 x the sampling rate below 15 Hz
+
+
+def test_without_timestamps_the_score_is_unfiltered_and_says_so():
+    measured = torch.tensor([[1.0, -2.0], [3.0, 2.0]], dtype=torch.float64)
+    samples = Samples(torch.zeros(2, 2), torch.zeros(2, 2), torch.zeros(2, 2), measured)
+    v = validate(Constant(measured * 0.5), samples, torch.zeros(1))
+    assert v.band is None and v.rel_all == v.rel_all_raw == pytest.approx(0.5)
+    assert "unfiltered (the file has no timestamps" in v.metric
