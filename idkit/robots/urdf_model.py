@@ -141,6 +141,10 @@ def read_urdf_text(urdf: str | os.PathLike) -> tuple[bytes, str]:
     path = Path(urdf)
     if not path.is_file() and (ASSETS / f"{urdf}.urdf").is_file():
         path = ASSETS / f"{urdf}.urdf"
+    if path.is_dir():
+        found = sorted(p.name for p in path.glob("*.urdf"))
+        inside = f"; URDF files in it: {', '.join(found[:5])}{' …' * (len(found) > 5)}" if found else ""
+        raise ValueError(f"urdf: {path} is a directory, not a URDF file{inside}")
     if not path.is_file():
         shipped = sorted(p.stem for p in ASSETS.glob("*.urdf"))
         raise FileNotFoundError(
