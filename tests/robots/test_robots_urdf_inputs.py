@@ -75,7 +75,7 @@ def test_a_directory_is_named_as_one(tmp_path):
     (tmp_path / "arm.urdf").write_text(CHAIN.format(r2_type="revolute", mimic=""))
     with pytest.raises(ValueError) as info:
         URDFRobot(str(tmp_path))
-    assert str(info.value) == f"urdf: {tmp_path} is a directory, not a URDF file; URDF files in it: arm.urdf"
+    assert str(info.value) == f"urdf: {tmp_path} is a directory, not a URDF file; .urdf files in it: arm.urdf"
 
 
 @pytest.mark.parametrize("encoding", ["utf-8", "ISO-8859-1", "UTF-16"])
