@@ -8,7 +8,7 @@
 VENV   ?= .venv
 PYTHON ?= python3
 STAMP  := $(VENV)/.installed
-EXTRAS := test,docs,mjcf,logs
+EXTRAS := test,docs,mjcf,logs,collision
 # pyproject.toml keeps ranges for users' environments; set-up and CI install the locked versions.
 PIP    := $(VENV)/bin/python -m pip install -q -c constraints.txt
 

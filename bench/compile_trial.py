@@ -16,9 +16,9 @@ import torch
 
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
-from idkit.estimators import swarm
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
+from idkit.optim import swarm
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 
@@ -29,7 +29,7 @@ def main() -> None:
     robot = CylindricalRobot()
     problem = Problem(robot, simulate(robot, "torque_noise", seed=0), paper.f13(), seed=0)
     objective = Objective(problem, [paper.f13()])
-    rules = ParticleSwarm.rules(ParticleSwarm(preset="paper").settings())
+    rules = ParticleSwarm(preset="paper").resolved.rules
     lower, upper = objective.lower, objective.upper
 
     def steps(state: swarm.SwarmState, random: torch.Tensor, weights: torch.Tensor) -> swarm.SwarmState:

@@ -2,11 +2,13 @@
 
 Run: ``python bench/estimators.py [--repeats 7] [--quick]``. Prints Markdown tables:
 
-1. PSO at three sizes — one run, one 10-run estimate, a batch of 10,000 runs — for idkit (both
-   engines), evosax's PSO (JAX ``jit`` + ``vmap``, float64) and pyswarms, all on the same f13
+1. PSO at three sizes — one run, one 10-run estimate, a batch of 10,000 runs — for idkit (the fast
+   and the eager engine), evosax's PSO (JAX ``jit`` + ``vmap``, float64) and pyswarms, all on the same f13
    problem (``torque_noise``, seed 0) with the same budget (20 particles, 300 iterations), with each
    peer's compile time beside its run time and the ratios; GPU rows when CUDA is present;
-2. the whole Tables II–V workload, RLS closed form vs cvxpy, and the f1 quality hit rate.
+2. the 10-run estimate in new processes, with and without a C compiler on ``PATH`` and with a fresh
+   cache (``bench/no_compiler.py``): the first fit, the one-time build recorded apart, the later fits;
+3. the whole Tables II–V workload, RLS closed form vs cvxpy, and the f1 quality hit rate.
 
 Everything runs on one thread (torch, and XLA via ``XLA_FLAGS``, set before JAX is imported).
 Times are the median of ``repeats`` calls after one warm-up (min in brackets); the 10,000-run
@@ -19,10 +21,10 @@ import argparse
 import os
 import statistics
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 
+import no_compiler  # noqa: E402  (bench/ is the script's folder)
 import numpy as np
 
 os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
@@ -30,10 +32,8 @@ import torch  # noqa: E402
 
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
-from idkit.estimators import native
 from idkit.estimators.linear.least_squares import LeastSquares, TotalLeastSquares
 from idkit.estimators.linear.robust_ls import RobustLeastSquares
-from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
@@ -187,17 +187,7 @@ def evosax_pso(robot: CylindricalRobot, problem: Problem, runs: int) -> tuple[Ca
 
 
 def peers_table(robot: CylindricalRobot, problem: Problem, repeats: int, quick: bool) -> list[str]:
-    """Markdown rows: the three sizes × (idkit native, idkit eager, evosax, pyswarms)."""
-    # A cold kernel build, measured in a throw-away cache (later processes load the cached one).
-    # The kernel of this problem: its sizes and the robot's base map in C.
-    objective = Objective(problem, [paper.f13()])
-    with tempfile.TemporaryDirectory() as tmp:
-        os.environ["IDKIT_CACHE_DIR"] = tmp
-        native.kernel.cache_clear()
-        _, how, build_s = native.build(objective)
-        del os.environ["IDKIT_CACHE_DIR"]
-        native.kernel.cache_clear()
-    native.build(objective)  # the persistent cache, as every later process sees it
+    """Markdown rows: the three sizes × (idkit fast, idkit eager, evosax, pyswarms)."""
     cost13 = numpy_cost(robot, problem, "f13")
     big = 2_000 if quick else 10_000
     peer_runs = 10 if quick else 20
@@ -227,11 +217,7 @@ def peers_table(robot: CylindricalRobot, problem: Problem, repeats: int, quick: 
         )
     two = ParticleSwarm(preset="paper", runs=big, threads=2, engine="native", history=False)
     took = once(lambda: two.fit(problem))
-    rows.append(f"| batch of {big:,} runs, idkit native on 2 threads | {ms(took)} | – | – | – | – | – | – |")
-    rows.append(
-        f"| native kernel build (once per machine, cached on disk) | {build_s:.2f} s ({how}) "
-        "| – | – | – | – | – | – |"
-    )
+    rows.append(f"| batch of {big:,} runs, idkit fast on 2 threads | {ms(took)} | – | – | – | – | – | – |")
     return rows
 
 
@@ -266,6 +252,8 @@ def main() -> None:
     peers = peers_table(robot, problem, repeats, args.quick)
     gpu = gpu_rows(robot, data["torque_noise"], repeats)
     progress("peers done", started)
+    fresh = no_compiler.rows(repeats)
+    progress("fresh processes done", started)
 
     # 2. Tables II–V workload.
     def workload() -> None:
@@ -337,11 +325,13 @@ def main() -> None:
         f"load average before {load_before[0]:.1f}, after {os.getloadavg()[0]:.1f}"
     )
     print(
-        "\n| PSO, f13, torque_noise, 20 particles × 300 iterations | idkit native | idkit eager "
+        "\n| PSO, f13, torque_noise, 20 particles × 300 iterations | idkit fast (numba) | idkit eager "
         "| evosax run | evosax compile | pyswarms | evosax / idkit | pyswarms / idkit |\n"
         "| --- | --- | --- | --- | --- | --- | --- | --- |"
     )
     print("\n".join(peers))
+    print("\n" + no_compiler.HEADER)
+    print("\n".join(fresh))
     if gpu:
         print("\n| GPU | idkit eager |\n| --- | --- |\n" + "\n".join(gpu))
     print("\n| measurement | idkit | peer | ratio |\n| --- | --- | --- | --- |")

@@ -1,8 +1,8 @@
-"""Nanoseconds per cost evaluation of the native PSO kernel, per cost, batch size and thread count.
+"""Nanoseconds per cost evaluation of the fast PSO kernel, per cost, batch size and thread count.
 
 Run: ``python bench/kernel.py [--repeat 3]``. The robustness study's PSO (default preset: 20
 particles × 300 iterations, reflecting walls) on the cylindrical robot, ``torque_noise`` samples
-(3 joints × 10 samples, 4 base parameters). For each cost it times ``native.run`` — the whole
+(3 joints × 10 samples, 4 base parameters). For each cost it times ``fast.run`` — the whole
 engine: initial draw, random numbers, the kernel, the state handed back — on
 
 - the study's chunk: 50 trials × 1 cost × 10 runs in one batch (500 swarms), 1 and 2 threads;
@@ -31,10 +31,10 @@ from idkit_robust.costs import HuberCost, TrimmedCost
 
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
-from idkit.estimators import native, swarm
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
 from idkit.interfaces import Cost
+from idkit.optim import fast, swarm
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 
@@ -75,16 +75,19 @@ def main() -> None:
     robot = CylindricalRobot()
     problems = [Problem(robot, simulate(robot, "torque_noise", seed=t), None, seed=t) for t in range(TRIALS)]
     pso = ParticleSwarm(history=False)
-    rules = pso.rules(pso.settings())
+    rules = pso.resolved.rules
     before = load()
 
     def engine(trials: list[Problem], cost: Cost, threads: int) -> float:
-        """ns per evaluation of ``native.run`` on ``trials`` × one cost × RUNS runs."""
+        """ns per evaluation of ``fast.run`` on ``trials`` × one cost × RUNS runs."""
         objective = Objective(trials, [cost])
+        spec = objective.spec()
 
         def call() -> None:
             draws = swarm.Draws([swarm.Uniform(p.generator(), objective.lower) for p in trials])
-            native.run(objective, (objective.slots, RUNS), PARTICLES, ITERATIONS, rules, draws, threads)
+            fast.run(
+                spec, objective.lower, objective.upper, RUNS, PARTICLES, ITERATIONS, rules, draws, threads
+            )
 
         evaluations = len(trials) * RUNS * PARTICLES * ITERATIONS
         repeat = args.repeat * max(1, TRIALS // len(trials) // 5)  # a short call: more tries against noise

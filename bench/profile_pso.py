@@ -7,7 +7,7 @@ particle-move, and its split:
 
 - eager engine: torch ops per move and their summed self time (``torch.profiler``), and the rest
   (Python between ops);
-- native engine: the kernel loop (base map, costs and moves in C) and the whole estimator around
+- fast engine: the kernel loop (base map, costs and moves, compiled) and the whole estimator around
   it (objective set-up, random blocks, aggregation, exact cost, ``Estimate``).
 """
 
@@ -20,9 +20,9 @@ from torch.profiler import ProfilerActivity, profile
 
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
-from idkit.estimators import native, swarm
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
+from idkit.optim import fast, swarm
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 
@@ -34,7 +34,7 @@ def main() -> None:
     robot = CylindricalRobot()
     problem = Problem(robot, simulate(robot, "torque_noise", seed=0), paper.f13(), seed=0)
     objective = Objective(problem, [paper.f13()])
-    rules = ParticleSwarm.rules(ParticleSwarm(preset="paper").settings())
+    rules = ParticleSwarm(preset="paper").resolved.rules
     print("| runs | engine | µs CPU per move (ns per particle-move) | split |\n| --- | --- | --- | --- |")
     for runs in (1, 10, 436):  # 436 = the chunk of runs a 10,000-run batch is cut into
         draws = lambda: swarm.Draws([swarm.Uniform(problem.generator(), objective.lower)])  # noqa: E731
@@ -54,10 +54,11 @@ def main() -> None:
             f"| {runs} | eager | {move * 1e6:.0f} ({move / runs / 20 * 1e9:.0f}) | {ops:.0f} aten calls per "
             f"move (views included), {op_time:.0f} µs self time under the profiler |"
         )
-        # native: the kernel loop vs the whole estimator around it
-        native.run(objective, shape, 20, ITERATIONS, rules, draws())
+        # fast: the kernel loop vs the whole estimator around it
+        spec = objective.spec()
+        fast.run(spec, objective.lower, objective.upper, runs, 20, ITERATIONS, rules, draws())
         start = time.process_time()
-        native.run(objective, shape, 20, ITERATIONS, rules, draws())
+        fast.run(spec, objective.lower, objective.upper, runs, 20, ITERATIONS, rules, draws())
         loop = time.process_time() - start
         pso = ParticleSwarm(preset="paper", runs=runs, threads=1, history=False)
         pso.fit(problem)
@@ -66,8 +67,8 @@ def main() -> None:
         whole = time.process_time() - start
         move = loop / (ITERATIONS - 1)
         print(
-            f"| {runs} | native | {move * 1e6:.1f} ({move / runs / 20 * 1e9:.0f}) | loop {loop * 1e3:.2f} ms "
-            f"(in C, blocks of moves per call); whole fit {whole * 1e3:.2f} ms: the rest is set-up, "
+            f"| {runs} | fast | {move * 1e6:.1f} ({move / runs / 20 * 1e9:.0f}) | loop {loop * 1e3:.2f} ms "
+            f"(compiled, blocks of moves per call); whole fit {whole * 1e3:.2f} ms: the rest is set-up, "
             "aggregation, exact cost, Estimate |"
         )
 

@@ -30,9 +30,7 @@ def relative_denominator(measured: Tensor, floor: float = DEFAULT_FLOOR) -> Tens
     dead = (rms == 0).flatten()
     if dead.any():
         joints = dead.nonzero().flatten().tolist()
-        raise ValueError(
-            f"relative error undefined: measured torques of joint(s) {joints} are all zero"
-        )
+        raise ValueError(f"relative error undefined: measured torques of joint(s) {joints} are all zero")
     limit = floor * rms
     small = measured.abs() < limit
     if floor > 0 and bool(small.any()):

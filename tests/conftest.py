@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -10,6 +12,12 @@ import torch
 # The suite runs many tiny tensor programs: on a 2-core machine torch's default intra-op threading
 # makes them slower and erratic (see bench/ for measured thread effects). Speed is not asserted here.
 torch.set_num_threads(1)
+
+# idkit's cache (the fast kernel's machine code, base-map tapes) in a folder of the system's temporary
+# directory, never ~/.cache: set before idkit.optim imports numba, and inherited by the CLI processes
+# tests start. Kept across sessions (the kernel compiles once); idkit refuses it should another
+# user own it or be able to write it.
+os.environ["IDKIT_CACHE_DIR"] = str(Path(tempfile.gettempdir()) / f"idkit-tests-{os.getuid()}")
 
 REPO = Path(__file__).resolve().parents[1]
 KUKA_DIR = REPO.parent / "shared" / "data" / "kuka-lwr4"

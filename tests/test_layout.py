@@ -62,3 +62,10 @@ LINEAR_MAY_IMPORT = ("idkit.estimators.linear", "idkit.estimators.trials")
 def test_the_linear_family_imports_no_search_estimator(path):
     found = {name for name in _imports(path) if name.startswith("idkit.estimators.")}
     assert not {name for name in found if not name.startswith(LINEAR_MAY_IMPORT)}
+
+
+@pytest.mark.parametrize("path", _modules("optim"))
+def test_the_swarm_engine_imports_no_estimator(path):
+    """``idkit.optim`` is array-level: estimators, problems and studies build on it, not the reverse."""
+    above = ("idkit.estimators", "idkit.problem", "idkit.studies", "idkit.reports", "idkit.robots")
+    assert not {name for name in _imports(path) if name.startswith(above)}

@@ -52,8 +52,14 @@ def test_wrong_types_name_plugin_option_value_and_type():
             "maybe",
             "must be a bool (true/false, yes/no, on/off or 1/0), got 'maybe'",
         ),
-        ("estimator", "adam", "betas", "0.9", "must be a list of float, got '0.9' (str)"),
-        ("estimator", "pso", "inertia", [0.7, "x", 3], "must be a list of float or None, got [0.7, 'x', 3]"),
+        ("estimator", "adam", "betas", "0.9", "must be a list of 2 (float, float), got '0.9' (str)"),
+        (
+            "estimator",
+            "pso",
+            "inertia",
+            [0.7, "x", 3],
+            "must be a list of 3 (float, float, int) or None, got [0.7, 'x', 3]",
+        ),
     ]
     for kind, name, option, value, expected in cases:
         with pytest.raises(OptionError) as err:
@@ -65,7 +71,7 @@ def test_unambiguous_strings_are_converted():
     pso = registry.create("estimator", "pso", particles="40", iterations=30.0, inertia=["0.7", "0.5", 3])
     assert (pso.particles, type(pso.particles)) == (40, int)
     assert (pso.iterations, type(pso.iterations)) == (30, int)
-    assert pso.inertia == [0.7, 0.5, 3]
+    assert pso.inertia == (0.7, 0.5, 3)
     with pytest.raises(OptionError, match=r"; item 1 = 'x': input should be a valid number, unable to parse"):
         registry.create("estimator", "pso", inertia=[0.7, "x", 3])
     assert registry.create("robot", "cylindrical", g="9.5").g == 9.5

@@ -19,6 +19,11 @@ is a norm, non-differentiable where the error vanishes. Autograd then returns on
 guarantee, iterates can zig-zag between active pieces, and only the decaying learning rate makes
 them settle, not necessarily at a minimum. The multi-start and the keep rule limit the damage;
 compare the final costs with the PSO's before trusting a non-smooth Adam fit.
+
+Sizes, as for ``pso`` (``idkit.optim.sizes``): ``starts × steps`` is capped at ``MAX_EVALUATIONS``
+per cost and trial, a batch's memory is checked before anything is allocated, and
+``details["history"]`` keeps every ``details["history_stride"]``-th step (and the last), at most
+``HISTORY_ROWS`` + 1 per start.
 """
 
 from __future__ import annotations
@@ -26,7 +31,8 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
 
 import torch
 
@@ -34,11 +40,33 @@ from idkit.estimate import Estimate
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
-from idkit.estimators.swarm import Draws, Uniform
 from idkit.estimators.trials import criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
+from idkit.memory import check_memory
+from idkit.optim import sizes
+from idkit.optim.swarm import Draws, Uniform, history_rows
 from idkit.problem import Problem
 from idkit.runtime import resolve_threads, torch_threads
+
+
+@dataclass(frozen=True)
+class AdamSettings:
+    """An ``AdamMultiStart``'s settings, checked and resolved once.
+
+    Attributes:
+        starts, steps: the budget (integers >= 1, under ``sizes.MAX_EVALUATIONS``).
+        lr, lr_final, betas: the step and its schedule (``lr > 0``, ``0 < lr_final <= 1``).
+        keep: the rule for omitting starts (``KeepRule``).
+        stride: the history keeps every ``stride``-th step (``sizes.history_stride``).
+    """
+
+    starts: int
+    steps: int
+    lr: float
+    lr_final: float
+    betas: tuple[float, float]
+    keep: KeepRule
+    stride: int
 
 
 class AdamMultiStart(Estimator):
@@ -63,9 +91,9 @@ class AdamMultiStart(Estimator):
         steps: int = 500,
         lr: float = 0.05,
         lr_final: float = 1e-3,
-        betas: Sequence[float] = (0.9, 0.999),
+        betas: tuple[float, float] = (0.9, 0.999),
         keep: KeepRule | dict[str, Any] | str = "relative",
-        space: str | None = None,
+        space: Literal["physical", "base"] | None = None,
         use_regressor: bool | None = None,
         threads: int | None = None,
         history: bool = True,
@@ -82,12 +110,29 @@ class AdamMultiStart(Estimator):
         self.threads = threads
         self.history = history
         self.label = label
-        for name, value in (("starts", starts), ("steps", steps)):
+        self.resolved = self._resolve()  # once: a bad option fails at construction, not mid-sweep
+
+    def _resolve(self) -> AdamSettings:
+        for name, value in (("starts", self.starts), ("steps", self.steps)):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"adam option {name} must be an integer >= 1, got {value!r}")
-        if not lr > 0 or not 0 < lr_final <= 1:
-            raise ValueError(f"adam needs lr > 0 and 0 < lr_final <= 1, got lr={lr}, lr_final={lr_final}")
-        KeepRule.parse(keep)  # validate early
+        if not self.lr > 0 or not 0 < self.lr_final <= 1:
+            raise ValueError(
+                f"adam needs lr > 0 and 0 < lr_final <= 1, got lr={self.lr}, lr_final={self.lr_final}"
+            )
+        betas = tuple(float(b) for b in self.betas)
+        if len(betas) != 2 or not all(0 <= b < 1 for b in betas):
+            raise ValueError(f"adam option betas must be two numbers in [0, 1), got {self.betas!r}")
+        sizes.check_evaluations("adam", {"starts": self.starts, "steps": self.steps})
+        return AdamSettings(
+            starts=self.starts,
+            steps=self.steps,
+            lr=float(self.lr),
+            lr_final=float(self.lr_final),
+            betas=betas,
+            keep=KeepRule.parse(self.keep),
+            stride=sizes.history_stride(self.steps),
+        )
 
     def fit(self, problem: Problem) -> Estimate:
         """Minimise ``problem.cost`` (required)."""
@@ -114,29 +159,42 @@ class AdamMultiStart(Estimator):
 
         def trials_per_batch(problem: Problem) -> int:
             return trial_chunk(
-                chunk, len(costs) * self.starts * problem.robot.n_joints * problem.samples.n_samples
+                chunk, len(costs) * self.resolved.starts * problem.robot.n_joints * problem.samples.n_samples
             )
 
         return fit_in_batches(problems, trials_per_batch, lambda batch: self._fit_group(batch, costs))
 
     def _fit_group(self, problems: list[Problem], costs: list[Cost]) -> list[list[Estimate]]:
         """``fit_trials`` of one chunk of trials."""
-        started = time.perf_counter()
-        keep = KeepRule.parse(self.keep)
-        objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
+        settings = self.resolved
         trials, count = len(problems), len(costs)
+        robot = problems[0].robot
+        kept_steps = history_rows(settings.steps, settings.stride) if self.history else []
+        dimension = max(len(robot.param_names), len(robot.base_param_names))
+        slots = trials * count
+        check_memory(
+            f"adam: {trials} trial(s) × {count} cost(s) × starts={settings.starts} "
+            f"({len(kept_steps)} history rows)",
+            sizes.swarm_bytes(slots, settings.starts, 1, dimension, len(kept_steps))
+            # an evaluation's error, its autograd copies and their gradients
+            + sizes.error_bytes(slots * settings.starts, problems[0].samples.tau.numel(), copies=8),
+            "lower starts, or fit the trials in smaller chunks",
+        )
+        started = time.perf_counter()
+        objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
         n, samples = objective.shape
-        threads = resolve_threads(self.threads, objective.slots * self.starts * n * samples)
+        threads = resolve_threads(self.threads, objective.slots * settings.starts * n * samples)
         lower, width = objective.lower, objective.upper - objective.lower
+        keep_rows = set(kept_steps)
         with torch_threads(threads):
             draws = Draws([Uniform(p.generator(), lower) for p in problems])
-            u = draws.draw((objective.slots, self.starts, lower.shape[-1]))
+            u = draws.draw((objective.slots, settings.starts, lower.shape[-1]))
             u.requires_grad_(True)
-            optimiser = torch.optim.Adam([u], lr=self.lr, betas=tuple(self.betas), fused=True)
-            low = self.lr * self.lr_final
+            optimiser = torch.optim.Adam([u], lr=settings.lr, betas=settings.betas, fused=True)
+            low = settings.lr * settings.lr_final
 
             def evaluate() -> torch.Tensor:  # [S, R]
-                x = (lower + width * u).view(trials, count, self.starts, -1)
+                x = (lower + width * u).view(trials, count, settings.starts, -1)
                 values = []
                 for t in range(trials):
                     error = objective.error(x[t], t)  # [C, R, n, N], regressor where possible
@@ -144,37 +202,38 @@ class AdamMultiStart(Estimator):
                 return torch.stack(values)
 
             history = []
-            for step in range(self.steps):
+            for step in range(settings.steps):
                 optimiser.zero_grad(set_to_none=True)
                 value = evaluate()
                 value.sum().backward()
                 optimiser.step()
                 # Cosine decay from lr to lr·lr_final (set directly: cheaper than an LRScheduler).
-                progress = (step + 1) / self.steps
-                optimiser.param_groups[0]["lr"] = low + (self.lr - low) * 0.5 * (
+                progress = (step + 1) / settings.steps
+                optimiser.param_groups[0]["lr"] = low + (settings.lr - low) * 0.5 * (
                     1 + math.cos(math.pi * progress)
                 )
                 with torch.no_grad():
                     u.clamp_(0.0, 1.0)
-                if self.history:
+                if step in keep_rows:
                     history.append(value.detach())
             with torch.no_grad():
                 final = evaluate()  # at the projected last iterate
                 position = lower + width * u.detach()
-                mean, kept = aggregate(position, final, keep)
+                mean, kept = aggregate(position, final, settings.keep)
                 values = [objective.exact(s, mean[s]) for s in range(objective.slots)]
         wall = time.perf_counter() - started
-        stacked = torch.stack(history) if self.history else None  # [steps, S, R], cost before each step
+        stacked = torch.stack(history) if self.history else None  # [rows, S, R], cost before each kept step
         estimates = []
         for t, problem in enumerate(problems):
             part = slice(t * count, (t + 1) * count)
-            common = common_details(problem, objective, costs, keep, threads, wall / trials)
+            common = common_details(problem, objective, costs, settings.keep, threads, wall / trials)
             common.update(
-                starts=self.starts,
-                steps=self.steps,
-                lr=self.lr,
-                lr_final=self.lr_final,
+                starts=settings.starts,
+                steps=settings.steps,
+                lr=settings.lr,
+                lr_final=settings.lr_final,
                 batched_trials=trials,
+                history_stride=settings.stride,
             )
             estimates.append(
                 per_cost_estimates(

@@ -1,6 +1,15 @@
 """The paper's reported PSO estimate: "the mean estimate of ten PSO runs, omitting all estimates
 with cost functions that are relatively too large" (section IV), as an explicit rule; and the
-paper's final estimate, the average of several estimates (``average_estimates``: its one home).
+paper's final estimate, the average of several estimates — its one home (``average_params``,
+``average_estimates``), for the ``pso_f13_f14`` estimator and the studies alike.
+
+The average is taken **in the space the parts searched** (``details["space"]``): physical
+parameters for the paper's cylindrical robot (what the paper averages and prints), base parameters
+for a robot that searches there (a URDF arm). Averaging physical parameters instead would be wrong
+there: they are one representative of each part's base parameters (``params_from_base``), and the
+mean of two representatives is in general not the representative of the mean — for a nonlinear map
+it does not even predict the mean torque (``τ = Y α`` is linear in the base parameters, not in the
+physical ones). The physical parameters of the average are ``params_from_base`` of it.
 
 ``KeepRule`` decides which runs count; ``aggregate`` averages their parameters. The rule and the
 kept runs are recorded in every estimate's ``details``, because "relatively too large" is a choice
@@ -17,7 +26,7 @@ Costs are non-negative (they are norms), so ``(1 + tol) · best`` is the intende
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -26,7 +35,7 @@ from torch import Tensor
 
 from idkit.estimate import Estimate
 from idkit.estimators.objective import Objective, cost_label
-from idkit.interfaces import Cost
+from idkit.interfaces import Cost, Robot
 from idkit.problem import Problem
 
 RULES = ("relative", "mad", "best", "all")
@@ -102,46 +111,79 @@ def aggregate(values: Tensor, costs: Tensor, rule: KeepRule) -> tuple[Tensor, Te
     return total / weights.sum(dim=-2), kept
 
 
+def average_label(costs: Sequence[str]) -> str:
+    """``PSO-f13/f14`` for ``("f13", "f14")``: the label of the average of those PSO estimates."""
+    return "PSO-" + "/".join(costs)
+
+
+def mean_params(params: Sequence[Mapping[str, float]]) -> dict[str, float]:
+    """Per name, the mean over ``params`` (each a ``name -> value`` map with the same names)."""
+    if not params:
+        raise ValueError("mean_params: nothing to average")
+    return {k: sum(p[k] for p in params) / len(params) for k in params[0]}
+
+
+def search_average(parts: Sequence[Estimate], robot: Robot) -> tuple[str, Tensor]:
+    """The mean of ``parts`` in the space they searched: ``(space, position[D])`` (float64).
+
+    Raises:
+        ValueError: parts that searched different spaces, or a base-space part without base
+            parameters.
+    """
+    spaces = {part.details.get("space", "physical") for part in parts}
+    if len(spaces) != 1:
+        raise ValueError(f"cannot average estimates that searched different spaces: {sorted(spaces)}")
+    (space,) = spaces
+    if space == "base":
+        if any(part.base_params is None for part in parts):
+            raise ValueError("a base-space estimate without base parameters cannot be averaged")
+        mean = mean_params([part.base_params for part in parts])
+        names = robot.base_param_names
+    else:
+        mean = mean_params([part.params for part in parts])
+        names = robot.param_names
+    return space, torch.tensor([mean[name] for name in names], dtype=torch.float64)
+
+
+def average_params(parts: Sequence[Estimate], robot: Robot) -> dict[str, float]:
+    """The physical parameters of the average of ``parts`` (module docstring): what a study records."""
+    space, position = search_average(parts, robot)
+    physical = robot.params_from_base(position) if space == "base" else position
+    return dict(zip(robot.param_names, (float(v) for v in physical), strict=True))
+
+
 def average_estimates(
     problem: Problem,
     parts: Sequence[Estimate],
     costs: Sequence[Cost],
     label: str,
-    space: str | None = None,
-    use_regressor: bool | None = None,
 ) -> Estimate:
     """The mean of ``parts`` (e.g. PSO-f13 and PSO-f14 of one problem) in their search space.
 
-    The paper's final estimate (section V). Parts are averaged in the space they searched
-    (physical parameters, or base parameters for robots that search there), so the average of
-    two estimates of a base-space search is again consistent. ``Estimate.cost`` is
-    ``problem.cost`` at the average (``None`` without one); each part's criterion at the average
-    is in ``details["costs_at_average"]`` and the parts themselves in ``details["parts"]``.
+    The paper's final estimate (section V; module docstring). ``Estimate.cost`` is ``problem.cost``
+    at the average (``None`` without one); each part's criterion at the average is in
+    ``details["costs_at_average"]`` and the parts themselves in ``details["parts"]``.
 
     Args:
         problem: the problem the parts were fitted on.
-        parts: the estimates to average, e.g. ``fit_costs(problem, costs)`` of ``pso``/``adam``.
+        parts: the estimates to average, e.g. ``fit_costs(problem, costs)`` of ``pso``/``adam``
+            (their ``details["space"]`` and ``["use_regressor"]`` say how they searched).
         costs: the criterion of each part (reported at the average).
         label: the estimator label of the average.
-        space, use_regressor: as given to the estimator that made the parts.
     """
     from idkit.estimators.search_result import make_estimate  # it imports this module
 
     started = time.perf_counter()
+    space, position = search_average(parts, problem.robot)
+    use_regressor = parts[0].details.get("use_regressor")
     objective = Objective(problem, costs, space=space, use_regressor=use_regressor)
-    robot = problem.robot
-    base = objective.space == "base"
-    names = robot.base_param_names if base else robot.param_names
-    average = torch.tensor(
-        [[(part.base_params if base else part.params)[name] for name in names] for part in parts],
-        dtype=objective.lower.dtype,
-        device=objective.lower.device,
-    ).mean(dim=0)
+    average = position.to(dtype=objective.lower.dtype, device=objective.lower.device)
     measured = objective.measured[0]
-    error = objective.error(average) if base else problem.error(average)
+    error = objective.error(average) if space == "base" else problem.error(average)
     details = {
         "parts": {part.estimator: part.to_dict() for part in parts},
         "costs_at_average": {cost_label(c): float(c(error, measured)) for c in costs},
+        "space": space,
         **{key: parts[0].details[key] for key in ("threads", "device", "dtype") if key in parts[0].details},
     }
     cost = None if problem.cost is None else float(problem.cost(error, measured))

@@ -13,11 +13,8 @@ samples, once:
   product gives ``E_rel`` directly;
 - costs that declare a structure (``Cost.structure()``: a product of matrix norms or entrywise
   reductions, e.g. the paper's 16 and the robust ``huber``/``trimmed``), all at once through
-  ``NormProducts``: the same factors with fewer tensor ops (one ``|E|``, row and column sums
-  from one matmul, the spectral norm in closed form, each reduction once per group of costs with
-  the same factors and parameters). Values agree with the cost's own ``__call__`` to 1e-12
-  relative (tested), except the closed-form spectral norm where the two largest singular values
-  coincide (~1e-8, see ``spectral_norm_3``); other costs are called as they are.
+  the fused torch form (``idkit.optim.fused.NormProducts``), or handed to the fast kernel as a
+  ``ProductSpec`` (``spec``); other costs are called as they are.
 
 Per-op overhead (microseconds per tensor op) dominates a paper-sized swarm, so op count is what
 this module minimises. Estimators report the final cost through the cost's own ``__call__``.
@@ -25,175 +22,24 @@ this module minimises. Estimators report the final cost through the cost's own `
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import hashlib
+import inspect
+import pickle
+from collections.abc import Sequence
 
 import torch
 from torch import Tensor
 
-from idkit.costs.norms import NORMS
-from idkit.costs.reductions import PARAMETRIC
+from idkit.costs.factors import FACTORS, factor_parameters
 from idkit.estimators.trials import check_same_setting
 from idkit.interfaces import Cost, NormStructure, Robot
+from idkit.optim.base_map import cached_tape, identity
+from idkit.optim.fast import ProductSpec
+from idkit.optim.fused import NormProducts, selector
 from idkit.problem import Problem, Samples
 from idkit.relative import relative_denominator
 
 SPACES = ("physical", "base")
-
-#: The factor names a structure may use: matrix norms, then parametric entrywise reductions.
-FACTORS = frozenset(NORMS) | frozenset(PARAMETRIC)
-
-
-def spectral_norm_3(e: Tensor) -> Tensor:
-    """Largest singular value ``[...]`` of ``e[..., 3, N]``: closed-form top eigenvalue of ``e eᵀ``.
-
-    Smith's trigonometric solution for a symmetric 3 × 3 matrix ``G``: with ``q = tr G / 3``,
-    ``p = ‖G − qI‖_F / √6`` and ``r = det(G − qI) / (2p³)``, ``λ_max = q + 2p cos(acos(r) / 3)``.
-    About 30 elementwise ops on ``[...]``-sized tensors instead of a batched SVD (microseconds per
-    matrix) or batched 3 × 3 matmuls.
-
-    Accuracy: ~1e-15 relative, except where the two largest singular values (nearly) coincide —
-    ``acos`` is ill-conditioned at ``r = −1`` — where it is ~1e-8 relative. That is harmless for a
-    search (minimising a largest singular value tends to make it double, so this case is common
-    near the optimum of f2-type costs); estimates report costs by the cost's own ``__call__``.
-    """
-    g00, g11, g22 = e.square().sum(-1).unbind(-1)
-    g01, g12, g20 = (e * e.roll(-1, dims=-2)).sum(-1).unbind(-1)  # rows (0·1, 1·2, 2·0)
-    g02 = g20
-    q = (g00 + g11 + g22) / 3
-    x, y, z = g00 - q, g11 - q, g22 - q
-    off = g01.square() + g02.square() + g12.square()
-    p = ((x.square() + y.square() + z.square() + 2 * off) / 6).sqrt()
-    det = x * (y * z - g12.square()) - g01 * (g01 * z - g12 * g02) + g02 * (g01 * g12 - y * g02)
-    positive = p > 0
-    safe = torch.where(positive, p, 1.0)
-    r = (det / (2 * safe * safe * safe)).clamp(-1.0, 1.0)
-    top = torch.where(positive, q + 2 * p * torch.cos(torch.acos(r) / 3), q)
-    return top.clamp_min(0).sqrt()
-
-
-def factor_parameters(names: Sequence[str], parameters: Sequence[float] = ()) -> tuple[float, ...]:
-    """One checked parameter per factor of ``names`` (``NormStructure.norms``/``parameters``).
-
-    A reduction's parameter must lie in its domain (``Reduction.check``); a matrix norm takes none
-    (``0.0`` in its place). Raises ``ValueError`` naming the factor and what is wrong.
-    """
-    unknown = [name for name in names if name not in FACTORS]
-    if unknown:
-        raise ValueError(
-            f"unknown factor(s) {unknown}; known norms: {', '.join(NORMS)}; "
-            f"entrywise reductions: {', '.join(PARAMETRIC)}"
-        )
-    if parameters and len(parameters) != len(names):
-        raise ValueError(f"parameters {tuple(parameters)} do not align with the factors {tuple(names)}")
-    checked = []
-    for i, name in enumerate(names):
-        if name in PARAMETRIC:
-            reduction = PARAMETRIC[name]
-            if not parameters:
-                raise ValueError(
-                    f"factor {name!r} needs its {reduction.parameter} ({reduction.domain}) in the "
-                    "structure's parameters; none given"
-                )
-            checked.append(reduction.check(name, parameters[i]))
-        elif parameters and parameters[i] != 0:
-            raise ValueError(f"norm {name!r} takes no parameter (0.0 in its place), got {parameters[i]!r}")
-        else:
-            checked.append(0.0)
-    return tuple(checked)
-
-
-def norm_product(
-    names: Sequence[str], n: int, samples: int, like: Tensor, parameters: Sequence[float] = ()
-) -> Callable[[Tensor], Tensor]:
-    """``e[..., n, N] → Π factor(e)`` with few ops; equal to the plain product up to rounding.
-
-    Factors are ``NORMS`` and ``PARAMETRIC`` names with ``parameters`` as in ``NormStructure``.
-    ``"1"`` and ``"inf"`` (largest column / row absolute sum) come from one matmul of ``|e|`` with
-    a 0/1 matrix that sums each column and each row; ``"2"`` uses ``spectral_norm_3`` when
-    ``n == 3``; ``|e|`` and ``e²`` are computed once for all the norms that need them; an
-    entrywise reduction is its own function (``idkit.costs.reductions``), the one its cost calls.
-    """
-    values = factor_parameters(names, parameters)
-    sums = None
-    if "1" in names or "inf" in names:
-        # [n·N, N + n]: column j < N sums sample j over the joints, column N + i sums joint i
-        # (rows ordered joint-major, as e.reshape(..., n·N)).
-        eye_n = torch.eye(n, dtype=like.dtype, device=like.device)
-        eye_s = torch.eye(samples, dtype=like.dtype, device=like.device)
-        sums = torch.cat((eye_s.repeat(n, 1), eye_n.repeat_interleave(samples, dim=0)), dim=1)
-    uses_abs = sums is not None or "max_abs" in names
-    uses_square = "fro" in names or "max_row_sq" in names
-
-    def value(e: Tensor) -> Tensor:
-        a = e.abs() if uses_abs else None
-        s = a.reshape(*a.shape[:-2], n * samples) @ sums if sums is not None else None
-        square = e.square() if uses_square else None
-        out = None
-        for name, parameter in zip(names, values, strict=True):
-            if name in PARAMETRIC:
-                v = PARAMETRIC[name].function(e, parameter)
-            elif name == "1":
-                v = s[..., :samples].amax(-1)
-            elif name == "inf":
-                v = s[..., samples:].amax(-1)
-            elif name == "max_abs":
-                v = a.amax(dim=(-2, -1))
-            elif name == "fro":
-                v = square.sum(dim=(-2, -1)).sqrt()
-            elif name == "max_row_sq":
-                v = square.sum(dim=-1).amax(dim=-1)
-            elif name == "2" and n == 3:
-                v = spectral_norm_3(e)
-            else:
-                v = NORMS[name](e)
-            out = v if out is None else out * v
-        return out
-
-    return value
-
-
-class NormProducts:
-    """Several structured costs of one stacked error: ``e[C, ..., n, N] → value[C, ...]``.
-
-    Costs with the same factors and parameters (the paper's f_k and f_{k+8} differ only in the
-    error matrix, which the caller has already divided by each structure's relative denominator)
-    form one group, evaluated by one ``norm_product`` on its slices: a few tensor ops per group
-    instead of per cost (per-op overhead dominates), and each factor computed only for the costs
-    that use it.
-
-    Args:
-        structures: ``C`` structures, one per slice of ``e`` (their ``relative``/``floor`` are
-            the caller's business).
-        n, samples: the error matrix's ``n × N``; ``like``: a tensor of its dtype and device.
-    """
-
-    def __init__(self, structures: Sequence[NormStructure], n: int, samples: int, like: Tensor) -> None:
-        groups: dict[tuple[tuple[str, ...], tuple[float, ...]], list[int]] = {}
-        for c, structure in enumerate(structures):
-            key = (structure.norms, factor_parameters(structure.norms, structure.parameters))
-            groups.setdefault(key, []).append(c)
-        self.count = len(structures)
-        self.groups = [
-            (_selector(members, like.device), norm_product(names, n, samples, like, parameters))
-            for (names, parameters), members in groups.items()
-        ]
-
-    def __call__(self, e: Tensor) -> Tensor:
-        if len(self.groups) == 1:
-            return self.groups[0][1](e)
-        out = e.new_empty(e.shape[:-2])
-        for members, value in self.groups:
-            out[members] = value(e[members])
-        return out
-
-
-def _selector(members: list[int], device: torch.device) -> slice | Tensor:
-    """``members`` as a slice where they are evenly spaced (slots are trial-major, so a cost's
-    slots are every ``C``-th: a view, no copy of the error), else as an index tensor."""
-    step = members[1] - members[0] if len(members) > 1 else 1
-    if members == list(range(members[0], members[-1] + 1, step)):
-        return slice(members[0], members[-1] + 1, step)
-    return torch.tensor(members, device=device)
 
 
 def fast_structure(cost: Cost) -> NormStructure | None:
@@ -202,8 +48,9 @@ def fast_structure(cost: Cost) -> NormStructure | None:
     A structure naming only known factors but with invalid parameters is the cost's mistake: a
     ``ValueError`` names the cost and what is wrong (rather than a silently slower path).
     """
-    structure = cost.structure()
-    if structure is None or not structure.norms or not set(structure.norms) <= FACTORS:
+    declared = getattr(cost, "structure", None)  # a cost by contract need not subclass Cost
+    structure = declared() if callable(declared) else None
+    if structure is None or not structure.norms or not set(structure.norms) <= FACTORS.keys():
         return None
     try:
         factor_parameters(structure.norms, structure.parameters)
@@ -325,6 +172,28 @@ class Objective:
     def dimension(self) -> int:
         return self.lower.shape[-1]
 
+    def spec(self) -> ProductSpec:
+        """What the fast kernel minimises for this objective (``idkit.optim.fast``): per slot the
+        divided ``T/d`` and ``−Yᵀ/d``, the declared structure, and the base map with its tape.
+
+        Needs the regressor and a structure for every cost. ``map_seconds`` is then the time this
+        call spent tracing the robot's base map (or reading its tape from the cache).
+        """
+        if not self.use_regressor or any(s is None for s in self.structures):
+            raise ValueError("the fast kernel needs the regressor and a declared structure for every cost")
+        if self.space == "base":
+            tape, self.map_seconds = identity(self.dimension), 0.0
+        else:
+            robot = self.problem.robot
+            tape, self.map_seconds = cached_tape(
+                robot, robot.base_params, self.dimension, lambda: _map_key(robot, self.dimension)
+            )
+        count = len(self.costs)
+        structures = tuple(self.structures[s % count] for s in range(self.slots))
+        return ProductSpec(
+            self.linear, self.offset.reshape(self.slots, -1), self.shape[0], structures, self.base, tape
+        )
+
     def params(self, x: Tensor) -> Tensor:
         """Physical parameters ``[..., P]`` of search positions ``x[..., D]``."""
         if self.space == "base":
@@ -375,7 +244,7 @@ class Objective:
             return self.products(error)
         out = error.new_empty((self.slots, *batch))
         if self.fast:
-            index = _selector(self.fast, error.device)
+            index = selector(self.fast, error.device)
             out[index] = self.products(error[index])
         for c in sorted({s % count for s in self.others}):
             cost, slots = self.costs[c], self.others_by_cost[c]
@@ -386,6 +255,18 @@ class Objective:
                 for s in slots.tolist():
                     out[s] = cost(error[s], self.measured[s // count])
         return out
+
+
+def _map_key(robot: Robot, dimension: int) -> str | None:
+    """What identifies a robot's base map across processes: its pickled state, its class's source,
+    the dimension and the torch version (hashed); ``None`` if the robot cannot be pickled."""
+    try:
+        state = pickle.dumps(robot)
+        code = inspect.getsource(type(robot))
+    except Exception:  # not picklable, or no source: traced once per process
+        return None
+    parts = (state, code.encode(), str(dimension).encode(), torch.__version__.encode())
+    return hashlib.sha256(b"\n".join(parts)).hexdigest()[:32]
 
 
 def _regressor_t(robot: Robot, samples: Samples) -> Tensor:

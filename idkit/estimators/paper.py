@@ -16,13 +16,13 @@ from typing import Any, ClassVar
 
 from idkit.costs.paper import f13, f14
 from idkit.estimate import Estimate
-from idkit.estimators.aggregate import average_estimates
+from idkit.estimators.aggregate import average_estimates, average_label
 from idkit.estimators.pso import ParticleSwarm
 from idkit.interfaces import Cost, Estimator
 from idkit.problem import Problem
 from idkit.relative import DEFAULT_FLOOR
 
-LABEL = "PSO-f13/f14"
+LABEL = average_label(("f13", "f14"))
 
 
 class PaperFinalEstimate(Estimator):
@@ -65,10 +65,6 @@ class PaperFinalEstimate(Estimator):
         pso, criteria = self.swarm(), self.costs()
         parts = pso.fit_trials(problems, criteria, chunk=chunk)
         return [
-            [
-                average_estimates(
-                    problem, pair, criteria, LABEL, space=pso.space, use_regressor=pso.use_regressor
-                )
-            ]
+            [average_estimates(problem, pair, criteria, LABEL)]
             for problem, pair in zip(problems, parts, strict=True)
         ]

@@ -52,6 +52,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal, get_args
 
@@ -232,7 +233,7 @@ def solve_consistent(
     data = cp.sum_squares((R @ K / scale) @ p - b / scale)
     constraints, pseudo = [], []
     for i in range(nb):
-        pseudo.append(_pseudo_inertia_expression(p[10 * i : 10 * i + 10], cp))
+        pseudo.append(pseudo_inertia_expression(p[10 * i : 10 * i + 10], cp))
         constraints += [pseudo[i] >> 0, p[10 * i] >= floor]
     nonnegative = [k for k, name in enumerate(robot.param_names) if name.endswith(NONNEGATIVE_SUFFIXES)]
     if nonnegative:
@@ -250,17 +251,16 @@ def solve_consistent(
         objective = data + prior_weight * prior
     else:  # a barrier-free tie-break: the log-det barrier is ill-conditioned where the LMIs are active
         objective = data + TIE_BREAK * cp.sum_squares(z[: 10 * nb] - nominal[: 10 * nb] / unit[: 10 * nb])
-    used, status = _solve(cp.Problem(cp.Minimize(objective), constraints), settings.conic_solvers, floor, who)
+    infeasible = (
+        f"no link mass can be >= min_mass={floor:g} kg with a positive semidefinite pseudo-inertia "
+        "and friction >= 0 — check min_mass"
+    )
+    program = cp.Problem(cp.Minimize(objective), constraints)
+    used, status = solve_program(program, settings.conic_solvers, who, infeasible)
     elapsed = time.perf_counter() - started
     params = torch.as_tensor(unit * z.value, dtype=torch.float64)
-    inertials = params[: 10 * nb].reshape(nb, 10)
-    jv = pseudo_inertia(inertials).numpy()
-    lowest = np.linalg.eigvalsh(jv)[:, 0]
-    outside = [
-        f"{name} ({value:.3g})"
-        for name, value, size in zip(robot.link_names, lowest, np.abs(jv).max((1, 2)), strict=True)
-        if value < -PSD_TOLERANCE * size
-    ]
+    jv = pseudo_inertia(params[: 10 * nb].reshape(nb, 10)).numpy()
+    lowest, outside = cone_violations(robot.link_names, jv)
     if outside:
         smallest = float(np.linalg.eigvalsh(j0)[:, 0].min())
         hint = (
@@ -285,11 +285,28 @@ def solve_consistent(
     )
 
 
-def _solve(program: Any, solvers: tuple[str, ...], floor: float, who: str) -> tuple[str, str]:
-    """Solve ``program`` with the first solver that succeeds; ``(solver, status)``.
+def cone_violations(names: Sequence[str], pseudo: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Smallest eigenvalue ``[nb]`` of each solved pseudo-inertia ``pseudo[nb, 4, 4]``, and the
+    bodies (``"name (eigenvalue)"``) whose eigenvalue is below ``-PSD_TOLERANCE`` of their scale:
+    a solver that stopped inaccurate outside the cone, which the caller refuses."""
+    lowest = np.linalg.eigvalsh(pseudo)[:, 0]
+    sizes = np.abs(pseudo).max((1, 2))
+    outside = [
+        f"{name} ({value:.3g})"
+        for name, value, size in zip(names, lowest, sizes, strict=True)
+        if value < -PSD_TOLERANCE * size
+    ]
+    return lowest, outside
+
+
+def solve_program(program: Any, solvers: tuple[str, ...], who: str, infeasible: str) -> tuple[str, str]:
+    """Solve the cvxpy ``program`` with the first of ``solvers`` that succeeds; ``(solver, status)``.
+
+    Shared by ``pcls`` and the payload fit (:mod:`idkit.estimators.payload`).
 
     Raises:
-        IdentificationError: infeasible, or every solver failed (one line naming each cause).
+        IdentificationError: infeasible (``infeasible`` says why that can be), or every solver
+            failed (one line naming each cause).
     """
     import cvxpy as cp
 
@@ -304,9 +321,7 @@ def _solve(program: Any, solvers: tuple[str, ...], floor: float, who: str) -> tu
             continue
         if program.status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
             raise IdentificationError(
-                f"{who}: the constraints are infeasible ({name} status {program.status!r}): no link "
-                f"mass can be >= min_mass={floor:g} kg with a positive semidefinite pseudo-inertia "
-                "and friction >= 0 — check min_mass"
+                f"{who}: the constraints are infeasible ({name} status {program.status!r}): {infeasible}"
             )
         if program.status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) and program.variables()[0].value is not None:
             return name, str(program.status)
@@ -328,7 +343,7 @@ def _parameter_units(robot: Robot, cad_masses: np.ndarray) -> np.ndarray:
     return unit
 
 
-def _pseudo_inertia_expression(pi: Any, cp: Any) -> Any:
+def pseudo_inertia_expression(pi: Any, cp: Any) -> Any:
     """``J(pi)`` as a symmetric 4×4 cvxpy expression."""
     return cp.bmat(pseudo_inertia_rows([pi[k] for k in range(10)]))
 

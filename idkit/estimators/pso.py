@@ -1,8 +1,10 @@
 """``pso``: the paper's particle swarm estimator, batched over runs and costs on tensors.
 
-``runs`` independent swarms (10, as in the paper) — and with ``fit_costs`` several costs — are one
-tensor computation (``idkit.estimators.swarm``); only the iterations are a Python loop. The
-reported estimate is the mean over the runs that ``keep`` retains (``idkit.estimators.aggregate``).
+The estimator builds the objective (``idkit.estimators.objective``), hands the search to the
+array-level swarm (``idkit.optim``: the eager torch engine, or the fast compiled kernel) and reads
+the result back into an ``Estimate``: the mean over the runs that ``keep`` retains
+(``idkit.estimators.aggregate``). ``runs`` independent swarms (10, as in the paper) — and with
+``fit_costs`` several costs, with ``fit_trials`` several trials — are one batched computation.
 
 Presets (every field can be overridden by its own keyword):
 
@@ -27,42 +29,50 @@ PSO's update (per-dimension ``r1``/``r2``, walls per dimension) is invariant to 
 of each coordinate, so searching a box normalised to [0, 1]^P would change nothing but rounding;
 the search runs in the robot's own units.
 
-Engines. ``"eager"`` is the functional torch swarm (``idkit.estimators.swarm``): any cost, any
-robot, any device. ``"native"`` runs whole runs as one compiled C call (``idkit.estimators.native``)
-for costs that declare a norm structure (``Cost.structure()``, e.g. the paper's 16) on a robot
-with a regressor, on the CPU in float64; its compile step (about a second with gcc, per problem
-size) happens once per machine and is cached on disk. ``"auto"`` (default) picks ``"native"``
-wherever it applies — measured faster at every batch size (``docs/speed.md``) — and ``"eager"``
-elsewhere (in a call with several costs, per cost: costs without a structure run eager beside the
-others, called as they are, and so do costs declaring a factor the kernel has no code for,
-evaluated fused); ``details["engine"]``, ``["engine_build"]`` and ``["engine_compile_s"]`` record
-the choice. Both engines use the same random numbers; their trajectories agree to rounding.
+Engines. ``"eager"`` is the functional torch swarm (``idkit.optim.swarm``): any cost, any robot,
+any device. ``"native"`` runs the fast compiled kernel (``idkit.optim.fast``) for costs that
+declare a norm structure (``Cost.structure()``, e.g. the paper's 16) on a robot with a regressor,
+on the CPU in float64. ``"auto"`` (default) picks ``"native"`` wherever it applies and
+``"eager"`` elsewhere (in a call with several costs, per cost). ``details["engine"]`` and
+``["engine_build"]`` record the choice; ``["engine_build_s"]`` the one-time seconds this process
+spent loading or compiling the kernel and translating the base map (not part of ``wall_time_s``).
+When ``"auto"`` has to take the slower eager engine, a ``SlowEngineWarning`` says why, once per
+reason and process. Both engines draw the same random numbers; their trajectories agree to
+rounding, and the same seed gives identical numbers for a given engine.
+
+Sizes (``idkit.optim.sizes``). ``runs × particles × iterations`` is capped at ``MAX_EVALUATIONS``
+per cost and trial (a bigger request is refused when the estimator is built), the memory a batch
+needs is checked against the machine's before anything is allocated, and the history kept in
+``details["history"]`` has at most ``HISTORY_ROWS`` + 1 rows per run: every
+``details["history_stride"]``-th iteration from the first, and the last.
 """
 
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable, Sequence
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from functools import partial
+from typing import Any, ClassVar, Literal
 
 import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate
-from idkit.estimators import native, swarm
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
 from idkit.estimators.trials import CHUNK_ELEMENTS, check_chunk, criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
+from idkit.memory import check_memory
+from idkit.optim import fast, sizes, swarm
 from idkit.problem import Problem
 from idkit.runtime import available_cores, resolve_threads, torch_threads
 
-#: ``engine`` values: how the swarm's iterations are computed.
-ENGINES = ("auto", "eager", "native")
-
-#: Costs run by one engine: ``(cost indices, their objective, details to record, runner)``.
-EngineGroup = tuple[list[int], Objective, dict[str, Any], Callable[..., tuple[swarm.SwarmState, Tensor]]]
+Preset = Literal["default", "paper"]
+Engine = Literal["auto", "eager", "native"]
+Space = Literal["physical", "base"]
 
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {
@@ -88,6 +98,56 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
+class SlowEngineWarning(UserWarning):
+    """``engine="auto"`` runs the eager engine where the fast one was hoped for; says why."""
+
+
+_WARNED: set[str] = set()
+
+
+def _warn_slow(reason: str) -> None:
+    if reason not in _WARNED:
+        _WARNED.add(reason)
+        warnings.warn(f"pso runs the slower eager engine: {reason}", SlowEngineWarning, stacklevel=4)
+
+
+@dataclass(frozen=True)
+class SwarmSettings:
+    """A ``ParticleSwarm``'s settings, resolved once: the preset's values with the overrides.
+
+    Attributes:
+        preset: the preset the values came from.
+        runs, particles, iterations: the budget (checked: integers >= 1, under ``MAX_EVALUATIONS``).
+        rules: the update rule (``swarm.SwarmRules``).
+        keep: the rule for omitting runs (``KeepRule``).
+        engine: ``"auto"``, ``"eager"`` or ``"native"``.
+        stride: the history keeps every ``stride``-th iteration (``sizes.history_stride``).
+    """
+
+    preset: Preset
+    runs: int
+    particles: int
+    iterations: int
+    rules: swarm.SwarmRules
+    keep: KeepRule
+    engine: Engine
+    stride: int
+
+    def describe(self) -> dict[str, Any]:
+        """The preset's fields as resolved (``details["settings"]``)."""
+        rules = self.rules
+        return {
+            "particles": self.particles,
+            "iterations": self.iterations,
+            "c1": rules.c1,
+            "c2": rules.c2,
+            "inertia": rules.inertia,
+            "boundary": rules.boundary,
+            "velocity_limit": rules.velocity_limit,
+            "per_particle": rules.per_particle,
+        }
+
+
 class ParticleSwarm(Estimator):
     """Batched global-best PSO minimising ``problem.cost`` over the robot's search box.
 
@@ -101,12 +161,13 @@ class ParticleSwarm(Estimator):
             fields as a dict, or its kind (``"relative"``, ``"mad"``, ``"best"``, ``"all"``).
         space: ``"physical"``/``"base"`` search space; ``None`` follows ``robot.search_space``.
         use_regressor: predict torques through the regressor (``None``: when the robot has one).
-        threads: threads of the eager engine (torch intra-op) and most threads of the native
+        threads: threads of the eager engine (torch intra-op) and most threads of the fast
             kernel; ``None``: by problem size (``idkit.runtime``) for torch, every core for the
-            kernel, which starts a thread only when a call has enough evaluations.
-        history: keep each run's best cost per iteration in ``details["history"]``.
+            kernel, which uses a thread only when a call has enough evaluations.
+        history: keep each run's best cost per iteration in ``details["history"]`` (at most
+            ``sizes.HISTORY_ROWS`` + 1 rows; module docstring).
         label: estimator label; default ``"PSO-<cost>"`` (e.g. ``PSO-f13``).
-        engine: ``"auto"`` (the native kernel where it applies, else eager torch), ``"eager"`` or
+        engine: ``"auto"`` (the fast kernel where it applies, else eager torch), ``"eager"`` or
             ``"native"`` (an error where it does not apply); see the module docstring.
     """
 
@@ -114,23 +175,23 @@ class ParticleSwarm(Estimator):
 
     def __init__(
         self,
-        preset: str = "default",
+        preset: Preset = "default",
         runs: int = 10,
         particles: int | None = None,
         iterations: int | None = None,
         c1: float | None = None,
         c2: float | None = None,
-        inertia: Sequence[float] | None = None,
-        boundary: str | None = None,
+        inertia: tuple[float, float, int] | None = None,
+        boundary: swarm.Boundary | None = None,
         velocity_limit: float | None = None,
         per_particle: bool | None = None,
         keep: KeepRule | dict[str, Any] | str = "relative",
-        space: str | None = None,
+        space: Space | None = None,
         use_regressor: bool | None = None,
         threads: int | None = None,
         history: bool = True,
         label: str | None = None,
-        engine: str = "auto",
+        engine: Engine = "auto",
     ) -> None:
         self.preset = preset
         self.runs = runs
@@ -149,45 +210,49 @@ class ParticleSwarm(Estimator):
         self.history = history
         self.label = label
         self.engine = engine
-        self.settings()  # validate early: a bad option fails at construction, not mid-sweep
+        # Resolved once: a bad option fails at construction, not mid-sweep.
+        self.resolved = self._resolve()
 
-    def settings(self) -> dict[str, Any]:
-        """The preset with this instance's overrides applied (``velocity_limit`` may be None).
-
-        Pure: validates and returns, sets nothing. Raises ``ValueError`` naming the bad option.
-        """
+    def _resolve(self) -> SwarmSettings:
+        """The preset with this instance's overrides applied, checked (``ValueError`` naming the option)."""
         if self.preset not in PRESETS:
             raise ValueError(f"unknown PSO preset {self.preset!r}; use one of {', '.join(PRESETS)}")
-        if self.engine not in ENGINES:
-            raise ValueError(f"unknown PSO engine {self.engine!r}; use one of {', '.join(ENGINES)}")
-        resolved = dict(PRESETS[self.preset])
-        for name in resolved:
-            value = getattr(self, name)
-            if value is not None:
-                resolved[name] = value
+        if self.engine not in Engine.__args__:
+            raise ValueError(f"unknown PSO engine {self.engine!r}; use one of {', '.join(Engine.__args__)}")
+        values = dict(PRESETS[self.preset])
+        for name in values:
+            if getattr(self, name) is not None:
+                values[name] = getattr(self, name)
         for name, value in (
             ("runs", self.runs),
-            ("particles", resolved["particles"]),
-            ("iterations", resolved["iterations"]),
+            ("particles", values["particles"]),
+            ("iterations", values["iterations"]),
         ):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"pso option {name} must be an integer >= 1, got {value!r}")
-        resolved["inertia"] = tuple(resolved["inertia"])
-        self.rules(resolved)
-        KeepRule.parse(self.keep)
-        return resolved
-
-    @staticmethod
-    def rules(settings: dict[str, Any]) -> swarm.SwarmRules:
-        """The swarm's update rule of resolved ``settings`` (validated by ``SwarmRules``)."""
-        inertia = settings["inertia"]
-        return swarm.SwarmRules(
-            c1=float(settings["c1"]),
-            c2=float(settings["c2"]),
+        sizes.check_evaluations(
+            "pso", {"runs": self.runs, "particles": values["particles"], "iterations": values["iterations"]}
+        )
+        inertia = tuple(values["inertia"])
+        if len(inertia) != 3:
+            raise ValueError(f"pso option inertia must be (w_start, w_end, ramp), got {values['inertia']!r}")
+        rules = swarm.SwarmRules(
+            c1=float(values["c1"]),
+            c2=float(values["c2"]),
             inertia=(float(inertia[0]), float(inertia[1]), int(inertia[2])),
-            boundary=settings["boundary"],
-            velocity_limit=settings["velocity_limit"],
-            per_particle=bool(settings["per_particle"]),
+            boundary=values["boundary"],
+            velocity_limit=values["velocity_limit"],
+            per_particle=bool(values["per_particle"]),
+        )
+        return SwarmSettings(
+            preset=self.preset,
+            runs=self.runs,
+            particles=values["particles"],
+            iterations=values["iterations"],
+            rules=rules,
+            keep=KeepRule.parse(self.keep),
+            engine=self.engine,
+            stride=sizes.history_stride(values["iterations"]),
         )
 
     def fit(self, problem: Problem) -> Estimate:
@@ -220,14 +285,14 @@ class ParticleSwarm(Estimator):
             problems: ``T`` trials (their ``cost`` is ignored).
             costs: ``C`` costs, each fitted on every trial (``None``: the problems' shared cost).
             chunk: trials per batched computation (trials of equal sample counts share one), to
-                bound memory; ``None`` picks it from the
-                problem size (about ``CHUNK_ELEMENTS`` error elements per chunk).
+                bound memory; ``None`` picks it from the problem size (about ``CHUNK_ELEMENTS``
+                error elements per chunk).
 
         Returns:
             ``T`` lists of ``C`` estimates; ``details["batched_trials"]`` says how many trials
             shared the computation and ``details["engine"]`` which engine ran it.
         """
-        settings = self.settings()
+        settings = self.resolved
         problems, costs = list(problems), criteria(problems, costs)
         for problem in problems:
             problem.check_identifiable()
@@ -235,7 +300,7 @@ class ParticleSwarm(Estimator):
 
         def per_run(problem: Problem) -> int:
             """Error-tensor elements of one run of every cost on this trial."""
-            return len(costs) * settings["particles"] * problem.robot.n_joints * problem.samples.n_samples
+            return len(costs) * settings.particles * problem.robot.n_joints * problem.samples.n_samples
 
         def run_chunk(problem: Problem) -> int:
             """Runs per chunk: big batches run as consecutive chunks of runs whose tensors stay in
@@ -245,72 +310,77 @@ class ParticleSwarm(Estimator):
 
         def trials_per_batch(problem: Problem) -> int:
             """Small trials are stacked instead, several per batch; a big one is a batch alone."""
-            whole = run_chunk(problem) >= self.runs
-            return trial_chunk(chunk, per_run(problem) * self.runs if whole else CHUNK_ELEMENTS)
+            whole = run_chunk(problem) >= settings.runs
+            return trial_chunk(chunk, per_run(problem) * settings.runs if whole else CHUNK_ELEMENTS)
 
         def fit_batch(batch: list[Problem]) -> list[list[Estimate]]:
-            return self._fit_group(batch, costs, settings, run_chunk(batch[0]))
+            return self._fit_group(batch, costs, run_chunk(batch[0]))
 
         return fit_in_batches(problems, trials_per_batch, fit_batch)
 
-    def _fit_group(
-        self, problems: list[Problem], costs: list[Cost], settings: dict[str, Any], run_chunk: int
-    ) -> list[list[Estimate]]:
+    def _fit_group(self, problems: list[Problem], costs: list[Cost], run_chunk: int) -> list[list[Estimate]]:
         """``fit_trials`` of one chunk of trials."""
+        settings = self.resolved
+        count, trials = len(costs), len(problems)
+        robot = problems[0].robot
+        rows = len(swarm.history_rows(settings.iterations, settings.stride))
+        chunk_runs = min(run_chunk, settings.runs)
+        dimension = max(len(robot.param_names), len(robot.base_param_names))
+        check_memory(
+            f"pso: {trials} trial(s) × {count} cost(s) × runs={settings.runs} of "
+            f"particles={settings.particles} ({rows} history rows)",
+            sizes.swarm_bytes(trials * count, settings.runs, settings.particles, dimension, rows)
+            + sizes.error_bytes(
+                trials * count * chunk_runs * settings.particles, problems[0].samples.tau.numel()
+            ),
+            "lower runs or particles, or fit the trials in smaller chunks",
+        )
         started = time.perf_counter()
-        rules, keep = self.rules(settings), KeepRule.parse(self.keep)
         objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
         n, samples = objective.shape
         threads = resolve_threads(
-            self.threads, min(objective.slots * self.runs, run_chunk) * settings["particles"] * n * samples
+            self.threads, objective.slots * chunk_runs * settings.particles * n * samples
         )
-        # torch's pool pays only for big tensors (resolve_threads); the kernel itself starts a
-        # thread only for enough evaluations (native.EVALUATIONS_PER_THREAD), so it may use all.
+        # torch's pool pays only for big tensors (resolve_threads); the kernel uses a thread only
+        # for enough evaluations (fast.EVALUATIONS_PER_THREAD), so it may use every core.
         kernel_threads = self.threads if self.threads is not None else available_cores()
-        count, trials = len(costs), len(problems)
         engines: list[dict[str, Any]] = [{} for _ in costs]
         with torch_threads(threads), torch.inference_mode():
+            groups = self._engines(problems, costs, objective)
+            build_seconds = sum(group.details["engine_build_s"] for group in groups)
             uniform = swarm.Draws([swarm.Uniform(p.generator(), objective.lower) for p in problems])
-            position = objective.lower.new_empty((objective.slots, self.runs, objective.dimension))
-            run_costs = objective.lower.new_empty((objective.slots, self.runs))
-            history = objective.lower.new_empty((settings["iterations"], objective.slots, self.runs))
-            for members, part, engine, runner in self._engines(problems, costs, objective):
-                if runner is _run_native:  # the kernel splits trials over threads when it pays
-                    swarms = part.slots * min(run_chunk, self.runs)
-                    used = native.call_threads(
-                        part, swarms, settings["particles"], settings["iterations"], kernel_threads
-                    )
-                    engine = {**engine, "threads": used}
+            position = objective.lower.new_empty((objective.slots, settings.runs, objective.dimension))
+            run_costs = objective.lower.new_empty((objective.slots, settings.runs))
+            history = objective.lower.new_empty((rows, objective.slots, settings.runs))
+            for group in groups:
+                used = kernel_threads if group.fast else threads
                 chunks = [
-                    runner(
-                        part,
-                        (part.slots, min(run_chunk, self.runs - start)),
-                        settings,
-                        rules,
-                        uniform,
-                        kernel_threads if runner is _run_native else threads,
-                    )
-                    for start in range(0, self.runs, run_chunk)
+                    group.run(min(run_chunk, settings.runs - start), settings, uniform, used)
+                    for start in range(0, settings.runs, run_chunk)
                 ]
-                slots = torch.tensor([t * count + c for t in range(trials) for c in members])
+                if group.fast:  # the threads its kernel calls used
+                    swarms = len(group.members) * trials * chunk_runs
+                    used = fast.thread_count(used, trials, swarms, settings.particles, settings.iterations)
+                slots = torch.tensor([t * count + c for t in range(trials) for c in group.members])
                 position[slots] = torch.cat([state.global_position for state, _ in chunks], dim=1)
                 run_costs[slots] = torch.cat([state.global_cost for state, _ in chunks], dim=1)
                 history[:, slots] = torch.cat([h for _, h in chunks], dim=2)
-                for c in members:
-                    engines[c] = engine
-            mean, kept = aggregate(position, run_costs, keep)
+                for c in group.members:
+                    engines[c] = {**group.details, "threads": used}
+            mean, kept = aggregate(position, run_costs, settings.keep)
             values = [objective.exact(s, mean[s]) for s in range(objective.slots)]
-        wall = time.perf_counter() - started
-        count = len(costs)
+        # The one-time kernel build and base-map translation are recorded apart (engine_build_s).
+        wall = time.perf_counter() - started - build_seconds
         estimates = []
         for t, problem in enumerate(problems):
             part = slice(t * count, (t + 1) * count)
-            common = common_details(problem, objective, costs, keep, threads, wall / len(problems))
+            common = common_details(problem, objective, costs, settings.keep, threads, wall / trials)
             common.update(
-                preset=self.preset,
-                settings=settings,
-                evaluations_per_run=settings["particles"] * settings["iterations"],
-                batched_trials=len(problems),
+                preset=settings.preset,
+                settings=settings.describe(),
+                evaluations_per_run=settings.particles * settings.iterations,
+                batched_trials=trials,
+                history_stride=settings.stride,
             )
             estimates.append(
                 per_cost_estimates(
@@ -334,10 +404,9 @@ class ParticleSwarm(Estimator):
     def _engines(self, problems: list[Problem], costs: list[Cost], objective: Objective) -> list[EngineGroup]:
         """Which costs run on which engine, and what ``details`` records about it (module docstring).
 
-        With ``"auto"``, costs whose declared structure the native kernel knows run on it and the
-        others on the eager engine (fused where they declare a structure, ``NormProducts``), one
-        after the other on the same random streams; with ``"native"`` every cost must suit the
-        kernel.
+        With ``"auto"``, costs whose declared structure the fast kernel knows run on it and the
+        others on the eager engine (fused where they declare a structure), one after the other on
+        the same random streams; with ``"native"`` every cost must suit the kernel.
         """
 
         def subset(members: list[int]) -> Objective:
@@ -347,73 +416,108 @@ class ParticleSwarm(Estimator):
             return Objective(problems, chosen, space=self.space, use_regressor=self.use_regressor)
 
         def eager(members: list[int], why: str) -> EngineGroup:
-            return (
-                members,
-                subset(members),
-                {"engine": "eager", "engine_build": why, "engine_compile_s": 0.0},
-                _run_eager,
-            )
+            if self.engine == "auto":
+                _warn_slow(why)
+            part = subset(members)
+            details = {"engine": "eager", "engine_build": why, "engine_build_s": 0.0}
+            return EngineGroup(members, details, partial(_run_eager, part), fast=False)
 
         everything = list(range(len(costs)))
         if self.engine == "eager":
             return [eager(everything, "engine='eager' was asked for")]
-        refusals = {c: native.cost_refusal(costs[c], objective.structures[c]) for c in everything}
-        fast = [c for c in everything if refusals[c] is None] if self.engine == "auto" else everything
-        part = subset(fast) if fast else None
-        if part is None:
-            why = "; ".join(sorted(set(refusals.values())))
-            reason = f"no cost declares a structure the native kernel knows ({why})"
-        else:  # with engine="native", every cost the kernel refuses is named
-            reason = "; ".join(sorted({refusals[c] for c in fast} - {None})) or native.supports(part)
+        refusals = {c: _cost_refusal(objective, c) for c in everything}
+        chosen = [c for c in everything if refusals[c] is None] if self.engine == "auto" else everything
+        # with engine="native", every cost the kernel refuses is named
+        reason = "; ".join(sorted({refusals[c] for c in chosen} - {None})) or None
+        if not chosen:
+            reason = "; ".join(sorted(set(refusals.values())))
+        elif reason is None:
+            started = time.perf_counter()
+            part = subset(chosen)
+            spec = part.spec()  # traces the base map, or reads it from the cache
+            reason = fast.refusal(spec)  # loads (or compiles) the kernel
+            build_seconds = time.perf_counter() - started
         if reason is not None:
             if self.engine == "native":
                 raise ValueError(
                     f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'"
                 )
             return [eager(everything, reason)]
-        _, how, seconds = native.build(part)
-        in_c = native.robot_map(part) is not None
-        how += "; base map in C" if in_c else "; base map in torch (not translatable)"
-        seconds += native.map_seconds(part)
-        groups = [
-            (fast, part, {"engine": "native", "engine_build": how, "engine_compile_s": seconds}, _run_native)
-        ]
-        rest = [c for c in everything if c not in fast]
+        built = fast.kernel()
+        where = "base map in the kernel" if spec.tape is not None else "base map in torch (not translatable)"
+        details = {
+            "engine": "native",
+            "engine_build": f"{built.how}; {where}",
+            "engine_build_s": build_seconds,
+        }
+        groups = [EngineGroup(chosen, details, partial(_run_fast, part, spec), fast=True)]
+        rest = [c for c in everything if c not in chosen]
         if rest:
             groups.append(eager(rest, "; ".join(sorted({refusals[c] for c in rest}))))
         return groups
 
 
+@dataclass(frozen=True)
+class EngineGroup:
+    """Costs run by one engine: their indices, what ``details`` records, and the runner
+    ``run(runs, settings, draws, threads) -> (state, history)``."""
+
+    members: list[int]
+    details: dict[str, Any]
+    run: Callable[[int, SwarmSettings, swarm.Draws, int], tuple[swarm.SwarmState, Tensor]]
+    fast: bool
+
+
+def _cost_refusal(objective: Objective, c: int) -> str | None:
+    """Why the fast kernel cannot run cost ``c`` of ``objective`` whatever the batch, or ``None``."""
+    cost, structure = objective.costs[c], objective.structures[c]
+    name = type(cost).__name__
+    if structure is None:
+        return f"{name}: the cost declares no norm structure (Cost.structure)"
+    if not objective.use_regressor:
+        return "the fast kernel needs the regressor (use_regressor)"
+    try:
+        fast.factor_codes([structure], objective.shape[0] * objective.shape[1])
+    except ValueError as error:
+        return f"{name}: {error} (eager engine, fused)"
+    return None
+
+
 def _run_eager(
-    objective: Objective,
-    batch: tuple[int, int],
-    settings: dict[str, Any],
-    rules: swarm.SwarmRules,
-    uniform: swarm.Draws,
-    threads: int,
+    objective: Objective, runs: int, settings: SwarmSettings, uniform: swarm.Draws, threads: int
 ) -> tuple[swarm.SwarmState, Tensor]:
     """The eager engine (torch's intra-op threads are already set to ``threads``)."""
     return swarm.run(
         objective,
         objective.lower,
         objective.upper,
-        batch,
-        settings["particles"],
-        settings["iterations"],
-        rules,
+        (objective.slots, runs),
+        settings.particles,
+        settings.iterations,
+        settings.rules,
         uniform,
+        settings.stride,
     )
 
 
-def _run_native(
+def _run_fast(
     objective: Objective,
-    batch: tuple[int, int],
-    settings: dict[str, Any],
-    rules: swarm.SwarmRules,
+    spec: fast.ProductSpec,
+    runs: int,
+    settings: SwarmSettings,
     uniform: swarm.Draws,
     threads: int,
 ) -> tuple[swarm.SwarmState, Tensor]:
-    """The native engine: whole runs per kernel call, trials split over up to ``threads`` threads."""
-    return native.run(
-        objective, batch, settings["particles"], settings["iterations"], rules, uniform, threads
+    """The fast kernel: trials spread over up to ``threads`` threads."""
+    return fast.run(
+        spec,
+        objective.lower,
+        objective.upper,
+        runs,
+        settings.particles,
+        settings.iterations,
+        settings.rules,
+        uniform,
+        threads,
+        settings.stride,
     )

@@ -15,7 +15,7 @@ the best ``(α_fixed, φ1)`` is a least-squares solve, so the search runs over `
 with ``W_fixed = Q₀ R₀`` factored once and ``τ⊥ = τ − Q₀ Q₀ᵀ τ``. ``S``'s columns live on disjoint
 rows (one joint each), so a whole swarm of candidates costs one batched product ``G`` (``K × N × n ×
 L``) and ``K`` solves of ``n × n`` systems: no factorisation per particle. The batched particle swarm
-(:mod:`idkit.estimators.swarm`) searches ``θ`` in the robot's box, ``polish`` refines the best point
+(:mod:`idkit.optim.swarm`) searches ``θ`` in the robot's box, ``polish`` refines the best point
 by Levenberg–Marquardt with Kaufman's Jacobian of the projected residual, and the linear parameters
 at the final ``θ`` come from one least-squares solve, or from ``pcls`` (``refine="pcls"``:
 physically consistent, on the robot rebuilt with ``θ`` as its reference shape).
@@ -33,10 +33,10 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
-from idkit.estimators import swarm
 from idkit.estimators.linear.observation import IdentificationError
 from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
+from idkit.optim import swarm
 from idkit.problem import Problem
 from idkit.robots.drives import sigmoid_friction
 from idkit.runtime import resolve_threads, torch_threads

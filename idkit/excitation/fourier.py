@@ -13,6 +13,19 @@ derivatives are exact. Without coefficients the series is idkit's deterministic 
 robot: first-harmonic amplitude 0.5 (rad or m), term ``k`` of amplitude ``0.5 / k`` and phase
 ``phi_jk = 2π·frac(j·k·GOLDEN)`` (``q_j = sum_k (0.5/k) sin(k w_f t + phi_jk)``): a decaying
 spectrum, and joints that move differently without a random draw.
+
+``rest=True`` makes every period start and end at rest (``qd = qdd = 0`` at ``t = 0, period, 2·period…``,
+exactly: no window, no finite difference) by two linear constraints per joint::
+
+    qd_j(0)  = sum_k a_jk       = 0   →   a_jK = -sum_{k<K} a_jk
+    qdd_j(0) = w_f sum_k k b_jk = 0   →   b_j1 = -sum_{k>1} k b_jk
+
+The last harmonic's ``a`` and the first harmonic's ``b`` are thereby computed from the others
+(whatever is given for them is replaced), so the constraint is applied in ``evaluate`` and the
+stored coefficients satisfy it. Both are linear in the coefficients of one joint, so scaling a
+joint's ``a``, ``b`` (``idkit.excitation.feasible``) keeps it at rest. The whole period stays
+informative (a window fading the motion in and out would spend time near rest); the motion stays
+periodic, so it can be repeated. ``harmonics >= 2`` (one harmonic at rest is no motion).
 """
 
 from __future__ import annotations
@@ -47,6 +60,8 @@ class FourierExcitation(Excitation):
         offset: ``[n]`` constant terms (default 0).
         a, b: ``[n][K]`` velocity amplitudes of the cosine and sine velocity terms; give both or
             neither (neither: the default golden-ratio series).
+        rest: start and end every period at rest (module docstring): ``a[:, K-1]`` and ``b[:, 0]``
+            are computed from the other coefficients.
     """
 
     def __init__(
@@ -57,6 +72,7 @@ class FourierExcitation(Excitation):
         offset: Sequence[float] | None = None,
         a: Sequence[Sequence[float]] | None = None,
         b: Sequence[Sequence[float]] | None = None,
+        rest: bool = False,
     ) -> None:
         self.n_joints = n_joints
         self.harmonics = harmonics
@@ -64,12 +80,19 @@ class FourierExcitation(Excitation):
         self.offset = offset
         self.a = a
         self.b = b
+        self.rest = rest
+        if not isinstance(rest, bool):
+            raise ValueError(f"fourier excitation: rest must be true or false, got {rest!r}")
         for name, value in (("n_joints", n_joints), ("harmonics", harmonics)):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"fourier excitation: {name} must be an integer >= 1, got {value!r}")
         if isinstance(period, bool) or not isinstance(period, (int, float)) or not 0 < period < math.inf:
             raise ValueError(
                 f"fourier excitation: period must be a finite number > 0 (seconds), got {period!r}"
+            )
+        if rest and harmonics < 2:
+            raise ValueError(
+                "fourier excitation: rest=true needs harmonics >= 2 (one harmonic at rest is still)"
             )
         if (a is None) != (b is None):
             raise ValueError("fourier excitation: give both a and b, or neither (the default series)")
@@ -84,6 +107,7 @@ class FourierExcitation(Excitation):
         else:
             self._a = as_matrix(a, shape, "fourier excitation: a")
             self._b = as_matrix(b, shape, "fourier excitation: b")
+        self._a, self._b = self._at_rest(self._a, self._b)
         self._offset = (
             torch.zeros(n_joints, dtype=torch.float64)
             if offset is None
@@ -98,6 +122,7 @@ class FourierExcitation(Excitation):
             "offset": self._offset.tolist(),
             "a": self._a.tolist(),
             "b": self._b.tolist(),
+            "rest": self.rest,
         }
 
     def to_vector(self) -> Tensor:
@@ -106,7 +131,7 @@ class FourierExcitation(Excitation):
     def from_vector(self, vector: Tensor) -> FourierExcitation:
         offset, a, b = self._split(torch.as_tensor(vector, dtype=torch.float64).detach().cpu())
         return FourierExcitation(
-            self.n_joints, self.harmonics, self.period, offset.tolist(), a.tolist(), b.tolist()
+            self.n_joints, self.harmonics, self.period, offset.tolist(), a.tolist(), b.tolist(), self.rest
         )
 
     def _split(self, coefficients: Tensor) -> tuple[Tensor, Tensor, Tensor]:
@@ -117,7 +142,18 @@ class FourierExcitation(Excitation):
                 f"shape {tuple(coefficients.shape)}"
             )
         a, b = coefficients[..., n:].unflatten(-1, (2, n, k)).unbind(-3)
-        return coefficients[..., :n], a, b
+        return (coefficients[..., :n], *self._at_rest(a, b))
+
+    def _at_rest(self, a: Tensor, b: Tensor) -> tuple[Tensor, Tensor]:
+        """``a, b [..., n, K]`` with ``a[..., K-1]`` and ``b[..., 0]`` set so that ``qd(0) = qdd(0) = 0``
+        (unchanged without ``rest``). A function of the other coefficients only, hence idempotent
+        bit for bit: a stored member evaluates to exactly what was stored."""
+        if not self.rest:
+            return a, b
+        k = torch.arange(2, self.harmonics + 1, dtype=b.dtype, device=b.device)
+        last_a = -a[..., :-1].sum(-1, keepdim=True)
+        first_b = -(b[..., 1:] * k).sum(-1, keepdim=True)
+        return torch.cat((a[..., :-1], last_a), -1), torch.cat((first_b, b[..., 1:]), -1)
 
     def evaluate(self, coefficients: Tensor, t: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         offset, a, b = self._split(coefficients.to(t))

@@ -2,17 +2,28 @@
 
 The problem (Swevers et al. 1997; Gautier & Khalil 1992): choose the coefficients ``c`` of an
 excitation family (``fourier`` by default) to minimise a criterion of the base regressor stacked
-over the ``N`` sample times (``idkit.excitation.criterion``: column-scaled condition number, or
-D-optimality), subject to the robot's joint position, velocity and acceleration limits at every
-instant.
+over the ``N`` sample times (``idkit.excitation.criterion``: column-scaled condition number,
+D-optimality, or the expected LS error under state and torque noise), subject to the robot's joint
+position, velocity and acceleration limits at every instant, its effort limits (the nominal
+model's torques) and, optionally, no self-collision.
 
-Constraints are hard, by construction: every candidate goes through ``fit_into_limits``, which
-shrinks each joint's motion about its offset until a time grid over ``[0, t_end]`` stays inside the
-box (candidates already inside are unchanged). The search therefore needs no penalty weight and
-never returns an infeasible motion. The optimiser sees a ``grid_points`` grid; the result is
-scaled once more on the ``check_points`` grid, on which it is checked (``excess_after`` is 0).
+Constraints are hard, without penalty weights:
 
-Search, seeded: the batched particle swarm of ``idkit.estimators.swarm`` (``swarms`` independent
+* the box, by construction: every candidate goes through ``fit_into_limits``, which shrinks each
+  joint's motion about its offset until a time grid over ``[0, t_end]`` stays inside (candidates
+  already inside are unchanged). The optimiser sees a ``grid_points`` grid;
+* effort, when the robot declares effort limits: a candidate whose nominal torques ``W α`` at the
+  sample times (free: ``W`` is the criterion's regressor, ``α`` the nominal base parameters) leave
+  a limit scores ``inf`` (never kept as a best); with a ``collision`` test, so does a candidate
+  whose offset pose (the motion shrunk to nothing) is in contact — the final stage could not make
+  it collision-free;
+* the result is scaled once more into the box on the ``check_points`` grid, then — if its torques
+  on that grid leave an effort limit, or ``collision`` finds a contact there — every joint's motion
+  is shrunk by the largest common factor that passes (``largest_feasible_scale``, bisection). So
+  the returned motion is inside every limit on the check grid (``excess_after`` is 0) and its
+  ``details`` say whether, and by how much, it was shrunk.
+
+Search, seeded: the batched particle swarm of ``idkit.optim.swarm`` (``swarms`` independent
 swarms of ``particles`` candidates: every candidate of an iteration is one tensor computation),
 then Adam through autograd from each swarm's best (``method="pso+adam"``, the default), or either
 alone. Both work in the unit cube of the family's ``coefficient_box``.
@@ -30,16 +41,23 @@ import torch
 from torch import Tensor
 
 from idkit.data.trajectory import sample_times
-from idkit.estimators import swarm
-from idkit.excitation.criterion import check_criterion, criterion_value, loss, observation_matrix
-from idkit.excitation.feasible import fit_into_limits
+from idkit.excitation.collision import SelfCollision
+from idkit.excitation.criterion import Criterion, NoiseModel, make_criterion, observation_matrix
+from idkit.excitation.effort import effort_limits, nominal_torques
+from idkit.excitation.feasible import fit_into_limits, largest_feasible_scale, offset_indices, scale_motion
 from idkit.excitation.spec import build_excitation
 from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
+from idkit.optim import swarm
 from idkit.runtime import resolve_threads, torch_threads
 from idkit.seeds import torch_generator
 
 METHODS = ("pso", "adam", "pso+adam")
+
+#: States (candidates × samples, noise draws included) per batch of the objective: small enough
+#: that the regressor's intermediate vectors stay in cache (a whole swarm at once was ~1.7 times
+#: slower per state for the KUKA, measured with bench/excitation.py's profile).
+CHUNK_STATES = 4096
 
 #: The swarm's update rule: constriction coefficients with reflecting walls (idkit's PSO default).
 RULES = swarm.SwarmRules(c1=1.49618, c2=1.49618, inertia=(0.7298, 0.5, 300), boundary="reflect")
@@ -53,14 +71,17 @@ class ExcitationResult:
         name: registry name of the excitation family (``idkit.excitations``).
         excitation: the optimised member, feasible on ``grid``.
         baseline: the robot's default excitation (what ``simulate`` samples unless told otherwise).
-        criterion: ``"cond"`` or ``"logdet"``.
+        criterion: ``"cond"``, ``"logdet"`` or ``"ls_error"``.
         before, after: the criterion of ``baseline`` and of ``excitation`` at the sample times ``t``.
         t: sample times ``[N]``.
         limits: the box the motion had to respect.
         grid: the dense check grid ``[G]`` over ``[0, t_end]``.
         excess_before, excess_after: worst excursion beyond each limit on ``grid`` ``[3, n]``
             (rows position, velocity, acceleration; 0 inside).
-        details: method, budget, seed, the best loss and wall time of each stage.
+        effort: the effort limits ``[n]`` kept, or ``None`` (the robot declares none, or ``effort=False``).
+        details: method, budget, seed, the best loss, wall and CPU time of each stage, the number of
+            candidate ``evaluations`` of the criterion, and ``shrunk_by`` (the common scale of the
+            final stage, 1 if none was needed) with ``shrunk_for`` and ``criterion_before_shrink``.
     """
 
     name: str
@@ -74,6 +95,7 @@ class ExcitationResult:
     grid: Tensor
     excess_before: Tensor
     excess_after: Tensor
+    effort: Tensor | None = None
     details: dict[str, Any] = field(default_factory=dict)
 
     def samples(self) -> tuple[Tensor, Tensor, Tensor, Tensor]:
@@ -97,23 +119,26 @@ def optimize_excitation(
     limits: MotionLimits | None = None,
     method: str = "pso+adam",
     swarms: int = 4,
-    particles: int = 64,
-    iterations: int = 200,
-    adam_steps: int = 200,
+    particles: int = 32,
+    iterations: int = 100,
+    adam_steps: int = 300,
     learning_rate: float = 0.01,
     grid_points: int = 1001,
     check_points: int = 10001,
     seed: int = 0,
     device: str = "cpu",
     threads: int | None = None,
+    noise: NoiseModel | None = None,
+    effort: bool = True,
+    collision: SelfCollision | None = None,
 ) -> ExcitationResult:
     """Choose the coefficients of an excitation family for ``robot`` (module docstring).
 
     Args:
         robot: a robot with a base regressor; its ``motion_limits()`` unless ``limits`` is given.
         excitation: registry name of the family (``idkit.excitations``).
-        options: the family's structural options (e.g. ``harmonics``, ``period``).
-        criterion: ``"cond"`` (minimised) or ``"logdet"`` (maximised).
+        options: the family's structural options (e.g. ``harmonics``, ``period``, ``rest``).
+        criterion: ``"cond"``, ``"ls_error"`` (minimised) or ``"logdet"`` (maximised).
         n_samples, t_end: the sample times ``sample_times(n_samples, t_end)`` of the criterion,
             as the scenarios sample; ``t_end`` also spans the limit grids.
         limits: overrides the robot's motion limits.
@@ -127,8 +152,11 @@ def optimize_excitation(
         seed: every random number (swarm, Adam starts) comes from it.
         device: where the candidates are evaluated (``"cpu"``, ``"cuda"``).
         threads: torch intra-op threads (``None``: by problem size).
+        noise: the noise model of ``ls_error`` (default ``NoiseModel()``); ignored by the others.
+        effort: keep the nominal torques within the robot's effort limits (if it declares them).
+        collision: a self-collision test the result must pass on the check grid (``None``: none).
     """
-    check_criterion(criterion)
+    criterion_ = make_criterion(criterion, robot, n_samples, noise)
     if method not in METHODS:
         raise ValueError(f"optimize_excitation: unknown method {method!r}; use one of {', '.join(METHODS)}")
     _check_budget(
@@ -146,20 +174,11 @@ def optimize_excitation(
             f"optimize_excitation: limits are for joints {limits.joint_names}, robot has {robot.joint_names}"
         )
     family = build_excitation(excitation, robot, options)
+    efforts = effort_limits(robot) if effort else None
     like = {"device": torch.device(device), "dtype": torch.float64}
     t = sample_times(n_samples, t_end)
-    grid = torch.linspace(0.0, t_end, grid_points, **like)
-    lower, upper = (x.to(**like) for x in family.coefficient_box(limits))
-    t_device = t.to(**like)
-
-    def objective(unit: Tensor) -> Tensor:
-        """Loss ``[...]`` of unit-cube points ``[..., C]`` after fitting them into the limits."""
-        coefficients = fit_into_limits(family, lower + (upper - lower) * unit, limits, grid)
-        w = observation_matrix(robot, *family.evaluate(coefficients, t_device))
-        finite = w.isfinite().flatten(-2).all(-1)[..., None, None]
-        value = loss(criterion, torch.where(finite, w, 0.0))  # a non-finite W scores as unexcited
-        return torch.nan_to_num(value, nan=math.inf)
-
+    grid = torch.linspace(0.0, t_end, grid_points, dtype=torch.float64)
+    objective = _Objective(robot, family, criterion_, limits, efforts, t, grid, like, collision)
     generator = torch_generator(seed)
     budget = {
         "swarms": swarms,
@@ -170,17 +189,22 @@ def optimize_excitation(
     }
     work = swarms * particles * (grid_points + n_samples) * robot.n_joints
     with torch_threads(resolve_threads(threads, work)):
-        unit, details = _search(objective, lower.numel(), method, budget, generator, like)
-    # With the default grids (1,000 and 10,000 intervals) the search grid's points are among the
-    # check grid's, so this only shrinks what the finer grid shows beyond a limit.
+        unit, details = _search(objective, objective.dims, method, budget, generator, like)
     check_grid = torch.linspace(0.0, t_end, check_points, dtype=torch.float64)
-    best = (lower + (upper - lower) * unit).double().cpu()
-    final = family.from_vector(fit_into_limits(family, best, limits, check_grid))
-    baseline = robot.default_excitation()
-    before, after = (
-        float(criterion_value(criterion, observation_matrix(robot, *e(t)))) for e in (baseline, final)
+    final, unshrunk, shrink = _runnable(
+        robot, family, objective.coefficients(unit), limits, efforts, collision, check_grid
     )
-    details.update(seed=int(seed), grid_points=grid_points, check_points=check_points)
+    baseline = robot.default_excitation()
+    before, after = (_value(robot, criterion_, e, t) for e in (baseline, final))
+    details.update(
+        seed=int(seed),
+        grid_points=grid_points,
+        check_points=check_points,
+        evaluations=objective.evaluations,
+        **shrink,
+    )
+    if unshrunk is not None:
+        details["criterion_before_shrink"] = _value(robot, criterion_, unshrunk, t)
     return ExcitationResult(
         name=excitation,
         excitation=final,
@@ -193,8 +217,111 @@ def optimize_excitation(
         grid=check_grid,
         excess_before=limits.excess(*baseline(check_grid)),
         excess_after=limits.excess(*final(check_grid)),
+        effort=efforts,
         details=details,
     )
+
+
+def _value(robot: Robot, criterion: Criterion, excitation: Excitation, t: Tensor) -> float:
+    """The reported criterion of ``excitation`` sampled at ``t``."""
+    states = excitation(t)
+    return float(criterion.value(observation_matrix(robot, *states), states))
+
+
+class _Objective:
+    """The search's loss ``[...]`` of unit-cube points ``[..., C]``: fitted into the box on the
+    search grid, scored by the criterion at the sample times, ``inf`` where the nominal torques at
+    the sample times leave an effort limit or the offset pose is in contact. Evaluated in chunks of
+    ``CHUNK_STATES`` states."""
+
+    def __init__(
+        self,
+        robot: Robot,
+        family: Excitation,
+        criterion: Criterion,
+        limits: MotionLimits,
+        efforts: Tensor | None,
+        t: Tensor,
+        grid: Tensor,
+        like: dict[str, Any],
+        collision: SelfCollision | None = None,
+    ) -> None:
+        self.robot, self.family, self.criterion, self.limits = robot, family, criterion, limits
+        self.collision = collision
+        self.offsets = offset_indices(family)
+        self.t, self.grid = t.to(**like), grid.to(**like)
+        self.lower, self.upper = (x.to(**like) for x in family.coefficient_box(limits))
+        self.dims = self.lower.numel()
+        self.efforts = None if efforts is None else efforts.to(**like)
+        nominal = robot.nominal_params() if efforts is not None else None
+        self.alpha = None if nominal is None else robot.base_params(torch.as_tensor(nominal)).to(**like)
+        self.chunk = max(1, CHUNK_STATES // (t.numel() * criterion.states_per_sample))
+        self.evaluations = 0  # candidates scored so far
+
+    def coefficients(self, unit: Tensor) -> Tensor:
+        """Family coefficients ``[..., C]`` of unit-cube points ``[..., C]`` (before any fitting)."""
+        return self.lower + (self.upper - self.lower) * unit
+
+    def __call__(self, unit: Tensor) -> Tensor:
+        flat = unit.reshape(-1, self.dims)
+        self.evaluations += flat.shape[0]
+        losses = [self._chunk(part) for part in flat.split(self.chunk)]
+        return torch.cat(losses).reshape(unit.shape[:-1])
+
+    def _chunk(self, unit: Tensor) -> Tensor:
+        coefficients = fit_into_limits(self.family, self.coefficients(unit), self.limits, self.grid)
+        states = self.family.evaluate(coefficients, self.t)
+        w = observation_matrix(self.robot, *states)
+        value = torch.nan_to_num(self.criterion.loss(w, states), nan=math.inf)
+        if self.efforts is not None and self.alpha is not None:
+            tau = (w @ self.alpha).unflatten(-1, (-1, self.robot.n_joints))  # [c, N, n]
+            over = (tau.abs() > self.efforts).flatten(-2).any(-1)
+            value = torch.where(over, torch.full_like(value, math.inf), value)
+        if self.collision is not None:
+            pose = coefficients[..., self.offsets.to(coefficients.device)].detach().cpu().numpy()
+            touching = torch.from_numpy(self.collision.in_contact(pose)).to(value.device)
+            value = torch.where(touching, torch.full_like(value, math.inf), value)
+        return value
+
+
+def _runnable(
+    robot: Robot,
+    family: Excitation,
+    coefficients: Tensor,
+    limits: MotionLimits,
+    efforts: Tensor | None,
+    collision: SelfCollision | None,
+    grid: Tensor,
+) -> tuple[Excitation, Excitation | None, dict[str, Any]]:
+    """``coefficients[C]`` made runnable on ``grid`` (module docstring, last point).
+
+    Returns:
+        The member inside ``limits`` with its nominal torques within ``efforts`` and no contact
+        found by ``collision``; the member before shrinking (``None`` if it was not shrunk); and
+        ``shrunk_by`` (1 if not shrunk) with ``shrunk_for``, the tests that made it shrink.
+    """
+    inside = fit_into_limits(family, coefficients.double().cpu(), limits, grid)
+
+    def torques_within(c: Tensor) -> bool:
+        return bool((nominal_torques(robot, *family.evaluate(c, grid)).abs() <= efforts).all())
+
+    def collision_free(c: Tensor) -> bool:
+        return not collision.contacts(family.evaluate(c, grid)[0].numpy(), first_only=True)
+
+    tests = {"effort": torques_within} if efforts is not None else {}
+    if collision is not None:
+        tests["self-collision"] = collision_free
+    failing = [name for name, test in tests.items() if not test(inside)]
+    if not failing:
+        return family.from_vector(inside), None, {"shrunk_by": 1.0}
+    try:
+        scale = largest_feasible_scale(family, inside, lambda c: all(test(c) for test in tests.values()))
+    except ValueError as exc:
+        raise ValueError(
+            f"optimize_excitation: the optimised motion fails the {' and '.join(failing)} test, and {exc}"
+        ) from None
+    shrunk = scale_motion(family, inside, torch.full((family.n_joints,), scale, dtype=torch.float64))
+    return family.from_vector(shrunk), family.from_vector(inside), {"shrunk_by": scale, "shrunk_for": failing}
 
 
 def _search(
@@ -211,19 +338,25 @@ def _search(
         budget: ``swarms``, ``particles``, ``iterations``, ``adam_steps``, ``learning_rate``.
     """
     details: dict[str, Any] = {"method": method, **budget}
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     if method == "adam":
         best = torch.rand(budget["swarms"], dims, generator=generator, dtype=torch.float64).to(**like)
     else:
         best = _swarm_search(
             objective, dims, budget["swarms"], budget["particles"], budget["iterations"], generator, like
         )
-        details.update(pso_best_loss=float(objective(best).min()), pso_seconds=time.perf_counter() - started)
+        details.update(
+            pso_best_loss=float(objective(best).min()),
+            pso_seconds=time.perf_counter() - started,
+            pso_cpu_seconds=time.process_time() - cpu,
+        )
     if method != "pso":
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         best = _adam_search(objective, best, budget["adam_steps"], budget["learning_rate"])
         details.update(
-            adam_best_loss=float(objective(best).min()), adam_seconds=time.perf_counter() - started
+            adam_best_loss=float(objective(best).min()),
+            adam_seconds=time.perf_counter() - started,
+            adam_cpu_seconds=time.process_time() - cpu,
         )
     with torch.no_grad():
         return best[objective(best).argmin()], details
@@ -246,12 +379,20 @@ def _swarm_search(
     return state.global_position.clone()
 
 
+#: Adam's moment decay rates and denominator guard (Kingma & Ba's defaults, as ``torch.optim.Adam``).
+ADAM_BETAS, ADAM_EPS = (0.9, 0.999), 1e-8
+
+
 def _adam_search(
     objective: Callable[[Tensor], Tensor], starts: Tensor, steps: int, learning_rate: float
 ) -> Tensor:
-    """Adam from ``starts[S, C]`` (independent, projected on the unit cube); each start's best point."""
+    """Adam from ``starts[S, C]`` (independent, projected on the unit cube); each start's best point.
+
+    The update is written out (``torch.optim.Adam``'s algorithm, tested equal to it): the
+    optimiser module imports ``torch._dynamo``, about 2.4 s of CPU on the first call.
+    """
     unit = starts.clone().requires_grad_(True)
-    optimiser = torch.optim.Adam([unit], lr=learning_rate)
+    (beta1, beta2), moment, square = ADAM_BETAS, torch.zeros_like(starts), torch.zeros_like(starts)
     best, best_loss = starts.clone(), torch.full(starts.shape[:1], math.inf, dtype=starts.dtype)
     for step in range(steps + 1):
         value = objective(unit)
@@ -260,9 +401,12 @@ def _adam_search(
         best_loss = torch.where(improved, value.detach(), best_loss.to(value.device))
         if step == steps:
             break
-        optimiser.zero_grad()
-        value[torch.isfinite(value)].sum().backward()
-        optimiser.step()
+        (gradient,) = torch.autograd.grad(value[torch.isfinite(value)].sum(), unit, allow_unused=True)
+        gradient = torch.zeros_like(starts) if gradient is None else gradient
         with torch.no_grad():
+            moment.mul_(beta1).add_(gradient, alpha=1 - beta1)
+            square.mul_(beta2).addcmul_(gradient, gradient, value=1 - beta2)
+            denominator = (square.sqrt() / math.sqrt(1 - beta2 ** (step + 1))).add_(ADAM_EPS)
+            unit.addcdiv_(moment, denominator, value=-learning_rate / (1 - beta1 ** (step + 1)))
             unit.clamp_(0.0, 1.0)
     return best

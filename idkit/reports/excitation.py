@@ -1,10 +1,12 @@
-"""The ``excitation`` task's report: the motion as files a scenario loads, a plot, result.json.
+"""The ``excitation`` task's report: the motion as files a scenario loads and a controller runs.
 
 * ``excitation.yaml`` — family name and coefficients (``idkit.excitation.files``), loadable back as
   ``scenario.excitation=<file>``;
-* ``excitation.npz`` — arrays ``t[N]``, ``q``, ``qd``, ``qdd`` ``[N, n]`` at the scenario's sample times;
+* ``excitation.csv``, ``excitation.npz`` — with a controller rate: ``t``, ``q``, ``qd``, ``qdd`` per
+  joint name at that rate (``idkit.excitation.export``), the samples the check's margins are of;
 * ``excitation.png`` — ``q``, ``q̇``, ``q̈`` on the dense check grid against the limits;
-* ``result.json`` — the common envelope, payload ``ExcitationStudy.payload()``.
+* ``result.json`` — the common envelope, payload ``ExcitationStudy.payload()`` (margins per joint
+  under ``check``).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from idkit.reports.result_file import claim, write_result
 from idkit.studies.excitation import ExcitationStudy
 
 #: How each criterion is read: which direction is better.
-BETTER = {"cond": "smaller is better", "logdet": "larger is better"}
+BETTER = {"cond": "smaller is better", "logdet": "larger is better", "ls_error": "smaller is better"}
 
 
 def _excursions(study: ExcitationStudy, which: str) -> str:
@@ -35,10 +37,26 @@ def _excursions(study: ExcitationStudy, which: str) -> str:
 
 def text(study: ExcitationStudy) -> str:
     """The criterion before and after, and whether each motion stays within the limits."""
+    from idkit.studies.excitation import ACCELERATION_SOURCES
+
     r = study.result
     n, t_end = int(r.t.numel()), float(r.grid[-1])
-    ratio = r.before / r.after if r.criterion == "cond" else r.after - r.before
-    change = f"{ratio:.2f} times smaller" if r.criterion == "cond" else f"{ratio:+.3g}"
+    ratio = r.after - r.before if r.criterion == "logdet" else r.before / r.after
+    change = f"{ratio:+.3g}" if r.criterion == "logdet" else f"{ratio:.2f} times smaller"
+    shrunk = r.details.get("shrunk_by", 1.0)
+    shrink = (
+        []
+        if shrunk == 1.0
+        else [
+            f"  shrunk by {shrunk:.4g} for {' and '.join(r.details['shrunk_for'])} "
+            f"({r.criterion} {r.details['criterion_before_shrink']:.6g} before)"
+        ]
+    )
+    exported = (
+        f"exported at {study.rate:g} Hz to excitation.csv and excitation.npz"
+        if study.trajectory is not None
+        else "not exported (no excitation.rate)"
+    )
     return "\n".join(
         [
             f"Excitation `{r.name}` for {study.robot_name}, criterion {r.criterion} ({BETTER[r.criterion]}) "
@@ -48,15 +66,25 @@ def text(study: ExcitationStudy) -> str:
             f"outside the limits: {_excursions(study, 'before')}",
             f"  after  ({r.name}, optimised): {r.criterion} = {r.after:.6g} ({change}); "
             f"outside the limits: {_excursions(study, 'after')}",
-            f"  checked on {r.grid.numel()} points over [0, {t_end:g}] s; "
-            f"load it with scenario.excitation=<run dir>/excitation.yaml",
+            *shrink,
+            f"  acceleration limits: {ACCELERATION_SOURCES[study.acceleration_source]}",
+            f"  {exported}; load it with scenario.excitation=<run dir>/excitation.yaml",
+            "",
+            "Margins (the worst checked sample's distance from each limit, and its share of the half-range):",
+            "",
+            study.check.table(),
+            "",
+            study.check.summary(),
+            *(violation.line() for violation in study.check.violations),
             "",
         ]
     )
 
 
 def write(study: ExcitationStudy, out_dir: str | Path, plots: bool = True) -> dict[str, str]:
-    """Write ``excitation.yaml``, ``excitation.npz``, ``excitation.png`` (with ``plots``), ``result.json``."""
+    """Write ``excitation.yaml``, ``excitation.csv`` and ``.npz`` (with a rate), ``excitation.png``
+    (with ``plots``), ``result.json``."""
+    from idkit.excitation.export import columns
     from idkit.excitation.files import excitation_yaml
 
     out = claim(out_dir, study.provenance)
@@ -64,8 +92,12 @@ def write(study: ExcitationStudy, out_dir: str | Path, plots: bool = True) -> di
     t, q, qd, qdd = (x.numpy() for x in r.samples())
     written = {
         "excitation": str(files.write_text(out / "excitation.yaml", excitation_yaml(r.name, r.excitation))),
-        "samples": str(files.write_npz(out / "excitation.npz", {"t": t, "q": q, "qd": qd, "qdd": qdd})),
     }
+    if study.trajectory is not None:
+        trajectory = study.trajectory
+        header = columns(trajectory.joint_names)
+        written["csv"] = str(files.write_csv(out / "excitation.csv", header, trajectory.rows().tolist()))
+        written["npz"] = str(files.write_npz(out / "excitation.npz", trajectory.arrays()))
     if plots:
         dense = [x.numpy() for x in r.excitation(r.grid)]
         written["plot"] = str(

@@ -18,6 +18,7 @@ import numpy as np
 
 from idkit.estimate import HistoryError, history_table
 from idkit.reports import files
+from idkit.reports import payload as payload_report
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.studies.single import HeldOut, RunResult
@@ -55,6 +56,7 @@ def text(result: RunResult) -> str:
         tail += f" · mean |rel. error| {100 * result.parameter_error:.2f} %"
     lines.append(tail)
     lines += _uncertainty_lines(est.details.get("uncertainty"), est.base_params or {})
+    lines += payload_report.lines(est.details)
     lines += _validation_lines(result)
     return "\n".join(lines)
 

@@ -90,3 +90,24 @@ def centroidal(standard: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     inertia_o = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
     c = h / m
     return m, c, inertia_o - m * (c @ c * np.eye(3) - np.outer(c, c))
+
+
+def frame_change(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
+    """The linear map ``T[10, 10]`` of standard parameters from a frame ``F`` to a frame ``B`` in
+    which ``F`` has orientation ``rotation[3, 3]`` and origin ``translation[3]``: ``pi_B = T pi_F``.
+
+    The pseudo-inertia moves by congruence, ``J_B = X J_F Xᵀ`` with ``X = [[R, p], [0, 1]]`` (the
+    mass distribution's moments under ``x_B = R x_F + p``), which is linear in ``pi_F``: a payload
+    fitted in a flange frame ``F`` enters the regressor of the moving body ``B`` it is welded to
+    through ``Y_B T``, and ``J_F ⪰ 0`` iff ``J_B ⪰ 0``.
+    """
+    transform = np.eye(4)
+    transform[:3, :3], transform[:3, 3] = rotation, translation
+    columns = []
+    for unit in np.eye(10):
+        moved = transform @ np.array(pseudo_inertia_rows(list(unit)), dtype=np.float64) @ transform.T
+        second, first, mass = moved[:3, :3], moved[:3, 3], moved[3, 3]
+        inertia = np.trace(second) * np.eye(3) - second  # I_O = tr(Σ) 1 − Σ
+        (xx, xy, xz), (_, yy, yz), (_, _, zz) = inertia
+        columns.append([mass, *first, xx, xy, xz, yy, yz, zz])
+    return np.array(columns).T

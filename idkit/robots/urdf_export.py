@@ -18,6 +18,10 @@ limits, transmissions, plugins stay as they are); only these change:
   :func:`idkit.robots.drives.read_armatures` reads back. A joint without a transmission gets a
   ``SimpleTransmission`` named ``<joint>_idkit_drive``. A merged (unidentifiable) armature is written
   at its a-priori value with a comment saying so.
+* with a payload (``estimator=payload``), a ``<link name="payload">`` carrying its inertial and a
+  ``fixed`` joint ``payload_joint`` from the link it was identified on (``payload_2`` … when the
+  names are taken); the body's own ``<inertial>`` keeps the arm's part. ``robot=urdf`` reading the
+  file back merges the payload into the body again, as it merges every welded link.
 
 A mass ``≤ 0`` cannot be written (the centre of mass is undefined) and raises; a pseudo-inertia that
 is not positive semidefinite is written with a warning (many simulators reject it): project the
@@ -29,15 +33,19 @@ from __future__ import annotations
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.robots.inertia import centroidal, min_pseudo_inertia_eigenvalues, pseudo_inertia
+from idkit.robots.inertia import centroidal, frame_change, min_pseudo_inertia_eigenvalues, pseudo_inertia
+from idkit.robots.joint_terms import MARK, comment_pairs
 from idkit.robots.urdf import URDFRobot
-from idkit.robots.urdf_model import read_urdf_text
+from idkit.robots.urdf_frames import link_placement
+from idkit.robots.urdf_model import INERTIAL_NAMES, read_urdf_text
 
 
 def parameter_vector(
@@ -59,8 +67,17 @@ def _number(x: float) -> str:
     return repr(float(x))
 
 
-def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> str:
+def identified_urdf(
+    robot: URDFRobot, params: Tensor | Mapping[str, float], payload: Mapping[str, Any] | None = None
+) -> str:
     """The source URDF of ``robot`` with the identified ``params`` (``[P]`` or name → value) written in.
+
+    Args:
+        robot: a ``urdf`` robot.
+        params: its parameters; with ``payload``, the payload is merged into its body's.
+        payload: a payload fit's ``details["payload"]`` (``link`` and ``standard``: its 10 standard
+            parameters in that link's frame): written as its own link (module doc), and taken out
+            of the body's parameters, so that reading the file back merges it in again.
 
     Raises:
         ValueError: wrong parameter shape or names, or a link mass ``≤ 0`` (naming the link).
@@ -70,6 +87,10 @@ def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
     root = ET.fromstring(data, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
     links = {link.get("name"): link for link in root.findall("link")}
     joints = {joint.get("name"): joint for joint in root.findall("joint")}
+    carried = _payload_parameters(robot, payload)
+    if carried is not None:  # a copy: ``values`` may share memory with the caller's tensor
+        values = values.copy()
+        values[10 * carried.body : 10 * carried.body + 10] -= carried.transform @ carried.standard
     for i, body in enumerate(robot.tree.bodies):
         if not values[10 * i] > 0:
             raise ValueError(
@@ -97,7 +118,66 @@ def identified_urdf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
                 links[name].remove(inertial)
     _write_joint_terms(robot, values, joints)
     _write_armatures(robot, values, root)
+    if carried is not None:
+        _add_payload(root, links, carried)
     return '<?xml version="1.0" encoding="utf-8"?>\n' + _prolog(data) + ET.tostring(root, encoding="unicode")
+
+
+@dataclass(frozen=True)
+class _Payload:
+    """A payload to write: on ``link`` (frame), carried by moving body ``body``; ``standard[10]`` in
+    the link's frame, ``transform`` to the body frame (:func:`idkit.robots.inertia.frame_change`)."""
+
+    link: str
+    body: int
+    standard: np.ndarray
+    transform: np.ndarray
+
+
+def _payload_parameters(robot: URDFRobot, payload: Mapping[str, Any] | None) -> _Payload | None:
+    """The payload block's parameters and placement, or ``None`` (no block, or a mass ``<= 0``)."""
+    if not payload:
+        return None
+    if not isinstance(payload, Mapping) or not {"link", "standard"} <= set(payload):
+        raise ValueError("urdf export: a payload needs 'link' and 'standard' (estimator=payload's block)")
+    standard = np.array([float(payload["standard"][name]) for name in INERTIAL_NAMES])
+    if not standard[0] > 0:
+        warnings.warn(
+            f"urdf export: the payload on {payload['link']!r} has mass {standard[0]:.3g} kg: not written",
+            stacklevel=3,
+        )
+        return None
+    placed = link_placement(robot.tree, robot.urdf, str(payload["link"]))
+    return _Payload(placed.link, placed.body, standard, frame_change(placed.rotation, placed.translation))
+
+
+def _add_payload(root: ET.Element, links: dict[str, ET.Element], payload: _Payload) -> None:
+    """``<link name="payload">`` with the payload's inertial and a ``fixed`` joint from its link (the
+    names get a numeric suffix if the file already uses them)."""
+    taken = set(links) | {joint.get("name") for joint in root.findall("joint")}
+    name, k = "payload", 1
+    while name in taken or f"{name}_joint" in taken:
+        k += 1
+        name = f"payload_{k}"
+    if len(root):
+        root[-1].tail = "\n  "
+    comment = ET.Comment(f" idkit: payload identified on {payload.link} (estimator=payload) ")
+    comment.tail = "\n  "
+    link = ET.Element("link", name=name)
+    link.text = "\n    "
+    link.tail = "\n  "
+    _set_inertial(link, *centroidal(payload.standard))
+    joint = ET.Element("joint", name=f"{name}_joint", type="fixed")
+    joint.text = "\n    "
+    joint.tail = "\n"
+    for tag, attributes in (
+        ("origin", {"xyz": "0 0 0", "rpy": "0 0 0"}),
+        ("parent", {"link": payload.link}),
+        ("child", {"link": name}),
+    ):
+        ET.SubElement(joint, tag, attributes).tail = "\n    "
+    joint[-1].tail = "\n  "
+    root.extend([comment, link, joint])
 
 
 def _prolog(data: bytes) -> str:
@@ -156,11 +236,12 @@ def _write_joint_terms(robot: URDFRobot, values: np.ndarray, joints: dict[str, E
             dynamics.set("damping", _number(value["fv"]))
             dynamics.set("friction", _number(_coulomb(value)))
         keys = [key for key in COMMENT_TERMS if f"{name}.{key}" in index]
-        extra = [f"{key}={_number(values[index[f'{name}.{key}']])}" for key in keys]
+        extra = {key: _number(values[index[f"{name}.{key}"]]) for key in keys}
         if robot.stribeck_scales is not None:
-            extra.append(f"stribeck_velocity={_number(robot.stribeck_scales[j])}")
+            extra["stribeck_velocity"] = _number(robot.stribeck_scales[j])
         if extra:
-            comment = ET.Comment(f" idkit: {' '.join(extra)} (no URDF field) ")
+            extra = {**_take_own_comments(joint), **extra}  # the source's record, updated
+            comment = ET.Comment(f" idkit: {' '.join(f'{k}={v}' for k, v in extra.items())} (no URDF field) ")
             if len(joint):
                 comment.tail, joint[-1].tail = joint[-1].tail, "\n    "
             joint.append(comment)
@@ -219,10 +300,27 @@ def _new_transmission(root: ET.Element, joint: str) -> ET.Element:
     return _append(root, transmission)
 
 
+def _take_own_comments(joint: ET.Element) -> dict[str, str]:
+    """Remove the joint's ``idkit:`` comments (an identified.urdf identified again) and return their
+    ``key=value`` pairs, so that terms this fit does not hold are kept."""
+    pairs: dict[str, str] = {}
+    for child in list(joint):
+        if child.tag is ET.Comment and (child.text or "").strip().startswith(MARK):
+            pairs.update(comment_pairs(child.text or ""))
+            siblings = list(joint)
+            if child is siblings[-1] and len(siblings) > 1:
+                siblings[-2].tail = child.tail  # keep the closing tag's indentation
+            joint.remove(child)
+    return pairs
+
+
 def write_identified_urdf(
-    robot: URDFRobot, params: Tensor | Mapping[str, float], path: str | Path = "identified.urdf"
+    robot: URDFRobot,
+    params: Tensor | Mapping[str, float],
+    path: str | Path = "identified.urdf",
+    payload: Mapping[str, Any] | None = None,
 ) -> Path:
     """Write :func:`identified_urdf` to ``path`` (UTF-8) and return the path."""
     path = Path(path)
-    path.write_text(identified_urdf(robot, params), encoding="utf-8")
+    path.write_text(identified_urdf(robot, params, payload), encoding="utf-8")
     return path

@@ -1,16 +1,19 @@
-"""The ``excitation`` task: optimise a robot's excitation within its motion limits.
+"""The ``excitation`` task: optimise a robot's excitation so that it can be run on the robot.
 
 ``idkit +experiment=excitation robot=cylindrical`` calls :func:`run`, which calls
 :func:`idkit.excitation.optimize.optimize_excitation` with the section ``excitation`` of the
 config as arguments; the report (``idkit.reports.excitation``) writes the motion as a file that
-``scenario.excitation=<file>`` loads back. A URDF declares no acceleration limits, so for
-``robot=urdf`` the study needs ``excitation.acceleration_limit`` (an unbounded acceleration would
-let the search pick arbitrarily violent motions).
+``scenario.excitation=<file>`` loads back, and its samples at the controller rate (``rate``) as
+``excitation.csv`` / ``excitation.npz``, checked by ``idkit.excitation.check`` (limits, effort,
+rest at the ends, sample rate, self-collision) with the margins per joint.
+
+By default the motion starts and ends at rest (``rest``: the Fourier series' boundary
+constraints, period = ``t_end`` unless given). A URDF declares no acceleration limits: without
+``acceleration_limit`` they are derived from its effort limits (``idkit.excitation.effort``).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -21,6 +24,13 @@ from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
 
 TASK = "excitation"
+
+#: Where the acceleration limits came from, as the report says it.
+ACCELERATION_SOURCES = {
+    "given": "given (excitation.acceleration_limit)",
+    "robot": "the robot's",
+    "effort": "derived from the effort limits (a URDF declares none; idkit.excitation.effort)",
+}
 
 
 @dataclass
@@ -33,12 +43,22 @@ class ExcitationStudy:
             default one, the criterion before and after, the limits and the dense check grid).
         robot_name: the robot's class name, for titles.
         baseline_name: registry name of the robot's default excitation (``paper``, ``fourier``).
+        trajectory: ``idkit.excitation.export.Trajectory``, the samples at the controller rate
+            (``None`` without a rate).
+        check: ``idkit.excitation.check.TrajectoryCheck`` of ``trajectory`` (of the check grid's
+            samples without a rate).
+        acceleration_source: where the acceleration limits came from (``ACCELERATION_SOURCES``).
+        rate: the controller rate in Hz, or ``None``.
     """
 
     provenance: Provenance
     result: Any
     robot_name: str
     baseline_name: str | None
+    trajectory: Any
+    check: Any
+    acceleration_source: str
+    rate: float | None
 
     def payload(self) -> dict[str, Any]:
         """The ``result.json`` payload: family, coefficients, criterion before/after, limits."""
@@ -54,8 +74,12 @@ class ExcitationStudy:
             "n_samples": int(r.t.numel()),
             "t_end": float(r.grid[-1]),
             "limits": r.limits.as_dict(),
+            "acceleration_limits": ACCELERATION_SOURCES[self.acceleration_source],
+            "effort_limits": None if r.effort is None else dict(zip(names, r.effort.tolist(), strict=True)),
             "excess_before": _by_joint(r.excess_before.tolist(), names),
             "excess_after": _by_joint(r.excess_after.tolist(), names),
+            "rate": self.rate,
+            "check": self.check.as_dict(),
             "details": r.details,
         }
 
@@ -66,43 +90,32 @@ def _by_joint(excess: list[list[float]], joints: Sequence[str]) -> dict[str, dic
     return {j: {v: excess[i][k] for i, v in enumerate(MOTION_VARIABLES)} for k, j in enumerate(joints)}
 
 
-def motion_limits(robot: Any, acceleration_limit: float | Sequence[float] | None) -> Any:
-    """The robot's motion limits, with ``|q̈_j| <= acceleration_limit[_j]`` when given.
+def rest_options(family: str, options: Mapping[str, Any] | None, t_end: float) -> dict[str, Any]:
+    """``options`` with ``rest=True`` and, unless given, ``period = t_end``.
 
     Raises:
-        ValueError: a bad ``acceleration_limit`` (not positive and finite, wrong length), or a
-            joint left without an acceleration limit (a URDF declares none).
+        ValueError: the family cannot start and end at rest, or ``t_end`` is not a whole number of
+            periods (the motion would stop mid-period, not at rest).
     """
-    limits = robot.motion_limits()
-    names = limits.joint_names
-    if acceleration_limit is not None:
-        values = (
-            [acceleration_limit] if isinstance(acceleration_limit, (int, float)) else list(acceleration_limit)
-        )
-        bad = [
-            v
-            for v in values
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf
-        ]
-        if bad or len(values) not in (1, len(names)):
-            raise ValueError(
-                f"excitation.acceleration_limit must be one positive number or one per joint "
-                f"({len(names)}: {', '.join(names)}), got {acceleration_limit!r}"
-            )
-        bound = values * len(names) if len(values) == 1 else values
-        limits = limits.replace("acceleration", [-v for v in bound], bound)
-    unbounded = [
-        names[j]
-        for j in range(len(names))
-        if math.isinf(limits.lower[2, j]) or math.isinf(limits.upper[2, j])
-    ]
-    if unbounded:
+    import inspect
+
+    from idkit.registry import load
+
+    accepted = inspect.signature(load("excitation", family)).parameters
+    if "rest" not in accepted or "period" not in accepted:
         raise ValueError(
-            f"robot {type(robot).__name__} has no acceleration limit for joint(s) {', '.join(unbounded)} "
-            "(a URDF declares none); give excitation.acceleration_limit=<one number, or a list with one "
-            "per joint> in rad/s² (m/s² for a prismatic joint)"
+            f"excitation family {family!r} cannot start and end at rest (it has no rest option); "
+            "set excitation.rest=false"
         )
-    return limits
+    chosen = {**dict(options or {}), "rest": True}
+    period = chosen.setdefault("period", t_end)
+    periods = t_end / period
+    if abs(periods - round(periods)) > 1e-9 * periods or round(periods) < 1:
+        raise ValueError(
+            f"excitation.rest needs t_end to be a whole number of periods, but t_end={t_end:g} s and "
+            f"period={period:g} s; leave the period out (it is then t_end) or set t_end to a multiple of it"
+        )
+    return chosen
 
 
 def run(
@@ -111,17 +124,21 @@ def run(
     family: str = "fourier",
     options: Mapping[str, Any] | None = None,
     criterion: str = "cond",
+    noise: Mapping[str, Any] | None = None,
     n_samples: int | None = None,
     t_end: float = 10.0,
+    rest: bool = True,
+    rate: float | None = 1000.0,
     acceleration_limit: float | Sequence[float] | None = None,
+    collision: bool = True,
     method: str = "pso+adam",
     swarms: int = 4,
-    particles: int = 64,
-    iterations: int = 200,
-    adam_steps: int = 200,
+    particles: int = 32,
+    iterations: int = 100,
+    adam_steps: int = 300,
     learning_rate: float = 0.01,
     grid_points: int = 1001,
-    check_points: int = 10001,
+    check_points: int | None = None,
     seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
@@ -129,20 +146,36 @@ def run(
     """Optimise an excitation for ``robot`` (see ``optimize_excitation`` for the search options).
 
     Args:
-        robot: robot spec; its ``motion_limits()`` are the hard constraints.
+        robot: robot spec; its motion and effort limits are the hard constraints.
         family: registry name of the excitation family (``fourier``, ``paper``, a plugin).
         options: the family's structural options (e.g. ``{harmonics: 5, period: 10.0}``).
-        criterion: ``cond`` (column-scaled condition number, minimised) or ``logdet`` (maximised).
+        criterion: ``cond`` (column-scaled condition number, minimised), ``logdet`` (maximised) or
+            ``ls_error`` (expected LS parameter error under ``noise``, minimised).
+        noise: ``ls_error``'s noise model: ``state``, ``torque`` levels and ``draws``
+            (``idkit.excitation.criterion.NoiseModel``; its seed is ``seed``).
         n_samples: the sample times of the criterion, as a scenario samples them (``None``: a
             scenario's default, 10).
         t_end: length of the motion in seconds (the scenarios' ``t_end``).
-        acceleration_limit: ``|q̈|`` bound, one number or one per joint; required when the robot
-            declares none (a URDF), replaces the robot's own otherwise.
+        rest: start and end at rest (``qd = qdd = 0``; see :func:`rest_options`).
+        rate: controller rate (Hz) of the exported samples ``excitation.csv``/``.npz``, which are
+            also the grid the result is made feasible and checked on; ``None``: no export, checked
+            on ``check_points``. ``t_end · rate`` must be a whole number.
+        acceleration_limit: ``|q̈|`` bound, one number or one per joint (replaces the robot's own);
+            ``None``: the robot's, else derived from its effort limits.
+        collision: check self-collision (pinocchio + coal, where installed and the URDF has
+            collision geometry) and shrink the motion until none is found.
+        check_points: the result's check grid (``None``: the controller samples, or 10001 points).
         dtype: only ``float64`` (limits are checked and coefficients written in double precision).
 
     Raises:
-        ValueError: bad options, or a joint without an acceleration limit (see :func:`motion_limits`).
+        ValueError: bad options, or a joint without an acceleration limit on a robot without
+            effort limits.
     """
+    from idkit.excitation.check import check_trajectory
+    from idkit.excitation.collision import NotChecked, SelfCollision, self_collision
+    from idkit.excitation.criterion import NoiseModel
+    from idkit.excitation.effort import acceleration_bounded_limits, nominal_torques
+    from idkit.excitation.export import Trajectory, controller_times
     from idkit.excitation.optimize import optimize_excitation
     from idkit.excitation.spec import family_name
 
@@ -151,7 +184,12 @@ def run(
             f"the excitation task computes in float64 (limits, written coefficients), got dtype={dtype}"
         )
     robot_obj = build("robot", robot)
-    limits = motion_limits(robot_obj, acceleration_limit)
+    limits, source = acceleration_bounded_limits(robot_obj, acceleration_limit)
+    options = rest_options(family, options, t_end) if rest else dict(options or {})
+    times = controller_times(t_end, rate) if rate is not None else None
+    if check_points is None:
+        check_points = 10001 if times is None else times.numel()
+    test = self_collision(robot_obj) if collision else NotChecked("switched off (excitation.collision=false)")
     n = Scenario().n_samples if n_samples is None else n_samples
     result = optimize_excitation(
         robot_obj,
@@ -171,7 +209,14 @@ def run(
         check_points=check_points,
         seed=seed,
         device=device,
+        noise=NoiseModel(**dict(noise or {}), seed=seed),
+        collision=test if isinstance(test, SelfCollision) else None,
     )
+    samples = result.excitation(result.grid if times is None else times)
+    trajectory = Trajectory.of(robot_obj.joint_names, result.grid if times is None else times, *samples)
+    torques = None if result.effort is None else nominal_torques(robot_obj, *samples).numpy()
+    effort = None if result.effort is None else result.effort.numpy()
+    check = check_trajectory(trajectory, limits, torques, effort, test)
     provenance = Provenance(
         task=TASK,
         label=f"{family} excitation ({criterion})",
@@ -179,8 +224,17 @@ def run(
         data={"sample_times": {"n_samples": n, "t_end": t_end}},
         plugins={
             "robot": describe("robot", robot),
-            "excitation": describe("excitation", {"_name_": family, **dict(options or {})}),
+            "excitation": describe("excitation", {"_name_": family, **options}),
         },
         unit="optimisation",
     )
-    return ExcitationStudy(provenance, result, type(robot_obj).__name__, family_name(result.baseline))
+    return ExcitationStudy(
+        provenance,
+        result,
+        type(robot_obj).__name__,
+        family_name(result.baseline),
+        trajectory if times is not None else None,
+        check,
+        source,
+        rate,
+    )

@@ -4,8 +4,8 @@ For each noise scenario (Table II ``state_noise``, III ``torque_noise``, IV ``al
 ``outliers``) one noisy sample set is drawn (``seed``), and every method of the paper estimates the
 cylindrical robot's parameters from it: LS, TLS, RLS and their relative variants, PSO with each of
 the costs f1…f16 — all sixteen in ONE batched ``fit_costs`` call — and the paper's final estimate,
-the mean of PSO-f13 and PSO-f14 (``idkit.studies.average``). The published values are loaded for
-comparison; ``idkit.reports.paper`` lays the tables out.
+the mean of PSO-f13 and PSO-f14 (``idkit.estimators.aggregate``, in their search space). The
+published values are loaded for comparison; ``idkit.reports.paper`` lays the tables out.
 
 The paper's numbers come from one noise draw each, and its sampling instants are not stated, so
 digits will differ; what should carry over is the pattern (see the robustness study for
@@ -25,8 +25,8 @@ from typing import Any
 
 from idkit.data.presets import PAPER_SCENARIOS
 from idkit.estimate import Estimate
+from idkit.estimators.aggregate import average_estimates, average_label, mean_params
 from idkit.seeds import Seed
-from idkit.studies.average import average, average_label, mean_params
 from idkit.studies.build import Spec, build, describe, name_and_options
 from idkit.studies.labels import unique_labels
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
@@ -223,7 +223,8 @@ def run(
             searched = estimates[len(linear_objs) :]
             chosen = [searched[cost_names.index(c)] for c in average_of]
             if chosen:
-                estimates.append(average(chosen, final))
+                criteria = [cost_objs[cost_names.index(c)] for c in average_of]
+                estimates.append(average_estimates(problem, chosen, criteria, final))
             result.tables.append(ScenarioTable(name, truth, estimates, published.get(name, {})))
             provenance.done += 1
     except KeyboardInterrupt:

@@ -43,9 +43,9 @@ import numpy as np
 
 from idkit import registry
 from idkit.data.presets import PAPER_SCENARIOS
+from idkit.estimators.aggregate import average_label, average_params
 from idkit.memory import check_memory
 from idkit.seeds import Seed, trial_seed
-from idkit.studies.average import average_label, mean_params
 from idkit.studies.build import Spec, build, describe, name_and_options
 from idkit.studies.labels import unique_labels
 from idkit.studies.metrics import parameter_error
@@ -528,8 +528,7 @@ def run(
             searched = columns[len(est_objs) :]
             chosen_costs = [searched[cost_names.index(c)] for c in average_of]
             found[scenario].setdefault(focus, []).extend(
-                list(mean_params([e.params for e in parts]).values())
-                for parts in zip(*chosen_costs, strict=True)
+                list(average_params(parts, robot_obj).values()) for parts in zip(*chosen_costs, strict=True)
             )
 
     saved = time.perf_counter()

@@ -205,15 +205,16 @@ def load_data(
     return samples, truth, {"scenario": sc.as_dict()}
 
 
-def _identified_urdf(robot: Any, params: dict[str, float]) -> str | None:
-    """The ``identified.urdf`` text of a ``urdf`` robot's fit; ``None`` (with a warning) if unwritable."""
+def _identified_urdf(robot: Any, params: dict[str, float], payload: Any = None) -> str | None:
+    """The ``identified.urdf`` text of a ``urdf`` robot's fit (with the payload a ``payload`` fit found
+    as its own link); ``None`` (with a warning) if unwritable."""
     from idkit.robots.urdf import URDFRobot
     from idkit.robots.urdf_export import identified_urdf
 
     if not isinstance(robot, URDFRobot) or robot.source_format != "urdf":
         return None
     try:
-        return identified_urdf(robot, params)
+        return identified_urdf(robot, params, payload)
     except ValueError as exc:
         warnings.warn(f"identified.urdf not written: {exc}", stacklevel=3)
         return None
@@ -353,6 +354,8 @@ def run(
         cost_name,
         provenance,
         [HeldOut(f.path, s, f.times) for f, s in zip(held_out, scores, strict=True)],
-        _identified_urdf(robot_obj, fitted.params) if identified_urdf else None,
+        _identified_urdf(robot_obj, fitted.params, fitted.details.get("payload"))
+        if identified_urdf
+        else None,
         _identified_mjcf(robot_obj, fitted.params, identified_mjcf),
     )

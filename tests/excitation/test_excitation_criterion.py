@@ -1,4 +1,5 @@
-"""The excitation criteria against an independent numpy computation on a numpy-built regressor."""
+"""The excitation criteria against an independent numpy computation on a numpy-built regressor:
+cond and logdet (SVD as reported, Gram matrix as searched) and the expected LS error under noise."""
 
 from __future__ import annotations
 
@@ -7,8 +8,12 @@ import pytest
 import torch
 
 from idkit.excitation.criterion import (
+    NoiseModel,
     excitation_criterion,
+    gram_condition_number,
+    gram_log_det,
     log_det_information,
+    make_criterion,
     observation_matrix,
     scaled_condition_number,
 )
@@ -77,5 +82,93 @@ def test_an_unexcited_parameter_gives_an_infinite_condition_number(cylindrical):
 
 def test_unknown_criterion_lists_the_known_ones(cylindrical):
     states = random_states((), 5, 3, seed=0)
-    with pytest.raises(ValueError, match="unknown excitation criterion 'aopt'; use one of cond, logdet"):
+    with pytest.raises(
+        ValueError, match="unknown excitation criterion 'aopt'; use one of cond, logdet, ls_error"
+    ):
         excitation_criterion(cylindrical, "aopt", *states)
+
+
+def test_the_searched_gram_forms_equal_the_reported_svd_forms():
+    """On tall matrices like a real arm's (700 × 64) and on badly scaled columns, to 1e-9."""
+    g = torch.Generator().manual_seed(5)
+    w = torch.randn(6, 700, 64, generator=g, dtype=torch.float64) + torch.randn(
+        6, 1, 64, generator=g, dtype=torch.float64
+    )
+    w = w * torch.logspace(-3, 3, 64, dtype=torch.float64)  # units differ by 10⁶
+    torch.testing.assert_close(gram_condition_number(w), scaled_condition_number(w), rtol=1e-9, atol=0)
+    torch.testing.assert_close(gram_log_det(w), log_det_information(w), rtol=1e-9, atol=0)
+    cond = scaled_condition_number(w)
+    assert (cond > 1.5).all() and (cond < 1e3).all()  # a range where the comparison means something
+
+
+def test_the_gram_forms_score_unexcited_and_non_finite_matrices_as_worst():
+    w = torch.randn(3, 20, 4, dtype=torch.float64)
+    w[0, :, 2] = 0.0  # an unexcited parameter
+    w[1, 3, 1] = float("nan")
+    w[2, :, 3] = w[2, :, 0]  # two identical columns: rank deficient
+    cond, logdet = gram_condition_number(w), gram_log_det(w)
+    assert torch.isinf(cond[:2]).all() and (cond[2] > 1e7)
+    assert torch.isneginf(logdet[:2]).all()
+
+
+def ls_error_numpy(robot, states, noise: NoiseModel) -> float:
+    """The expected LS error typed again: per draw, noisy states and torques, numpy lstsq, the mean
+    relative error of the nonzero base parameters; then the mean over draws (same draws)."""
+    q, qd, qdd = (x.numpy() for x in states)
+    n_samples, n = q.shape
+    u = noise.errors(n_samples, n).numpy()  # [K, 4, N, n]
+    truth = robot.base_params(robot.nominal_params()).numpy()
+    tau = np.einsum("snb,b->sn", robot.regressor(*states).numpy(), truth)
+    errors = []
+    for draw in u:
+        noisy = [torch.from_numpy(x * (1 + e)) for x, e in zip((q, qd, qdd), draw[:3], strict=True)]
+        w = robot.regressor(*noisy).numpy().reshape(-1, truth.size)
+        estimate = np.linalg.lstsq(w, (tau * (1 + draw[3])).reshape(-1), rcond=None)[0]
+        known = truth != 0
+        errors.append(np.mean(np.abs(estimate[known] - truth[known]) / np.abs(truth[known])))
+    return float(np.mean(errors))
+
+
+@pytest.mark.parametrize("robot_name", ["cylindrical", "urdf"])
+def test_ls_error_equals_a_numpy_monte_carlo_on_the_same_draws(robot_name, cylindrical):
+    robot = cylindrical if robot_name == "cylindrical" else URDFRobot("cylindrical", friction=True)
+    noise = NoiseModel(state=0.1, torque=0.05, draws=7, seed=3)
+    states = FourierExcitation(3, offset=[0.0, 0.5, 0.5])(torch.linspace(1.0, 10.0, 10, dtype=torch.float64))
+    found = float(excitation_criterion(robot, "ls_error", *states, noise=noise))
+    assert found == pytest.approx(ls_error_numpy(robot, states, noise), rel=1e-9)
+    assert 1e-4 < found < 10
+
+
+def test_ls_error_is_deterministic_batched_and_differentiable(cylindrical):
+    noise = NoiseModel(draws=5, seed=1)
+    criterion = make_criterion("ls_error", cylindrical, 10, noise)
+    family = FourierExcitation(3, offset=[0.0, 0.5, 0.5])
+    t = torch.linspace(1.0, 10.0, 10, dtype=torch.float64)
+    coefficients = family.to_vector() + 0.05 * torch.randn(2, family.to_vector().numel(), dtype=torch.float64)
+    coefficients.requires_grad_(True)
+    states = family.evaluate(coefficients, t)
+    value = criterion.loss(observation_matrix(cylindrical, *states), states)
+    single = [
+        excitation_criterion(cylindrical, "ls_error", *family.from_vector(c.detach())(t), noise=noise)
+        for c in coefficients
+    ]
+    torch.testing.assert_close(value.detach(), torch.stack(single), rtol=1e-12, atol=0)
+    (gradient,) = torch.autograd.grad(value.sum(), coefficients)
+    assert gradient.isfinite().all() and gradient.abs().max() > 0
+    # No torque noise and no state noise: LS recovers the parameters exactly.
+    exact = make_criterion("ls_error", cylindrical, 10, NoiseModel(state=0.0, torque=0.0, draws=2))
+    assert float(exact.value(observation_matrix(cylindrical, *states), states)[0].detach()) < 1e-12
+
+
+@pytest.mark.parametrize(
+    ("options", "match"),
+    [
+        ({"state": 1.0}, "state must be a level in"),
+        ({"torque": -0.1}, "torque must be a level in"),
+        ({"draws": 0}, "draws must be an integer >= 1"),
+        ({"seed": -1}, "excitation noise: seed must be an integer in"),
+    ],
+)
+def test_noise_model_refuses_bad_values(options, match):
+    with pytest.raises(ValueError, match=match):
+        NoiseModel(**options)

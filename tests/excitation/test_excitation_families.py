@@ -49,17 +49,20 @@ def golden_numpy(t: np.ndarray, n_joints: int) -> tuple[np.ndarray, np.ndarray, 
     )
 
 
-def random_fourier(n_joints: int, harmonics: int, period: float, seed: int) -> FourierExcitation:
+def random_fourier(
+    n_joints: int, harmonics: int, period: float, seed: int, rest: bool = False
+) -> FourierExcitation:
     g = torch.Generator().manual_seed(seed)
     a, b = torch.randn(2, n_joints, harmonics, generator=g, dtype=torch.float64)
     offset = torch.randn(n_joints, generator=g, dtype=torch.float64)
-    return FourierExcitation(n_joints, harmonics, period, offset.tolist(), a.tolist(), b.tolist())
+    return FourierExcitation(n_joints, harmonics, period, offset.tolist(), a.tolist(), b.tolist(), rest)
 
 
 FAMILIES = {
     "paper": PaperExcitation(),
     "fourier-default": FourierExcitation(3),
     "fourier-random": random_fourier(7, 3, 4.0, seed=1),
+    "fourier-rest": random_fourier(7, 5, 10.0, seed=2, rest=True),
 }
 
 
@@ -121,6 +124,46 @@ def test_fourier_is_periodic(n_joints, harmonics, period, seed, start):
     ends = excitation(torch.tensor([start, start + period], dtype=torch.float64))
     for x in ends:
         torch.testing.assert_close(x[0], x[1], rtol=0, atol=1e-12 * (1 + x.abs().max()) * (1 + abs(start)))
+
+
+@given(
+    n_joints=st.integers(1, 4),
+    harmonics=st.integers(2, 6),
+    period=st.floats(0.5, 30.0),
+    seed=st.integers(0, 2**31),
+    periods=st.integers(0, 3),
+)
+@settings(max_examples=40, deadline=None)
+def test_fourier_at_rest_starts_and_ends_every_period_at_rest(n_joints, harmonics, period, seed, periods):
+    excitation = random_fourier(n_joints, harmonics, period, seed, rest=True)
+    _, qd, qdd = excitation(
+        torch.tensor([0.0, periods * period, (periods + 0.37) * period], dtype=torch.float64)
+    )
+    scale = float(excitation.to_vector().abs().max()) * harmonics * (1 + 2 * math.pi * harmonics / period)
+    assert qd[:2].abs().max() <= 1e-14 * scale * (1 + periods) and qdd[:2].abs().max() <= 1e-14 * scale * (
+        1 + periods
+    )
+    assert qd[2].abs().max() > 1e-6 * scale  # it does move in between
+
+
+def test_fourier_at_rest_computes_two_coefficients_and_keeps_the_others():
+    free = random_fourier(2, 4, 6.0, seed=3)
+    rest = FourierExcitation(
+        2, 4, 6.0, free.options()["offset"], free.options()["a"], free.options()["b"], True
+    )
+    a, b = (torch.tensor(rest.options()[k], dtype=torch.float64) for k in ("a", "b"))
+    a0, b0 = (torch.tensor(free.options()[k], dtype=torch.float64) for k in ("a", "b"))
+    torch.testing.assert_close(a[:, :3], a0[:, :3], rtol=0, atol=0)
+    torch.testing.assert_close(b[:, 1:], b0[:, 1:], rtol=0, atol=0)
+    torch.testing.assert_close(a.sum(1), torch.zeros(2, dtype=torch.float64), rtol=0, atol=1e-14)
+    torch.testing.assert_close(
+        (b * torch.arange(1, 5)).sum(1), torch.zeros(2, dtype=torch.float64), rtol=0, atol=1e-14
+    )
+    assert rest.options()["rest"] is True and free.options()["rest"] is False
+    # Scaling a joint's motion (what the optimiser's limit fitting does) keeps it at rest.
+    scaled = rest.from_vector(torch.cat((rest.to_vector()[:2], 0.3 * rest.to_vector()[2:])))
+    _, qd, qdd = scaled(torch.tensor([0.0, 6.0], dtype=torch.float64))
+    assert qd.abs().max() < 1e-14 and qdd.abs().max() < 1e-13
 
 
 @pytest.mark.parametrize("name", FAMILIES)
@@ -208,6 +251,8 @@ def test_simulated_samples_keep_the_previous_numbers(cylindrical):
             r"a: expected shape \[2, 5\], got \[2, 4\]",
         ),
         ({"n_joints": 2, "offset": [0.0, math.nan]}, "offset: every value must be finite"),
+        ({"n_joints": 2, "harmonics": 1, "rest": True}, "rest=true needs harmonics >= 2"),
+        ({"n_joints": 2, "rest": "yes"}, "rest must be true or false"),
     ],
 )
 def test_fourier_rejects_bad_options(options, match):

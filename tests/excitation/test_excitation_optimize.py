@@ -1,4 +1,5 @@
-"""Excitation optimisation: hard limits on a dense grid, the criterion it reports, seeds, errors."""
+"""Excitation optimisation: hard limits on a dense grid (box, effort, self-collision), the criterion it
+reports, seeds, errors."""
 
 from __future__ import annotations
 
@@ -10,12 +11,15 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from idkit.excitation.feasible import fit_into_limits
+from idkit.excitation.collision import self_collision
+from idkit.excitation.effort import nominal_torques
+from idkit.excitation.feasible import fit_into_limits, largest_feasible_scale, scale_motion
 from idkit.excitation.fourier import FourierExcitation
-from idkit.excitation.optimize import optimize_excitation
+from idkit.excitation.optimize import _adam_search, optimize_excitation
 from idkit.interfaces import Robot
 from idkit.robots.cylindrical import CylindricalRobot
 from idkit.robots.urdf import URDFRobot
+from tests.excitation.arm_cases import arm_urdf
 
 SMALL = {"swarms": 2, "particles": 16, "iterations": 15, "adam_steps": 10}
 
@@ -172,3 +176,97 @@ def test_bad_options_are_named(cylindrical, options, match):
 def test_a_robot_without_limits_says_so():
     with pytest.raises(NotImplementedError, match="NoLimits declares no joint motion limits"):
         optimize_excitation(NoLimits(), **SMALL)
+
+
+def test_largest_feasible_scale_finds_the_closed_form_scale_and_only_returns_tested_ones():
+    family = FourierExcitation(
+        2, 3, 4.0, offset=[0.1, -0.2], a=[[1.0, 0.5, -0.2]] * 2, b=[[0.3, 0.0, 0.4]] * 2
+    )
+    grid = torch.linspace(0.0, 4.0, 401, dtype=torch.float64)
+    deviation = float((family(grid)[0] - torch.tensor([0.1, -0.2], dtype=torch.float64)).abs().max())
+    tested = []
+
+    def small(coefficients):
+        ok = bool((family.evaluate(coefficients, grid)[0] - torch.tensor([0.1, -0.2])).abs().max() <= 0.25)
+        tested.append((coefficients, ok))
+        return ok
+
+    scale = largest_feasible_scale(family, family.to_vector(), small)
+    assert scale == pytest.approx(0.25 / deviation, abs=2**-20) and scale <= 0.25 / deviation
+    assert any(
+        ok
+        and torch.equal(
+            c, scale_motion(family, family.to_vector(), torch.full((2,), scale, dtype=torch.float64))
+        )
+        for c, ok in tested
+    )
+    assert largest_feasible_scale(family, family.to_vector(), lambda c: True) == 1.0
+    with pytest.raises(ValueError, match="its rest pose \\(the offsets\\) already fails"):
+        largest_feasible_scale(family, family.to_vector(), lambda c: False)
+
+
+@pytest.fixture(scope="module")
+def arm_result():
+    """The table arm (``arm_cases``) with its table raised to 0.35 m (the arm touches it for
+    q2 > 0.0834), a tight effort limit on j2 (its static load is up to 8.6 N·m) and the
+    self-collision test: the search knows effort and offset poses, the final stage both."""
+    pytest.importorskip("pinocchio")
+    robot = URDFRobot(arm_urdf(0.35).replace('upper="1.5" effort="40"', 'upper="1.5" effort="10"'))
+    limits = robot.motion_limits().replace("acceleration", -3.0, 3.0)
+    test = self_collision(robot)
+    found = optimize_excitation(
+        robot, options={"rest": True, "period": 5.0}, n_samples=25, t_end=5.0, limits=limits,
+        check_points=2501, collision=test, seed=0, **SMALL,
+    )  # fmt: skip
+    return robot, test, found
+
+
+def test_the_optimised_arm_motion_rests_keeps_effort_and_touches_nothing(arm_result):
+    robot, test, result = arm_result
+    q, qd, qdd = result.excitation(result.grid)
+    assert torch.count_nonzero(result.excess_after) == 0
+    tau = nominal_torques(robot, q, qd, qdd)
+    assert (tau.abs() <= torch.as_tensor(robot.effort_limits)).all()
+    assert float(tau[:, 1].abs().max()) > 8.0  # the j2 limit (10 N·m) is close
+    assert float(q[:, 1].max()) <= 0.0834 + 1e-3  # below the table's edge of contact
+    assert test.contacts(q.numpy()) == []
+    for end in (0, -1):
+        assert qd[end].abs().max() < 1e-12 and qdd[end].abs().max() < 1e-12
+    assert result.effort.tolist() == [40.0, 10.0, 10.0, 10.0]
+
+
+def test_a_shrunk_motion_says_why_and_what_it_cost(arm_result):
+    _, _, result = arm_result
+    details = result.details
+    assert 0 < details["shrunk_by"] < 1 and "self-collision" in details["shrunk_for"]
+    # Shrinking cost conditioning (here a lot: the table leaves little room); the reported value is
+    # the shrunk motion's.
+    assert details["criterion_before_shrink"] < result.after
+
+
+def test_the_written_out_adam_is_torch_adam():
+    """Same points as ``torch.optim.Adam`` (projected on the cube) on a function with a known gradient."""
+    target = torch.tensor([[0.2, 0.9, 0.5], [1.3, -0.4, 0.7]], dtype=torch.float64)
+
+    def objective(unit):
+        return ((unit - target) ** 2 * torch.tensor([1.0, 10.0, 0.1])).sum(-1) + unit[..., 0] ** 4
+
+    starts = torch.tensor([[0.5, 0.5, 0.5], [0.1, 0.8, 0.3]], dtype=torch.float64)
+    found = _adam_search(objective, starts, 40, 0.05)
+    unit = starts.clone().requires_grad_(True)
+    reference = torch.optim.Adam([unit], lr=0.05)
+    best, best_loss = starts.clone(), torch.full((2,), math.inf, dtype=torch.float64)
+    for step in range(41):
+        value = objective(unit)
+        improved = value.detach() < best_loss
+        best = torch.where(improved[:, None], unit.detach(), best)
+        best_loss = torch.where(improved, value.detach(), best_loss)
+        if step == 40:
+            break
+        reference.zero_grad()
+        value.sum().backward()
+        reference.step()
+        with torch.no_grad():
+            unit.clamp_(0.0, 1.0)
+    torch.testing.assert_close(found, best, rtol=0, atol=1e-14)
+    assert found[1, 1] == 0.0  # its target is outside the cube: the wall binds

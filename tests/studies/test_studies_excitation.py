@@ -22,7 +22,9 @@ from omegaconf import OmegaConf
 from idkit.cli.app import setup
 from idkit.cli.tasks import TASKS, arguments
 from idkit.data.scenarios import simulate, simulate_batch
-from idkit.data.trajectory import sample_times
+from idkit.excitation.criterion import NoiseModel, excitation_criterion
+from idkit.excitation.effort import default_acceleration_limits
+from idkit.excitation.export import controller_times, read_trajectory
 from idkit.excitation.files import load_excitation
 from idkit.problem import Problem
 from idkit.registry import create
@@ -52,7 +54,7 @@ def written(tmp_path_factory) -> tuple[study.ExcitationStudy, dict[str, str]]:
 
 def test_report_writes_the_documented_files(written):
     result, files = written
-    assert set(files) == {"excitation", "samples", "plot", "result"}
+    assert set(files) == {"excitation", "csv", "npz", "plot", "result"}
     data = json.loads(Path(files["result"]).read_text())
     assert data["task"] == "excitation" and data["status"] == "complete" and data["seed"] == 2
     assert (
@@ -64,9 +66,19 @@ def test_report_writes_the_documented_files(written):
     assert payload["baseline"] == "paper" and payload["n_samples"] == 10 and payload["t_end"] == 10.0
     assert payload["excess_before"]["d2"]["position"] > 0.08  # eq. (39) leaves eq. (38)
     assert all(v == 0 for joint in payload["excess_after"].values() for v in joint.values())
+    assert (
+        payload["rate"] == 1000.0
+        and payload["check"]["violations"] == []
+        and payload["check"]["rate"] == pytest.approx(1000)
+    )
+    assert payload["check"]["effort"] == "not checked (the robot declares no effort limits)"
+    assert payload["check"]["self_collision"] == "not checked (CylindricalRobot is not a URDF robot)"
+    assert set(payload["check"]["margins"]["d3"]) == {"position", "velocity", "acceleration"}
+    assert payload["options"]["rest"] is True and payload["options"]["period"] == 10.0
     assert Path(files["plot"]).stat().st_size > 0
     text = report.text(result)
     assert f"cond = {result.result.before:.6g}" in text and f"cond = {result.result.after:.6g}" in text
+    assert "| theta1 | " in text and "all checks passed" in text and "exported at 1000 Hz" in text
 
 
 def test_yaml_loads_back_as_the_same_motion(written):
@@ -75,17 +87,19 @@ def test_yaml_loads_back_as_the_same_motion(written):
     assert torch.equal(loaded.to_vector(), result.result.excitation.to_vector())
 
 
-def test_npz_holds_the_motion_at_the_scenario_sample_times_within_eq38(written):
+@pytest.mark.parametrize("kind", ["csv", "npz"])
+def test_the_exported_samples_are_the_motion_at_1khz_at_rest_within_eq38(written, kind):
     result, files = written
-    arrays = np.load(files["samples"])
-    assert set(arrays.files) == {"t", "q", "qd", "qdd"}
-    t = sample_times(10, 10.0)
-    np.testing.assert_array_equal(arrays["t"], t.numpy())
-    q, qd, qdd = result.result.excitation(t)
-    for name, value in zip(("q", "qd", "qdd"), (q, qd, qdd), strict=True):
-        np.testing.assert_array_equal(arrays[name], value.numpy())
+    found = read_trajectory(files[kind], ("theta1", "d2", "d3"))
+    t = controller_times(10.0, 1000.0)
+    np.testing.assert_array_equal(found.t, t.numpy())
+    for name, value in zip(("q", "qd", "qdd"), result.result.excitation(t), strict=True):
+        np.testing.assert_array_equal(getattr(found, name), value.numpy())
     for row, name in enumerate(("q", "qd", "qdd")):
-        assert (arrays[name] >= EQ38[row, :, 0]).all() and (arrays[name] <= EQ38[row, :, 1]).all()
+        values = getattr(found, name)
+        assert (values >= EQ38[row, :, 0]).all() and (values <= EQ38[row, :, 1]).all()
+    for end in (0, -1):
+        assert np.abs(found.qd[end]).max() <= 1e-12 and np.abs(found.qdd[end]).max() <= 1e-12
 
 
 @pytest.mark.parametrize("name", ["outliers", "all_noise"])
@@ -140,18 +154,53 @@ def test_robustness_and_paper_run_every_scenario_on_the_file(written):
     assert tables.provenance.data["scenario"] == common
 
 
-def test_a_urdf_needs_acceleration_limits(tmp_path):
-    with pytest.raises(
-        ValueError, match=r"has no acceleration limit for joint\(s\) .*excitation.acceleration_limit="
-    ):
-        study.run({"_name_": "urdf", "urdf": "cylindrical"}, **SMALL)
+def test_a_urdf_without_acceleration_limits_gets_them_from_its_effort_limits():
     with pytest.raises(ValueError, match="one positive number or one per joint \\(3: "):
         study.run({"_name_": "urdf", "urdf": "cylindrical"}, acceleration_limit=[1.0, 2.0], **SMALL)
-    limits = study.motion_limits(URDFRobot("cylindrical"), [1.0, 2.0, 3.0])
-    np.testing.assert_array_equal(limits.upper[2].numpy(), [1.0, 2.0, 3.0])
-    found = study.run({"_name_": "urdf", "urdf": "cylindrical"}, acceleration_limit=2.0, seed=1, **SMALL)
-    assert torch.count_nonzero(found.result.excess_after) == 0
-    assert (found.result.excitation(found.result.grid)[2].abs() <= 2.0).all()
+    found = study.run({"_name_": "urdf", "urdf": "cylindrical"}, seed=1, **SMALL)
+    assert found.acceleration_source == "effort"
+    torch.testing.assert_close(
+        found.result.limits.upper[2], default_acceleration_limits(URDFRobot("cylindrical"))
+    )
+    given = study.run({"_name_": "urdf", "urdf": "cylindrical"}, acceleration_limit=2.0, seed=1, **SMALL)
+    assert given.acceleration_source == "given" and torch.count_nonzero(given.result.excess_after) == 0
+    assert (given.result.excitation(given.result.grid)[2].abs() <= 2.0).all()
+    margins = given.check.margins["d2"]
+    assert given.check.ok and margins["effort"]["upper"] == 1000.0 and margins["acceleration"]["upper"] == 2.0
+    assert given.payload()["acceleration_limits"].startswith("given")
+
+
+@pytest.mark.parametrize(
+    ("options", "match"),
+    [
+        ({"family": "paper"}, "excitation family 'paper' cannot start and end at rest"),
+        (
+            {"options": {"period": 3.0}},
+            "t_end to be a whole number of periods, but t_end=10 s and period=3 s",
+        ),
+        ({"rate": 333.33}, r"excitation.t_end=10 s is not a whole number of .* steps at rate 333.33 Hz"),
+    ],
+)
+def test_motions_that_cannot_rest_or_be_sampled_are_refused(options, match):
+    with pytest.raises(ValueError, match=match):
+        study.run("cylindrical", **options, **SMALL)
+
+
+def test_without_rest_and_rate_the_old_motion_and_no_export(tmp_path):
+    found = study.run("cylindrical", rest=False, rate=None, seed=2, **SMALL)
+    assert found.trajectory is None and found.check.samples == 10001
+    assert found.result.excitation.options()["rest"] is False and found.result.excitation.period == 10.0
+    files = report.write(found, tmp_path)
+    assert set(files) == {"excitation", "plot", "result"}
+
+
+def test_the_ls_error_criterion_through_the_study():
+    found = study.run("cylindrical", criterion="ls_error", noise={"state": 0.1, "draws": 4}, seed=3, **SMALL)
+    r = found.result
+    noise = NoiseModel(state=0.1, draws=4, seed=3)
+    expected = excitation_criterion(CylindricalRobot(), "ls_error", *r.excitation(r.t), noise=noise)
+    assert r.after == pytest.approx(float(expected), rel=1e-12) and r.after < r.before
+    assert "ls_error" in report.text(found) and "smaller is better" in report.text(found)
 
 
 def test_other_dtypes_are_refused():
@@ -178,6 +227,7 @@ def hydra_compose():
             "robot.urdf=cylindrical",
             "excitation.acceleration_limit=[1,2,3]",
         ),
+        ("+experiment=excitation", "excitation.criterion=ls_error", "excitation.noise.state=0.1"),
         ("+experiment=robustness", "scenario.excitation=excitation.yaml"),
         ("+experiment=paper", "scenario.excitation=fourier"),
         ("+scenario=outliers", "scenario.excitation=fourier", "estimator=ls"),
@@ -212,6 +262,7 @@ def test_the_command_writes_a_file_a_scenario_loads(tmp_path):
     run = tmp_path / "opt"
     assert {p.name for p in run.iterdir()} >= {
         "excitation.yaml",
+        "excitation.csv",
         "excitation.npz",
         "excitation.png",
         "result.json",
@@ -238,8 +289,8 @@ def test_the_command_writes_a_file_a_scenario_loads(tmp_path):
         ),
         (("+scenario=clean", "scenario.excitation=fourrier"), "excitation 'fourrier': no such file"),
         (
-            ("+experiment=excitation", "robot=urdf", "robot.urdf=cylindrical", *TINY),
-            "excitation.acceleration_limit=",
+            ("+experiment=excitation", "excitation.t_end=10.0005", *TINY),
+            "excitation.t_end=10.0005 s is not a whole number of 0.001 s steps",
         ),
         (("+experiment=excitation", "excitation.family=fourrier", *TINY), "unknown excitation 'fourrier'"),
     ],

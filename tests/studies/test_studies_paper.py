@@ -7,9 +7,9 @@ import csv
 import pytest
 
 from idkit.data.presets import PAPER_SCENARIOS
+from idkit.estimators.aggregate import average_label
 from idkit.reports import paper as report
 from idkit.studies import paper
-from idkit.studies.average import average_label
 
 TINY_PSO = {"_name_": "pso", "runs": 2, "particles": 6, "iterations": 15}
 

@@ -31,13 +31,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Literal, NamedTuple, get_args
 
 import numpy as np
 import torch
 from torch import Tensor
 
-BOUNDARIES = ("clamp", "reflect", "random")
+#: What happens to a coordinate that left the box (module docstring).
+Boundary = Literal["clamp", "reflect", "random"]
+BOUNDARIES: tuple[str, ...] = get_args(Boundary)
 
 #: Upper limit on the elements of one block of pre-drawn random numbers (see ``random_blocks``).
 RANDOM_BLOCK_ELEMENTS = 1 << 21
@@ -70,7 +72,7 @@ class SwarmRules:
     c1: float = 1.3
     c2: float = 1.3
     inertia: tuple[float, float, int] = (0.9, 0.4, 100)
-    boundary: str = "clamp"
+    boundary: Boundary = "clamp"
     velocity_limit: float | None = None
     per_particle: bool = False
 
@@ -198,47 +200,27 @@ class Uniform:
     """Uniform [0, 1) numbers for the swarm, from ``generator`` (the problem's seed).
 
     On the CPU torch's Mersenne Twister makes about 50 M doubles/s, which alone would take most of
-    a big batch's time (10,000 runs need 480 M numbers). So on the CPU the numbers come from
-    numpy's SFC64 bit generator, seeded by one draw from ``generator``, in float32 (24 random
-    bits are plenty for ``r1``, ``r2`` and initial positions) — about 6× faster, measured. Other
-    devices use ``torch.rand`` with ``generator`` directly. Either way the seed fixes every number.
+    a big batch's time (10,000 runs need 480 M numbers). So on the CPU the numbers come from a
+    numpy ``Generator`` on the SFC64 bit generator, seeded by one draw from ``generator``:
+    ``Generator.random`` in float64, one ``next_double`` of the bit generator per number — the
+    call the fast kernel (``idkit.optim.kernel``) makes through numba's support for ``Generator``
+    arguments, so both engines see the same numbers and leave the stream in the same place.
+    Other devices use ``torch.rand`` with ``generator`` directly. Either way the seed fixes every
+    number.
     """
 
     def __init__(self, generator: torch.Generator, like: Tensor) -> None:
         self.generator = generator
         self.device, self.dtype = like.device, like.dtype
-        self.numpy = None
+        self.numpy: np.random.Generator | None = None
         if self.device.type == "cpu":
             seed = int(torch.randint(0, 2**62, (), generator=generator))
             self.numpy = np.random.Generator(np.random.SFC64(seed))
 
     def __call__(self, shape: tuple[int, ...]) -> Tensor:
         if self.numpy is not None:
-            return torch.from_numpy(self.numpy.random(shape, dtype=np.float32)).to(self.dtype)
+            return torch.from_numpy(self.numpy.random(shape)).to(self.dtype)
         return torch.rand(shape, generator=self.generator, device=self.device, dtype=self.dtype)
-
-    def bit_state(self) -> np.ndarray:
-        """Where the CPU stream stands: ``[s0, s1, s2, s3, has_uint32, uinteger]`` (uint64).
-
-        The SFC64 state and the upper half of a 64-bit draw that numpy keeps for the next 32-bit
-        number. A compiled consumer (``idkit.estimators.native``) continues the stream from here
-        and hands it back with ``set_bit_state``, so the numbers do not depend on who draws them.
-        """
-        state = self._bit_generator().state
-        return np.array([*state["state"]["state"], state["has_uint32"], state["uinteger"]], dtype=np.uint64)
-
-    def set_bit_state(self, bits: np.ndarray) -> None:
-        """Continue the stream from ``bits`` (``bit_state``'s layout)."""
-        generator = self._bit_generator()
-        state = generator.state
-        state["state"]["state"] = np.array(bits[:4], dtype=np.uint64)
-        state["has_uint32"], state["uinteger"] = int(bits[4]), int(bits[5])
-        generator.state = state
-
-    def _bit_generator(self) -> np.random.BitGenerator:
-        if self.numpy is None:
-            raise ValueError(f"a stream on {self.device} has no numpy bit state (CPU streams only)")
-        return self.numpy.bit_generator
 
 
 def random_blocks(
@@ -293,15 +275,6 @@ class Draws:
         for parts in zip(*(random_blocks(own, scale, moves, stream) for stream in self.streams), strict=True):
             yield parts[0] if len(parts) == 1 else torch.cat(parts, dim=2)
 
-    def bit_states(self) -> np.ndarray:
-        """Every trial's ``Uniform.bit_state``: ``[T, 6]`` uint64, contiguous."""
-        return np.stack([stream.bit_state() for stream in self.streams])
-
-    def set_bit_states(self, bits: np.ndarray) -> None:
-        """Continue every trial's stream from its row of ``bits[T, 6]``."""
-        for stream, row in zip(self.streams, bits, strict=True):
-            stream.set_bit_state(row)
-
     def moves(self, shape: tuple[int, ...], scale: Sequence[float], moves: int) -> Iterator[Sequence[Tensor]]:
         """Yield ``moves`` tuples of ``len(scale)`` tensors ``[*shape]``: uniform times ``scale``."""
         for block in self.blocks(shape, scale, moves):
@@ -330,6 +303,14 @@ def move_draws(
     return uniform.moves(shape, scale, iterations - 1)
 
 
+def history_rows(iterations: int, stride: int = 1) -> list[int]:
+    """The iterations a history keeps: every ``stride``-th from the first, and always the last."""
+    if stride < 1:
+        raise ValueError(f"history stride must be >= 1, got {stride}")
+    kept = list(range(0, iterations, stride))
+    return kept if kept[-1] == iterations - 1 else [*kept, iterations - 1]
+
+
 def run(
     objective: Callable[[Tensor], Tensor],
     lower: Tensor,
@@ -339,17 +320,21 @@ def run(
     iterations: int,
     rules: SwarmRules,
     uniform: Draws,
+    stride: int = 1,
 ) -> tuple[SwarmState, Tensor]:
     """``iterations`` evaluations per particle (``init`` is the first), i.e. ``iterations − 1`` moves.
 
     Returns:
-        The final state and the history ``[iterations, ...]`` of each swarm's global best cost.
+        The final state and the history ``[rows, ...]`` of each swarm's global best cost at the
+        iterations ``history_rows(iterations, stride)``.
     """
     if particles < 1 or iterations < 1:
         raise ValueError(f"need particles >= 1 and iterations >= 1, got {particles}, {iterations}")
+    kept = set(history_rows(iterations, stride))
     state = init(objective, lower, upper, batch_shape, particles, uniform)
     history = [state.global_cost]
     for move, random in enumerate(move_draws(uniform, batch_shape, particles, iterations, lower, rules)):
         state = step(state, objective, rules.weight(move), random, lower, upper, rules)
-        history.append(state.global_cost)
+        if move + 1 in kept:
+            history.append(state.global_cost)
     return state, torch.stack(history)

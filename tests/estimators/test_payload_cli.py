@@ -1,0 +1,81 @@
+"""estimator=payload through the idkit command: the printed block, result.json, identified.urdf, and the
+one-line refusals."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from urdf_cases import TREE_URDF
+
+from idkit.data.io import save_samples
+from idkit.problem import Samples
+from idkit.robots.inertia import standard_parameters
+from idkit.robots.urdf import URDFRobot
+
+MASS, COM = 0.7, np.array([0.03, -0.02, 0.1])
+
+
+@pytest.fixture
+def files(tmp_path):
+    """The test robot's URDF and a recording with a payload on link ``c`` (idkit's own torques: the
+    pinocchio comparisons live in test_payload.py)."""
+    (tmp_path / "arm.urdf").write_text(TREE_URDF)
+    robot = URDFRobot(str(tmp_path / "arm.urdf"))
+    truth = robot.nominal_params().clone()
+    i = robot.link_names.index("c")
+    truth[10 * i : 10 * i + 10] += torch.as_tensor(
+        standard_parameters(MASS, COM, np.diag([2e-3, 2.5e-3, 1.5e-3]))
+    )
+    q, qd, qdd = robot.random_states(300, torch.Generator().manual_seed(0))
+    save_samples(Samples(q, qd, qdd, robot.inverse_dynamics(truth, q, qd, qdd)), tmp_path / "with_tool.npz")
+    return tmp_path
+
+
+@pytest.mark.integration
+def test_the_command_prints_and_writes_the_payload(files, run_idkit, capsys):
+    run = files / "run"
+    status, said = run_idkit(
+        f"robot.urdf={files / 'arm.urdf'}",
+        "robot=urdf",
+        f"data={files / 'with_tool.npz'}",
+        "estimator=payload",
+        "estimator.link=c",
+        "cost=f1",
+        f"hydra.run.dir={run}",
+    )
+    assert status == 0, said
+    result = json.loads((run / "result.json").read_text())
+    block = result["payload"]["estimate"]["details"]["payload"]
+    assert block["mass"] == pytest.approx(MASS, rel=1e-8)
+    assert block["sdk"]["ur"]["cog"] == pytest.approx(COM, abs=1e-9)
+    assert '<link name="payload">' in (run / "identified.urdf").read_text()
+    back = URDFRobot(str(run / "identified.urdf"))
+    assert back.nominal_params().tolist() == pytest.approx(
+        list(result["payload"]["estimate"]["params"].values())
+    )
+
+
+def test_an_unknown_link_is_one_line_listing_the_links(files, run_idkit):
+    status, said = run_idkit(
+        "robot=urdf",
+        f"robot.urdf={files / 'arm.urdf'}",
+        f"data={files / 'with_tool.npz'}",
+        "estimator=payload",
+        "estimator.link=gripper",
+        f"hydra.run.dir={files / 'run'}",
+    )
+    assert status == 1 and len(said) == 1
+    assert said[0].startswith("idkit: payload: link 'gripper' is not a moving link of ")
+    assert said[0].endswith("its links: a, b (welded: tool), c, d")
+
+
+def test_a_robot_without_a_tree_is_one_line(files, run_idkit):
+    status, said = run_idkit("estimator=payload", f"hydra.run.dir={files / 'run'}")
+    assert status == 1
+    assert said == [
+        "idkit: payload: needs a robot with a kinematic tree and per-link parameters (robot=urdf or "
+        "robot=mjcf), got CylindricalRobot"
+    ]
