@@ -24,9 +24,12 @@ def run(
 
     Example: ``idkit.run(estimator="pso", cost="f13", scenario="outliers", seed=0).table()``.
     """
+    from idkit.reports import files
     from idkit.reports import single as report
     from idkit.studies import single
 
+    if out_dir is not None:  # a folder it cannot write into fails now, not after the fit
+        files.writable_folder(out_dir, "out_dir")
     result = single.run(robot, estimator, cost, scenario, **options)
     if out_dir is not None:
         report.write(result, out_dir, plots=plots)

@@ -228,8 +228,11 @@ def _check(where: str, value: Any, annotation: Any, default: Any) -> Any:
     except ValidationError as error:
         hint = _hint(error.errors(include_url=False), value, annotation)
         raise OptionError(f"{where} must be {describe(annotation)}, {got}{hint}") from None
-    if _has_nan(converted):
+    nan = _nan_at(converted)
+    if nan == "":
         raise OptionError(f"{where} must be {describe(annotation)}, {got}; NaN is never a valid option")
+    if nan is not None:  # inside a list or mapping (a plugin spec): name the item, not the whole value
+        raise OptionError(f"{where}: {nan} is NaN; NaN is never a valid option")
     return converted
 
 
@@ -260,11 +263,20 @@ def _literal_choices(annotation: Any) -> list[Any]:
     return []
 
 
-def _has_nan(value: Any) -> bool:
+def _nan_at(value: Any) -> str | None:
+    """Where ``value`` holds a NaN: ``""`` (it is one), ``"particles"``, ``"item 2"``, ``"betas item 0"``
+    (nested), or ``None`` (nowhere)."""
     if isinstance(value, float):
-        return math.isnan(value)
+        return "" if math.isnan(value) else None
     if isinstance(value, (list, tuple)):
-        return any(_has_nan(v) for v in value)
-    if isinstance(value, dict):
-        return any(_has_nan(v) for v in value.values())
-    return False
+        items = enumerate(value)
+    elif isinstance(value, dict):
+        items = value.items()
+    else:
+        return None
+    for key, item in items:
+        inner = _nan_at(item)
+        if inner is not None:
+            here = f"item {key}" if isinstance(value, (list, tuple)) else str(key)
+            return f"{here} {inner}".strip()
+    return None

@@ -138,6 +138,19 @@ def test_nan_is_never_an_option():
     assert check_setting("max_cond", "inf", float) == math.inf
 
 
+def test_nan_inside_a_plugin_spec_is_named_not_the_whole_spec():
+    """``estimator.particles=nan`` reaches the top-level setting as a mapping: the line names the
+    option holding the NaN instead of printing the whole mapping as "must be anything"."""
+    from idkit.studies.build import Spec
+
+    spec = {"_name_": "pso", "runs": 10, "particles": math.nan, "iterations": None}
+    with pytest.raises(OptionError) as caught:
+        check_setting("estimator", spec, Spec)
+    assert str(caught.value) == "setting 'estimator': particles is NaN; NaN is never a valid option"
+    with pytest.raises(OptionError, match=r"^setting 'estimator': betas item 1 is NaN;"):
+        check_setting("estimator", {"_name_": "adam", "betas": [0.9, math.nan]}, Spec)
+
+
 class Color(enum.Enum):
     RED = "r"
     BLUE = "b"

@@ -110,6 +110,26 @@ def test_a_missing_required_member_is_refused_in_one_line(site, kind, name, miss
     )
 
 
+def test_ready_objects_passed_to_idkit_run_are_held_to_the_same_contract(site):
+    """``idkit.run(cost=obj)`` with an object of a class that does not subclass the interface: it
+    gets the interface's defaults (before, a cost without ``structure`` failed with AttributeError
+    deep in the objective), and one lacking a required member is refused naming it."""
+    import idkit_contract_demo as demo
+
+    import idkit
+
+    pso = {"_name_": "pso", "runs": 2, "iterations": 20}
+    result = idkit.run(cost=demo.MeanAbsoluteError(), estimator=pso, scenario="outliers")
+    reference = idkit.run(cost=registry.create("cost", "demo_mae"), estimator=pso, scenario="outliers")
+    assert result.estimate.params == reference.estimate.params
+    with pytest.raises(registry.PluginContractError) as error:
+        idkit.run(robot=demo.Nameless(), estimator="ls", cost=None)
+    assert str(error.value) == (
+        "robot object Nameless (idkit_contract_demo) does not define joint_names, required by "
+        "idkit.interfaces.Robot (see the plugin contract)"
+    )
+
+
 def test_required_members_come_from_the_interfaces():
     assert registry.required_members("robot") == (
         ("bounds", "inverse_dynamics"),

@@ -163,17 +163,18 @@ class RunFolderCheck(Callback):
     run used, before Hydra creates anything in it: one line, exit status 1."""
 
     def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
-        self._check(config, lambda: claim(Path(config.hydra.run.dir)))
+        self._check(config, lambda: claim(Path(config.hydra.run.dir)), "hydra.run.dir")
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
-        self._check(config, lambda: claim_sweep(Path(config.hydra.sweep.dir)))
+        self._check(config, lambda: claim_sweep(Path(config.hydra.sweep.dir)), "hydra.sweep.dir")
 
     @staticmethod
-    def _check(config: DictConfig, check: Callable[[], None]) -> None:
+    def _check(config: DictConfig, check: Callable[[], None], setting: str) -> None:
         # Hydra turns a callback's exception into a warning and goes on: a refusal must exit here.
         from hydra.core.hydra_config import HydraConfig
 
         from idkit.cli import errors
+        from idkit.reports.files import FolderError, writable_folder
 
         HydraConfig.instance().set_config(config)  # as run_job does first: ${hydra:...} in a folder name
 
@@ -184,8 +185,10 @@ class RunFolderCheck(Callback):
             )
         try:
             check()
-        except RunDirectoryTaken as taken:
-            errors.fail(str(taken))
+            # Hydra's own mkdir would end in a traceback (a file in the way, a read-only place)
+            writable_folder(config.hydra[setting.split(".")[1]].dir, setting)
+        except (RunDirectoryTaken, FolderError) as refused:
+            errors.fail(str(refused))
 
 
 class MultirunSummary(Callback):

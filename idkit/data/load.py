@@ -86,7 +86,23 @@ class Source:
 
 
 def file_kind(table: Table) -> FileKind:
-    """What an open table holds, from its column or array names."""
+    """What an open table holds, from its column or array names.
+
+    Raises:
+        ValueError: the file names one quantity twice, by idkit's name and by FloBaRoID's
+            (``tau`` and ``torques``): which one is meant cannot be known.
+    """
+    both = [
+        (ours, theirs)
+        for ours, theirs in {**FLOBAROID_KEYS, **FLOBAROID_RECORDING_KEYS}.items()
+        if table.has(ours) and table.has(theirs)
+    ]
+    if both:
+        ours, theirs = both[0]
+        raise ValueError(
+            f"{table.path}: both {ours!r} and {theirs!r} (FloBaRoID's name for {ours}); which one is "
+            "meant? Keep one of them"
+        )
     flobaroid = table.has(FLOBAROID_KEYS["q"])
     time = (FLOBAROID_RECORDING_KEYS if flobaroid else {"t": "t"})["t"]
     accelerations = (FLOBAROID_KEYS if flobaroid else {"qdd": "qdd"})["qdd"]

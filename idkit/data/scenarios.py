@@ -44,6 +44,7 @@ from idkit.data.presets import SCENARIOS, Scenario, UnknownScenarioError
 from idkit.data.trajectory import sample_times
 from idkit.excitation.spec import excitation_of
 from idkit.interfaces import Excitation, Robot
+from idkit.memory import check_memory
 from idkit.problem import SAMPLE_ARRAYS, Samples
 from idkit.seeds import torch_generator
 
@@ -155,7 +156,22 @@ def clean_samples(
     t = sample_times(n_samples, t_end)
     q, qd, qdd = robot.excitation(t) if excitation is None else excitation(t)
     tau = robot.inverse_dynamics(params, q, qd, qdd)
+    if not isinstance(tau, Tensor) or tuple(tau.shape) != tuple(q.shape):
+        got = tuple(tau.shape) if isinstance(tau, Tensor) else type(tau).__name__
+        raise ValueError(
+            f"robot {type(robot).__name__}: inverse_dynamics(params[{robot.n_params}], q, qd, qdd "
+            f"[{q.shape[0]}, {q.shape[1]}]) returned {got}, not tau [{q.shape[0]}, {q.shape[1]}] "
+            "(samples x joints; see the plugin contract)"
+        )
     return t, Samples(q, qd, qdd, tau)
+
+
+def simulation_bytes(n_samples: int, n_joints: int, trials: int) -> int:
+    """A lower bound on the bytes :func:`simulate_batch` holds at once: times and clean arrays
+    (``[N]``, ``4 × [N, n]``), the uniform draws ``[T, 2, 4·N·n]`` and four float64 arrays
+    ``[T, 4, N, n]`` (errors, levels, products, noisy samples). The robot's own work is extra."""
+    components = 4 * n_samples * n_joints
+    return 8 * (n_samples + components + trials * components * (2 + 4))
 
 
 def simulate_batch(
@@ -190,6 +206,11 @@ def simulate_batch(
     sc = get_scenario(scenario, n_samples=n_samples, **overrides)
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
         raise ValueError(f"simulate_batch: trials must be an integer >= 1, got {trials!r}")
+    check_memory(
+        f"scenario {sc.name!r}: n_samples={sc.n_samples} ({robot.n_joints} joints, {trials} trial(s))",
+        simulation_bytes(sc.n_samples, robot.n_joints, trials),
+        "fewer n_samples need less",
+    )
     if excitation is None and sc.excitation is not None:
         excitation = excitation_of(sc.excitation, robot)
     t, clean = clean_samples(robot, sc.n_samples, params, sc.t_end, excitation)

@@ -468,6 +468,9 @@ def read_quantities(
             f"{table.path}: {', '.join(numbered)} in numbered columns (q1..) but "
             f"{', '.join(k for k in kinds if k not in numbered)} per joint (<joint>.q); use one kind"
         )
+    if any(c.values.ndim and not len(c.values) for c in columns.values()):
+        shown = ", ".join(f"{k} {c.values.shape}" for k, c in columns.items())
+        raise ValueError(f"{table.path}: no samples (the arrays have 0 rows: {shown})")
     widths = {k: c.values.shape[1] for k, c in columns.items() if c.values.ndim == 2}
     if len(set(widths.values())) > 1:
         shown = ", ".join(f"{k} {w}" for k, w in widths.items())

@@ -23,6 +23,39 @@ os.umask(_UMASK)
 _MODE = 0o666 & ~_UMASK  # what open() would have given; mkstemp's 0600 is for secrets
 
 
+class FolderError(ValueError):
+    """A folder results cannot be written into (a file, a read-only place, no permission)."""
+
+
+def writable_folder(folder: str | Path, setting: str) -> Path:
+    """``folder``, created if missing, once a file could be written in it; else one line naming it.
+
+    Checked before a run so that a folder it cannot use ends the run at its start, with the option
+    that named the folder, not with a traceback from the first file it writes after the fit.
+
+    Args:
+        folder: where the results go.
+        setting: the option that named it (``hydra.run.dir``, ``out_dir``), for the message.
+
+    Raises:
+        FolderError: ``folder`` or a folder above it is a file, or it cannot be created or written.
+    """
+    folder = Path(folder)
+    for part in (folder, *folder.parents):
+        if part.exists():
+            if not part.is_dir():
+                inside = "" if part == folder else f", so {folder} cannot be created"
+                raise FolderError(f"{setting}: {part} is a file, not a folder{inside}")
+            break
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as error:
+        raise FolderError(f"{setting}: cannot write into {folder}: {error.strerror or error}") from None
+    return folder
+
+
 def _replace(tmp: str, path: Path) -> None:
     os.chmod(tmp, _MODE)
     os.replace(tmp, path)

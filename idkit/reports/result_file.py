@@ -25,6 +25,7 @@ def claim(out_dir: str | Path, provenance: Provenance) -> Path:
 
     Raises:
         FileExistsError: ``out_dir/result.json`` belongs to another run.
+        idkit.reports.files.FolderError: ``out_dir`` is a file or cannot be written.
     """
     out = Path(out_dir)
     existing = out / RESULT_FILE
@@ -38,7 +39,7 @@ def claim(out_dir: str | Path, provenance: Provenance) -> Path:
                 f"{out} already holds the result of another run ({existing}); save into an empty "
                 "folder (its files would otherwise mix with this run's)"
             )
-    return out
+    return files.writable_folder(out, "out_dir")
 
 
 def document(provenance: Provenance, payload: dict[str, Any], written: dict[str, str]) -> dict[str, Any]:

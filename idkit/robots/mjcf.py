@@ -42,7 +42,7 @@ from idkit.robots.drives import Friction
 from idkit.robots.inertia import standard_parameters
 from idkit.robots.model_checks import check_model
 from idkit.robots.urdf import URDFRobot
-from idkit.robots.urdf_model import ASSETS, Body, KinematicTree, LinkInertial
+from idkit.robots.urdf_model import Body, KinematicTree, LinkInertial, model_file
 from idkit.seeds import Seed
 
 #: What to install when ``mujoco`` is missing.
@@ -88,20 +88,12 @@ def read_mjcf_text(mjcf: str | os.PathLike) -> tuple[str, Path | None, str]:
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: not XML, or not an MJCF file (a URDF is pointed to ``robot=urdf``).
+        ValueError: a directory, not XML, or not an MJCF file (a URDF is pointed to ``robot=urdf``).
     """
     if isinstance(mjcf, str) and mjcf.lstrip().startswith("<"):
         text, path, label = mjcf, None, "<MJCF text>"
     else:
-        path = Path(mjcf)
-        if not path.is_file() and (ASSETS / f"{mjcf}.xml").is_file():
-            path = ASSETS / f"{mjcf}.xml"
-        if not path.is_file():
-            shipped = ", ".join(sorted(p.stem for p in ASSETS.glob("*.xml")))
-            raise FileNotFoundError(
-                f"mjcf: {str(mjcf)!r} is neither MJCF text, an existing file, nor a shipped asset "
-                f"(shipped: {shipped})"
-            )
+        path = model_file(mjcf, "mjcf", ".xml")
         text, label = path.read_text(encoding="utf-8"), str(path)
     try:
         tag = ET.fromstring(text.encode("utf-8")).tag

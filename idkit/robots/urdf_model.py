@@ -138,16 +138,36 @@ def read_urdf_text(urdf: str | os.PathLike) -> tuple[bytes, str]:
             end = text.find("?>")
             text = '<?xml version="1.0" encoding="utf-8"' + text[end:] if end > 0 else text
         return text.encode("utf-8"), "<URDF text>"
-    path = Path(urdf)
-    if not path.is_file() and (ASSETS / f"{urdf}.urdf").is_file():
-        path = ASSETS / f"{urdf}.urdf"
+    path = model_file(urdf, "urdf", ".urdf")
+    return path.read_bytes(), str(path)
+
+
+def model_file(spec: str | os.PathLike, kind: str, suffix: str) -> Path:
+    """The model file ``spec`` names: a path, or a model shipped in ``idkit/robots/assets``.
+
+    Args:
+        spec: a path, or an asset's name (``"cylindrical"``).
+        kind: ``"urdf"`` or ``"mjcf"`` (the option, for messages).
+        suffix: the format's file suffix (``".urdf"``, ``".xml"``).
+
+    Raises:
+        ValueError: ``spec`` is a directory (the message lists the model files in it).
+        FileNotFoundError: no such file and no such asset (the message lists the shipped ones).
+    """
+    path = Path(spec)
+    if not path.is_file() and (ASSETS / f"{spec}{suffix}").is_file():
+        path = ASSETS / f"{spec}{suffix}"
+    if path.is_dir():
+        found = sorted(p.name for p in path.glob(f"*{suffix}"))
+        inside = f"; {suffix} files in it: {', '.join(found[:5])}{' …' * (len(found) > 5)}" if found else ""
+        raise ValueError(f"{kind}: {path} is a directory, not a {kind.upper()} file{inside}")
     if not path.is_file():
-        shipped = sorted(p.stem for p in ASSETS.glob("*.urdf"))
+        shipped = sorted(p.stem for p in ASSETS.glob(f"*{suffix}"))
         raise FileNotFoundError(
-            f"urdf: {str(urdf)!r} is neither URDF text, an existing file, nor a shipped asset "
+            f"{kind}: {str(spec)!r} is neither {kind.upper()} text, an existing file, nor a shipped asset "
             f"(shipped: {', '.join(shipped) or 'none'})"
         )
-    return path.read_bytes(), str(path)
+    return path
 
 
 def _floats(element: ET.Element | None, attribute: str, default: tuple[float, ...], where: str) -> np.ndarray:

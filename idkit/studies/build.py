@@ -54,12 +54,18 @@ def name_and_options(kind: registry.Kind, spec: Spec) -> tuple[str | None, dict[
 
 
 def build(kind: registry.Kind, spec: Spec | None) -> Any:
-    """Build a plugin from a spec; ``None`` stays ``None`` (e.g. no cost for least squares)."""
+    """Build a plugin from a spec; ``None`` stays ``None`` (e.g. no cost for least squares).
+
+    A ready object is held to the plugin contract as a registered plugin is
+    (:func:`idkit.registry.conform_instance`): one that does not subclass the interface gets its
+    defaults (a cost without ``structure()``), one lacking a required member is refused naming it.
+    """
     if spec is None:
         return None
     name, options = name_and_options(kind, spec)
     if name is None:
-        return spec
+        cls = type(spec)
+        return registry.conform_instance(kind, spec, f"{kind} object {cls.__qualname__} ({cls.__module__})")
     return registry.create(kind, name, **options)
 
 

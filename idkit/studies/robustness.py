@@ -467,6 +467,13 @@ def run(
     search = build("estimator", estimator) if cost_objs else None
     focus = average_label(average_of) if average_of and set(average_of) <= set(cost_names) else None
     columns = len(labels) + (focus is not None)
+    compared = [*labels, *([focus] if focus else [])]
+    if baseline not in compared:
+        absent = f" (skipped, not installed: {', '.join(skipped)})" if skipped else ""
+        raise ValueError(
+            f"robustness: baseline {baseline!r} is none of the study's estimates: {', '.join(compared)}"
+            f"{absent}; the win rates are against the baseline, name one of them"
+        )
     check_memory(
         f"robustness: trials={trials} ({len(scenarios)} scenario(s) x {columns} estimates per trial)",
         memory_needed(robot_obj, scenarios, common, mine.stop, len(mine), columns),

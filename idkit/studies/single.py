@@ -280,6 +280,29 @@ def _identified_mjcf(robot: Any, params: dict[str, float], wanted: bool | None) 
         return None
 
 
+def refuse_meaningless(fitted: Estimate, names: tuple[str, ...], label: str) -> None:
+    """Refuse an estimate that is no answer: a parameter missing or not finite (a third-party
+    estimator that failed quietly), which a report would otherwise print and save with exit status 0.
+
+    Raises:
+        IdentificationError: naming the estimator and the parameters.
+    """
+    from idkit.problem import IdentificationError
+
+    missing = [name for name in names if name not in fitted.params]
+    if missing:
+        raise IdentificationError(
+            f"estimator {label} returned no value for {len(missing)} of the robot's {len(names)} "
+            f"parameters ({', '.join(missing[:4])}{', …' * (len(missing) > 4)}); nothing is reported"
+        )
+    bad = [f"{name} = {fitted.params[name]}" for name in names if not np.isfinite(fitted.params[name])]
+    if bad:
+        raise IdentificationError(
+            f"estimator {label} returned {len(bad)} non-finite parameter(s) of {len(names)} "
+            f"({', '.join(bad[:4])}{', …' * (len(bad) > 4)}); nothing is reported"
+        )
+
+
 def run(
     robot: Spec = "cylindrical",
     estimator: Spec = "pso",
@@ -346,6 +369,7 @@ def run(
     problem.check_identifiable()  # for every estimator, a third party's included, before its fit
     fitted = estimator_obj.fit(problem)
     label = estimator_label(estimator, cost, with_cost=isinstance(estimator_obj, CostSearcher))
+    refuse_meaningless(fitted, robot_obj.param_names, label)
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
     provenance = Provenance(
         task="single",

@@ -104,3 +104,47 @@ def test_two_jobs_sent_to_one_folder_keep_the_first(tmp_path, monkeypatch, run_i
     job = json.loads((sweep / "same" / "result.json").read_text())
     assert job["seed"] == 0 and not (sweep / "same" / "error.json").exists()
     assert "seed=0" in (sweep / "same" / ".hydra" / "overrides.yaml").read_text()
+
+
+# --- a folder the run cannot write into: one line at the start, never Hydra's mkdir traceback ---
+
+
+def test_a_run_folder_that_is_a_file_or_lies_under_one_is_one_line(tmp_path, monkeypatch, run_idkit):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("mine")
+    assert run_idkit(*FIT, "hydra.run.dir=afile") == (
+        1,
+        ["idkit: hydra.run.dir: afile is a file, not a folder"],
+    )
+    assert run_idkit(*FIT, "hydra.run.dir=afile/run") == (
+        1,
+        ["idkit: hydra.run.dir: afile is a file, not a folder, so afile/run cannot be created"],
+    )
+    assert run_idkit("-m", *FIT, "hydra.sweep.dir=afile/sweep")[1] == [
+        "idkit: hydra.sweep.dir: afile is a file, not a folder, so afile/sweep cannot be created"
+    ]
+    assert (tmp_path / "afile").read_text() == "mine"
+
+
+def test_a_run_folder_without_write_permission_is_one_line(tmp_path, monkeypatch, run_idkit):
+    """As a read-only mount or a folder of another user does (simulated: the test may run as root)."""
+    import tempfile
+
+    def refused(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(tempfile, "TemporaryFile", refused)
+    status, lines = run_idkit(*FIT, "hydra.run.dir=locked/run")
+    assert (status, lines) == (1, ["idkit: hydra.run.dir: cannot write into locked/run: Permission denied"])
+
+
+def test_the_api_refuses_an_out_dir_it_cannot_use_before_fitting(tmp_path, monkeypatch):
+    import idkit
+    from idkit.reports.files import FolderError
+    from idkit.studies import single
+
+    (tmp_path / "afile").write_text("mine")
+    monkeypatch.setattr(single, "run", lambda *a, **k: pytest.fail("fitted before checking out_dir"))
+    with pytest.raises(FolderError, match=r"^out_dir: .*afile is a file, not a folder$"):
+        idkit.run(estimator="ls", cost=None, out_dir=tmp_path / "afile")

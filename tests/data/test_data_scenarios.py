@@ -196,3 +196,41 @@ def test_errors_name_the_problem(cylindrical):
         simulate(cylindrical, "outliers", n_samples=1, n_outliers=13)
     with pytest.raises(ValueError, match="trials"):
         simulate_batch(cylindrical, "clean", trials=0)
+
+
+def test_a_robot_whose_torques_have_the_wrong_shape_is_named():
+    """A plugin returning ``[n, N]`` (or one number) was blamed on "samples: array 'tau'" before."""
+
+    class Transposed(Robot):
+        joint_names = ("x", "y")
+        param_names = ("m",)
+
+        def bounds(self):
+            return torch.zeros(1), torch.ones(1)
+
+        def inverse_dynamics(self, params, q, qd, qdd):
+            return (params[..., 0, None, None] * qdd).transpose(-1, -2)
+
+    with pytest.raises(ValueError) as info:
+        simulate(Transposed(), "clean", n_samples=5, params=torch.tensor([2.0]))
+    assert str(info.value) == (
+        "robot Transposed: inverse_dynamics(params[1], q, qd, qdd [5, 2]) returned (2, 5), not tau [5, 2] "
+        "(samples x joints; see the plugin contract)"
+    )
+
+
+def test_n_samples_beyond_the_memory_is_refused_before_anything_is_drawn(cylindrical, monkeypatch):
+    import idkit.memory
+    from idkit.data import scenarios
+    from idkit.memory import SizeError
+
+    # 4 arrays x 1000 samples x 3 joints: 12,000 components, 6 float64 per component and trial
+    assert scenarios.simulation_bytes(1000, 3, 2) == 8 * (1000 + 12_000 + 2 * 12_000 * 6)
+    monkeypatch.setattr(idkit.memory, "available_memory", lambda: 1_000_000)
+    monkeypatch.setattr(scenarios, "clean_samples", lambda *a, **k: pytest.fail("allocated first"))
+    with pytest.raises(SizeError) as info:
+        simulate(cylindrical, "clean", n_samples=100_000)
+    assert str(info.value) == (
+        "scenario 'clean': n_samples=100000 (3 joints, 1 trial(s)) needs about 68 MB of memory; this "
+        "machine has 1 MB available; fewer n_samples need less"
+    )

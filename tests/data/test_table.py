@@ -168,3 +168,32 @@ def test_column_order_case_and_blank_lines_do_not_change_the_values(tmp_path_fac
     shuffled = load_recording(path)
     for name in ("t", "q", "tau"):
         np.testing.assert_array_equal(getattr(shuffled, name), getattr(reference, name))
+
+
+@pytest.mark.parametrize("reader", [load_samples, load_data_file])
+def test_arrays_without_rows_are_refused_naming_the_file(tmp_path, reader):
+    """Before, an .npz of [0, n] arrays reached the fit: "0 samples × 3 joints = 0 equations", no file."""
+    path = tmp_path / "empty.npz"
+    np.savez(path, **{k: np.zeros((0, 2)) for k in ("q", "qd", "qdd", "tau")})
+    assert refusal(reader, path) == (
+        f"{path}: no samples (the arrays have 0 rows: q (0, 2), qd (0, 2), qdd (0, 2), tau (0, 2))"
+    )
+
+
+@pytest.mark.parametrize(
+    ("arrays", "ours", "theirs"),
+    [
+        ({"q": 1, "qd": 1, "qdd": 1, "tau": 1, "torques": 2}, "tau", "torques"),
+        ({"t": 0, "times": 0, "q": 1, "tau": 1}, "t", "times"),
+        ({"positions": 1, "q": 1, "velocities": 1, "accelerations": 1, "torques": 1}, "q", "positions"),
+    ],
+)
+def test_one_quantity_under_both_names_is_refused(tmp_path, arrays, ours, theirs):
+    """``tau`` and FloBaRoID's ``torques`` in one file: which is meant? Before, one was silently used."""
+    path = tmp_path / "both.npz"
+    t = np.arange(5.0)
+    np.savez(path, **{k: t if v == 0 else np.outer(t, [v, v]) for k, v in arrays.items()})
+    assert refusal(load_data_file, path) == (
+        f"{path}: both {ours!r} and {theirs!r} (FloBaRoID's name for {ours}); which one is meant? "
+        "Keep one of them"
+    )

@@ -280,6 +280,10 @@ def test_what_the_tree_cannot_model_is_refused_in_one_line(case):
 def test_missing_file_and_missing_mujoco(tmp_path, monkeypatch):
     with pytest.raises(FileNotFoundError, match="arm.xml"):
         MJCFRobot(str(tmp_path / "arm.xml"))
+    (tmp_path / "arm.xml").write_text((ASSETS / "arm.xml").read_text())
+    with pytest.raises(ValueError) as caught:  # before: "neither MJCF text, an existing file, ..."
+        MJCFRobot(str(tmp_path))
+    assert str(caught.value) == f"mjcf: {tmp_path} is a directory, not a MJCF file; .xml files in it: arm.xml"
     monkeypatch.setitem(sys.modules, "mujoco", None)  # `import mujoco` now raises ImportError
     with pytest.raises(PluginLoadError, match=r"pip install robot-idkit\[mjcf\]") as caught:
         MJCFRobot(ARM)

@@ -70,6 +70,14 @@ def test_missing_file_lists_shipped_assets(tmp_path):
         URDFRobot(str(tmp_path / "absent.urdf"))
 
 
+def test_a_directory_is_named_as_one(tmp_path):
+    """Before: "is neither URDF text, an existing file, nor a shipped asset" — but it exists."""
+    (tmp_path / "arm.urdf").write_text(CHAIN.format(r2_type="revolute", mimic=""))
+    with pytest.raises(ValueError) as info:
+        URDFRobot(str(tmp_path))
+    assert str(info.value) == f"urdf: {tmp_path} is a directory, not a URDF file; .urdf files in it: arm.urdf"
+
+
 @pytest.mark.parametrize("encoding", ["utf-8", "ISO-8859-1", "UTF-16"])
 def test_text_with_an_xml_encoding_declaration(encoding, tmp_path):
     """URDF text carrying any ``encoding=`` line parses (as text and as a file in that encoding)."""

@@ -101,7 +101,10 @@ def test_interrupted_study_keeps_whole_trials_and_says_partial(tmp_path, monkeyp
     monkeypatch.setattr(LeastSquares, "fit_trials", interrupting_fit_trials)
     with pytest.raises(StudyInterrupted) as stop:
         robustness.run(
-            trials=5, chunk=1, **{**SMALL, "estimators": [{"_name_": "ls", "relative": True}, "ls"]}
+            trials=5,
+            chunk=1,
+            baseline="LS",
+            **{**SMALL, "estimators": [{"_name_": "ls", "relative": True}, "ls"]},
         )
     partial = stop.value.partial
     assert (partial.provenance.done, partial.provenance.requested) == (2, 5)
@@ -187,6 +190,25 @@ def test_shard_options_are_checked():
         robustness.shard_trials(2, 0, 3)
     with pytest.raises(ValueError, match="chunk"):
         robustness.run(trials=2, chunk=0, **SMALL)
+
+
+def test_a_baseline_that_is_none_of_the_estimates_is_refused_before_fitting(monkeypatch):
+    """Before, ``robustness.baseline=XYZ`` (or estimators overridden without RLS-rel) ran and left
+    every win-rate column empty, exit status 0."""
+    import idkit.data.scenarios
+
+    monkeypatch.setattr(idkit.data.scenarios, "simulate_batch", lambda *a, **k: pytest.fail("drew noise"))
+    with pytest.raises(ValueError) as refused:
+        robustness.run(
+            trials=2,
+            baseline="XYZ",
+            **{**SMALL, "pso_costs": ["f13", "f14", "absent"], "optional": ["absent"]},
+        )
+    assert str(refused.value) == (
+        "robustness: baseline 'XYZ' is none of the study's estimates: LS-rel, RLS-rel, PSO-f13, PSO-f14, "
+        "PSO-f13/f14 (skipped, not installed: cost absent); the win rates are against the baseline, "
+        "name one of them"
+    )
 
 
 def test_trials_are_checked_before_anything_is_drawn(monkeypatch):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 
 import numpy as np
 import pytest
@@ -151,3 +152,32 @@ def test_too_few_equations_are_refused_before_any_estimator_fits():
         idkit.run(estimator=Unchecked(), cost="f13", n_samples=1)
     assert not Unchecked.fitted
     assert idkit.run(estimator=Unchecked(), cost="f13", n_samples=2).estimate.params["m2"] == 0.0
+
+
+@pytest.mark.parametrize(
+    ("params", "message"),
+    [
+        (
+            {"m2": math.nan, "m3": 1.0, "s3z": 0.1, "I": math.inf},
+            "estimator NaNs returned 2 non-finite parameter(s) of 4 (m2 = nan, I = inf); nothing is reported",
+        ),
+        (
+            {"m2": 1.0},
+            "estimator NaNs returned no value for 3 of the robot's 4 parameters (m3, s3z, I); nothing is "
+            "reported",
+        ),
+    ],
+)
+def test_an_estimator_returning_no_answer_is_refused_not_reported(params, message):
+    """A third-party estimator that fails quietly (NaN parameters) was reported with exit status 0."""
+    from idkit.estimate import Estimate
+    from idkit.interfaces import Estimator
+    from idkit.problem import IdentificationError
+
+    class NaNs(Estimator):
+        def fit(self, problem):
+            return Estimate(estimator="nan", params=dict(params), cost=math.nan, wall_time_s=0.0)
+
+    with pytest.raises(IdentificationError) as info:
+        single.run(estimator=NaNs(), cost=None, scenario="outliers")
+    assert str(info.value) == message
