@@ -31,11 +31,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Literal, NamedTuple, get_args
 
 import numpy as np
 import torch
 from torch import Tensor
+
+from idkit.seeds import torch_generator
 
 #: What happens to a coordinate that left the box (module docstring).
 Boundary = Literal["clamp", "reflect", "random"]
@@ -210,17 +213,38 @@ class Uniform:
     """
 
     def __init__(self, generator: torch.Generator, like: Tensor) -> None:
-        self.generator = generator
+        self.generator: torch.Generator | None = generator
         self.device, self.dtype = like.device, like.dtype
         self.numpy: np.random.Generator | None = None
         if self.device.type == "cpu":
             seed = int(torch.randint(0, 2**62, (), generator=generator))
             self.numpy = np.random.Generator(np.random.SFC64(seed))
 
+    @classmethod
+    def seeded(cls, seed: int, like: Tensor) -> Uniform:
+        """``Uniform(torch_generator(seed, like.device), like)``: the same numbers, but on the CPU the
+        numpy stream's seed is derived once per seed and process (``_stream_seed``: deriving it
+        through a fresh torch generator costs more than a paper-sized run on the fast kernel)."""
+        if like.device.type != "cpu":
+            return cls(torch_generator(seed, like.device), like)
+        uniform = cls.__new__(cls)
+        uniform.generator = None
+        uniform.device, uniform.dtype = like.device, like.dtype
+        uniform.numpy = np.random.Generator(np.random.SFC64(_stream_seed(seed)))
+        return uniform
+
     def __call__(self, shape: tuple[int, ...]) -> Tensor:
         if self.numpy is not None:
             return torch.from_numpy(self.numpy.random(shape)).to(self.dtype)
         return torch.rand(shape, generator=self.generator, device=self.device, dtype=self.dtype)
+
+
+@lru_cache(maxsize=4096)
+def _stream_seed(seed: int) -> np.random.SeedSequence:
+    """The seed of the CPU numpy stream of ``Uniform(torch_generator(seed), ...)``, as the
+    ``SeedSequence`` numpy makes of it (stateless for a bit generator's seeding: the same stream,
+    a fifth of the set-up)."""
+    return np.random.SeedSequence(int(torch.randint(0, 2**62, (), generator=torch_generator(seed))))
 
 
 def random_blocks(
