@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numba.core.config
 import numpy as np
-from numba import njit
+from numba import carray, njit, types
+from numba.extending import intrinsic
 
 from idkit.optim import cache, codes
 from idkit.optim.codes import (
@@ -77,7 +78,6 @@ _previous_cache_dir = numba.core.config.CACHE_DIR
 numba.core.config.CACHE_DIR = str(FOLDER)
 
 jit = njit(cache=True, nogil=True, error_model="numpy")
-inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")
 
 #: Particles evaluated together (the swarms of one slot side by side): long loops for the vector
 #: units, while the error matrix stays in the cache (30 entries × 256 × 8 B = 60 kB).
@@ -92,22 +92,23 @@ def _larger(current: float, value: float) -> float:
     return current
 
 
-@inline
+@jit
 def _base_params(points, first, n, mode, tape, constants, outputs, registers, alpha):  # noqa: ANN001, ANN202
     """``alpha[B, :n]``: the base parameters of points ``points[first : first + n]`` — the points
     themselves (a base-space search, or base parameters given by the caller), or the tape run one
     operation at a time over all points (the dispatch outside the loops, so every loop vectorises)."""
     count = alpha.shape[0]
+    points = points[first : first + n]
     if mode != MAP_TAPE:
         for b in range(count):
             for k in range(n):
-                alpha[b, k] = points[first + k, b]
+                alpha[b, k] = points[k, b]
         return
     for row in range(tape.shape[0]):
         op, out, a, b = tape[row, 0], tape[row, 1], tape[row, 2], tape[row, 3]
         if op == OP_X:
             for k in range(n):
-                registers[out, k] = points[first + k, a]
+                registers[out, k] = points[k, a]
         elif op == OP_CONST:
             value = constants[row]
             for k in range(n):
@@ -145,7 +146,7 @@ def _base_params(points, first, n, mode, tape, constants, outputs, registers, al
             alpha[b, k] = registers[source, k]
 
 
-@inline
+@jit
 def _errors(alpha, linear, offset, slot, n, e):  # noqa: ANN001, ANN202
     """``e[M, :n] = offset[slot] + alpha[B, :n] · linear[slot]``, summed in the eager engine's order
     (``offset``, then each base parameter's term in turn), four terms per pass over a row so the
@@ -199,7 +200,7 @@ def _spectral3(e, k: int, samples: int) -> float:  # noqa: ANN001
     return math.sqrt(top) if top > 0 else (top if top != top else 0.0)
 
 
-@inline
+@jit
 def _factor(code, parameter, e, n, joints, out, row, column):  # noqa: ANN001, ANN202
     """``out[:n]``: factor ``code`` of each particle's error matrix ``e[M, :n]`` (joint-major rows);
     ``row`` (``≥ n``) and ``column`` (``M``) are scratch. Every loop over particles is innermost."""
@@ -277,7 +278,7 @@ def _factor(code, parameter, e, n, joints, out, row, column):  # noqa: ANN001, A
             out[k] = math.nan if column[entries - 1] != column[entries - 1] else total / keep
 
 
-@inline
+@jit
 def _evaluate(
     points,
     x,
@@ -331,10 +332,10 @@ def _evaluate(
                 for k in range(n):
                     cost[0, k] = cost[0, k] * cost[1, k]
         for t in range(s, stop):
-            base = (t - s) * particles
+            costs = cost[0, (t - s) * particles :]
             for k in range(particles):
-                if cost[0, base + k] < pcost[t, k]:  # strictly; NaN never is
-                    pcost[t, k] = cost[0, base + k]
+                if costs[k] < pcost[t, k]:  # strictly; NaN never is
+                    pcost[t, k] = costs[k]
                     for p in range(dimension):
                         pbest[t, k, p] = x[t, k, p]
             best, low = 0, pcost[t, 0]
@@ -347,82 +348,60 @@ def _evaluate(
         s = stop
 
 
-@inline
-def _move(
-    x,
-    v,
-    best,
-    gbest,
-    start,
-    n,
-    random,
-    at1,
-    at2,
-    at3,
-    weight,
-    box,
-    boundary,
-    per_particle,
-    dimension,
-    scratch,
-):  # noqa: ANN001, ANN202
-    """Move a tile of swarms — coordinates ``[start, start + n)`` of the flat positions ``x``,
-    velocities ``v`` and personal bests ``best``, ``gbest[:n]`` each coordinate's swarm best — with
-    inertia ``weight`` and the uniform numbers ``random[at1:]`` (``r1``), ``random[at2:]`` (``r2``)
-    and ``random[at3:]`` (``u3``, random walls), ``n`` of each (``n / P`` per particle), then apply
-    the boundary rule: what ``swarm.step`` does, operation by operation, in flat loops.
+@jit
+def _move(xs, vs, best, gbest, r1, r2, u3, weight, box, boundary, per_particle, dimension, scratch):  # noqa: ANN001, ANN202
+    """Move a tile of swarms (their positions ``xs``, velocities ``vs``, personal bests ``best``
+    and each coordinate's swarm best ``gbest``, flat ``[n]``) with inertia ``weight`` and uniform
+    numbers ``r1``, ``r2`` (``u3`` for random walls), flat ``[n]`` (``[n / P]`` per particle), then
+    apply the boundary rule: what ``swarm.step`` does, operation by operation, in flat loops (indexed
+    by the loop counter alone, so that they vectorise).
 
     ``box``: per coordinate ``[c1, c2, lower, upper, width, v_max]``, rows ``[6, ≥ n]``."""
-    r1, r2, moved = scratch[0], scratch[1], scratch[2]
+    n = xs.shape[0]
+    lower, upper, width, vmax = box[2], box[3], box[4], box[5]
+    scaled1, scaled2, moved = scratch[0], scratch[1], scratch[2]
     if per_particle:  # one number per particle: spread over its coordinates
         for k in range(n // dimension):
             for p in range(dimension):
-                r1[k * dimension + p] = random[at1 + k]
-                r2[k * dimension + p] = random[at2 + k]
-    else:
-        for i in range(n):
-            r1[i] = random[at1 + i]
-            r2[i] = random[at2 + i]
+                scaled1[k * dimension + p] = r1[k]
+                scaled2[k * dimension + p] = r2[k]
+        r1, r2 = scaled1[:n], scaled2[:n]
     for i in range(n):
-        j = start + i
-        velocity = v[j] * weight + (box[0, i] * r1[i]) * (best[j] - x[j])
-        velocity = velocity + (box[1, i] * r2[i]) * (gbest[i] - x[j])
-        velocity = -box[5, i] if velocity < -box[5, i] else velocity
-        velocity = box[5, i] if velocity > box[5, i] else velocity
-        v[j] = velocity
-        moved[i] = x[j] + velocity
+        velocity = vs[i] * weight + (box[0, i] * r1[i]) * (best[i] - xs[i])
+        velocity = velocity + (box[1, i] * r2[i]) * (gbest[i] - xs[i])
+        velocity = -vmax[i] if velocity < -vmax[i] else velocity
+        velocity = vmax[i] if velocity > vmax[i] else velocity
+        vs[i] = velocity
+        moved[i] = xs[i] + velocity
     if boundary == CLAMP:
         for i in range(n):
-            j = start + i
-            low = box[2, i] if moved[i] < box[2, i] else moved[i]
-            clamped = box[3, i] if low > box[3, i] else low
-            v[j] = v[j] * (1.0 if clamped == moved[i] else 0.0)
-            x[j] = clamped
+            low = lower[i] if moved[i] < lower[i] else moved[i]
+            clamped = upper[i] if low > upper[i] else low
+            vs[i] = vs[i] * (1.0 if clamped == moved[i] else 0.0)
+            xs[i] = clamped
     elif boundary == REFLECT:
         # t = (x − lower) mod 2·width, as torch.remainder: t itself on [0, 2 width), t + 2 width on
         # [−2 width, 0) (exact); farther out (rare) the full remainder. Then folded onto the box.
         far = False
         for i in range(n):
-            moved[i] = moved[i] - box[2, i]
-            far |= not (moved[i] >= -2 * box[4, i] and moved[i] < 2 * box[4, i])
+            moved[i] = moved[i] - lower[i]
+            far |= not (moved[i] >= -2 * width[i] and moved[i] < 2 * width[i])
         if far:
             for i in range(n):
-                if not (moved[i] >= -2 * box[4, i] and moved[i] < 2 * box[4, i]):
-                    moved[i] = np.fmod(moved[i], 2 * box[4, i])
+                if not (moved[i] >= -2 * width[i] and moved[i] < 2 * width[i]):
+                    moved[i] = np.fmod(moved[i], 2 * width[i])
         for i in range(n):
-            j = start + i
-            t = moved[i] + 2 * box[4, i] if moved[i] < 0 else moved[i]
-            folded = box[4, i] - t
-            x[j] = box[3, i] - abs(folded)
-            v[j] = v[j] * ((1.0 if folded > 0 else 0.0) - (1.0 if folded < 0 else 0.0))
+            t = moved[i] + 2 * width[i] if moved[i] < 0 else moved[i]
+            folded = width[i] - t
+            xs[i] = upper[i] - abs(folded)
+            vs[i] = vs[i] * ((1.0 if folded > 0 else 0.0) - (1.0 if folded < 0 else 0.0))
     else:  # RANDOM: between the previous position and the wall it crossed
         for i in range(n):
-            j = start + i
-            u = random[at3 + i // dimension] if per_particle else random[at3 + i]
-            out_low, out_high = moved[i] < box[2, i], moved[i] > box[3, i]
-            position = box[2, i] + (x[j] - box[2, i]) * u if out_low else moved[i]
-            x[j] = box[3, i] - (box[3, i] - x[j]) * u if out_high else position
-            v[j] = 0.0 if out_low or out_high else v[j]
+            u = u3[i // dimension] if per_particle else u3[i]
+            out_low, out_high = moved[i] < lower[i], moved[i] > upper[i]
+            position = lower[i] + (xs[i] - lower[i]) * u if out_low else moved[i]
+            xs[i] = upper[i] - (upper[i] - xs[i]) * u if out_high else position
+            vs[i] = 0.0 if out_low or out_high else vs[i]
 
 
 @jit
@@ -462,9 +441,9 @@ def run_trial(  # noqa: ANN201, PLR0913
     order, ``r1`` for every swarm, then ``r2``, then (random walls) ``u3``, each ``[count, K, P]``
     (``[count, K, 1]`` per particle), swarm-major: the eager engine's blocks.
 
-    Inside the loop of moves no array is sliced or reshaped (each view costs a reference count
-    increment and decrement, atomic operations that took half of a one-run fit's kernel time):
-    flat or row-indexed views are made once per call.
+    The loop of moves (``_moves``) runs on views without reference counts (``_unowned``), so the
+    slices it takes per tile cost no atomic operations, and its loops index by their counter alone
+    (a computed index is checked for wrapping around, which keeps a loop from vectorising).
     """
     swarms, particles, dimension = x.shape[0], x.shape[1], x.shape[2]
     entries, base, coordinates = offset.shape[1], linear.shape[1], particles * dimension
@@ -498,6 +477,24 @@ def run_trial(  # noqa: ANN201, PLR0913
     row = np.empty(tile)
     column = np.empty(entries)
     flat_x, flat_v, flat_best = x.reshape(x.size), v.reshape(v.size), pbest.reshape(pbest.size)
+    u = _unowned
+    _moves(
+        rng, first, count, weights, last, u(history), u(x), u(pbest), u(pcost), u(gpos), u(linear), u(offset),
+        u(slot_of), u(codes), u(params), joints, mode, u(tape), u(tape_constants), u(outputs), u(points),
+        u(registers), u(alpha), u(e), u(cost), u(row), u(column), u(random), u(box), u(scratch), u(flat_x),
+        u(flat_v), u(flat_best), boundary, per_particle, kinds, block, per_tile, width,
+    )  # fmt: skip
+
+
+@jit
+def _moves(
+    rng, first, count, weights, last, history, x, pbest, pcost, gpos, linear, offset, slot_of, codes, params,
+    joints, mode, tape, tape_constants, outputs, points, registers, alpha, e, cost, row, column, random, box,
+    scratch, flat_x, flat_v, flat_best, boundary, per_particle, kinds, block, per_tile, width,
+):  # fmt: skip  # noqa: ANN001, ANN202
+    """The loop of ``run_trial``, on views that carry no reference count (``_unowned``)."""
+    particles, dimension = x.shape[1], x.shape[2]
+    coordinates = particles * dimension
     gbest = scratch[3]
     moves = weights.shape[0]
     for m in range(moves + (1 if last else 0)):
@@ -514,14 +511,38 @@ def run_trial(  # noqa: ANN201, PLR0913
             n = (stop - s) * coordinates
             for t in range(s, stop):
                 for k in range(particles):
-                    at = ((t - s) * particles + k) * dimension
+                    # a view per particle: indexed by the loop counter alone, no index wraps around
+                    target = gbest[((t - s) * particles + k) * dimension :]
                     for p in range(dimension):
-                        gbest[at + p] = gpos[t, p]
-            c0 = (s - first) * particles * width
+                        target[p] = gpos[t, p]
+            c0, c1, at = (s - first) * particles * width, (stop - first) * particles * width, s * coordinates
             _move(
-                flat_x, flat_v, flat_best, gbest, s * coordinates, n, random, c0, block + c0,
-                (kinds - 1) * block + c0, weights[m], box, boundary, per_particle, dimension, scratch,
+                flat_x[at : at + n], flat_v[at : at + n], flat_best[at : at + n], gbest[:n], random[c0:c1],
+                random[block + c0 : block + c1], random[(kinds - 1) * block + c0 : (kinds - 1) * block + c1],
+                weights[m], box, boundary, per_particle, dimension, scratch,
             )  # fmt: skip
+
+
+@intrinsic
+def _data_pointer(context, array):  # noqa: ANN001, ANN202
+    """The data pointer of a C-contiguous ``array`` typed ``CPointer(dtype)``, as ``numba.carray``
+    takes it (any other layout is a typing error: ``carray`` reads its data as C-contiguous)."""
+    if not isinstance(array, types.Array) or array.layout != "C":
+        return None
+
+    def generate(codegen, builder, signature, arguments):  # noqa: ANN001, ANN202
+        return codegen.make_array(signature.args[0])(codegen, builder, arguments[0]).data
+
+    return types.CPointer(array.dtype)(array), generate
+
+
+@jit
+def _unowned(array):  # noqa: ANN001, ANN202
+    """A view of ``array`` without a reference count (``numba.carray`` over its data). Every array
+    passed to a compiled function is reference-counted on entry and exit — atomic operations, which
+    cost a one-run fit a quarter of its kernel time —, a view without one only a null test. The
+    caller keeps ``array`` alive while the view is used."""
+    return carray(_data_pointer(array), array.shape)
 
 
 numba.core.config.CACHE_DIR = _previous_cache_dir
