@@ -113,6 +113,7 @@ def init(
     batch_shape: tuple[int, ...],
     particles: int,
     uniform: Draws,
+    start: Tensor | None = None,
 ) -> SwarmState:
     """Uniform positions in the box, zero velocities, bests from one evaluation.
 
@@ -122,9 +123,19 @@ def init(
         batch_shape: leading dimensions ``...`` (independent swarms).
         particles: ``K``.
         uniform: the only source of randomness.
+        start: ``[S, P]`` (``S ≤ K``) known positions that replace the first ``S`` drawn particles of
+            every swarm (e.g. a reference guess; clamped into the box). The numbers are drawn all
+            the same, so the random stream does not depend on ``start``.
     """
     u = uniform.draw((*batch_shape, particles, lower.shape[-1]))
     position = lower + (upper - lower) * u
+    if start is not None:
+        if start.ndim != 2 or start.shape[0] > particles or start.shape[1] != lower.shape[-1]:
+            raise ValueError(
+                f"start positions must be [S <= {particles}, {lower.shape[-1]}], got {tuple(start.shape)}"
+            )
+        known = torch.minimum(torch.maximum(start.to(position), lower), upper)
+        position[..., : start.shape[0], :] = known
     cost = objective(position)
     empty = SwarmState(
         position,
@@ -345,8 +356,10 @@ def run(
     rules: SwarmRules,
     uniform: Draws,
     stride: int = 1,
+    start: Tensor | None = None,
 ) -> tuple[SwarmState, Tensor]:
-    """``iterations`` evaluations per particle (``init`` is the first), i.e. ``iterations − 1`` moves.
+    """``iterations`` evaluations per particle (``init`` is the first, with ``start`` as there),
+    i.e. ``iterations − 1`` moves.
 
     Returns:
         The final state and the history ``[rows, ...]`` of each swarm's global best cost at the
@@ -355,7 +368,7 @@ def run(
     if particles < 1 or iterations < 1:
         raise ValueError(f"need particles >= 1 and iterations >= 1, got {particles}, {iterations}")
     kept = set(history_rows(iterations, stride))
-    state = init(objective, lower, upper, batch_shape, particles, uniform)
+    state = init(objective, lower, upper, batch_shape, particles, uniform, start)
     history = [state.global_cost]
     for move, random in enumerate(move_draws(uniform, batch_shape, particles, iterations, lower, rules)):
         state = step(state, objective, rules.weight(move), random, lower, upper, rules)
