@@ -26,6 +26,7 @@ import hashlib
 import inspect
 import pickle
 from collections.abc import Sequence
+from functools import cached_property
 
 import torch
 from torch import Tensor
@@ -143,9 +144,6 @@ class Objective:
             c: torch.tensor([s for s in self.others if s % count == c], device=device)
             for c in {s % count for s in self.others}
         }  # the slots of each cost without a structure (its trials), for one call per cost
-        self.products = NormProducts(
-            [self.structures[s % count] for s in self.fast], *self.shape, self.measured
-        )
         if self.use_regressor:
             # -Yᵀ per trial as [T, B, n·N]: alpha[..., B] @ it is minus the prediction in the
             # joints × samples layout.
@@ -157,6 +155,13 @@ class Objective:
             self.offset = (
                 self.absolute[0].repeat_interleave(count, 0) / divisors
             ).contiguous()  # [S, 1, n·N]
+
+    @cached_property
+    def products(self) -> NormProducts:
+        """The fused torch form of the structured costs' slots (the eager engine's; built on first
+        use, so a fit on the fast kernel never builds it)."""
+        count = len(self.costs)
+        return NormProducts([self.structures[s % count] for s in self.fast], *self.shape, self.measured)
 
     @property
     def fast_costs(self) -> list[int]:
