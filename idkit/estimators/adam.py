@@ -42,7 +42,6 @@ from idkit.estimators.objective import Objective
 from idkit.estimators.search_result import common_details, per_cost_estimates
 from idkit.estimators.trials import criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
-from idkit.memory import check_memory
 from idkit.optim import sizes
 from idkit.optim.swarm import Draws, Uniform, history_rows
 from idkit.problem import Problem
@@ -172,7 +171,7 @@ class AdamMultiStart(Estimator):
         kept_steps = history_rows(settings.steps, settings.stride) if self.history else []
         dimension = max(len(robot.param_names), len(robot.base_param_names))
         slots = trials * count
-        check_memory(
+        sizes.check_memory(
             f"adam: {trials} trial(s) × {count} cost(s) × starts={settings.starts} "
             f"({len(kept_steps)} history rows)",
             sizes.swarm_bytes(slots, settings.starts, 1, dimension, len(kept_steps))

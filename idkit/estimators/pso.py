@@ -61,13 +61,12 @@ from torch import Tensor
 
 from idkit.estimate import Estimate
 from idkit.estimators.aggregate import KeepRule, aggregate
-from idkit.estimators.objective import Objective
+from idkit.estimators.objective import Objective, fast_structure
 from idkit.estimators.search_result import common_details, per_cost_estimates
 from idkit.estimators.trials import CHUNK_ELEMENTS, check_chunk, criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
-from idkit.memory import check_memory
 from idkit.optim import fast, sizes, swarm
-from idkit.problem import Problem
+from idkit.problem import SAMPLE_ARRAYS, Problem
 from idkit.runtime import available_cores, resolve_threads, torch_threads
 
 Preset = Literal["default", "paper"]
@@ -326,7 +325,7 @@ class ParticleSwarm(Estimator):
         rows = len(swarm.history_rows(settings.iterations, settings.stride))
         chunk_runs = min(run_chunk, settings.runs)
         dimension = max(len(robot.param_names), len(robot.base_param_names))
-        check_memory(
+        sizes.check_memory(
             f"pso: {trials} trial(s) × {count} cost(s) × runs={settings.runs} of "
             f"particles={settings.particles} ({rows} history rows)",
             sizes.swarm_bytes(trials * count, settings.runs, settings.particles, dimension, rows)
@@ -336,7 +335,8 @@ class ParticleSwarm(Estimator):
             "lower runs or particles, or fit the trials in smaller chunks",
         )
         started = time.perf_counter()
-        objective = Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
+        prepared = self._prepared(problems, costs)
+        objective = prepared.objective if prepared is not None else self._objective(problems, costs)
         n, samples = objective.shape
         threads = resolve_threads(
             self.threads, objective.slots * chunk_runs * settings.particles * n * samples
@@ -346,12 +346,14 @@ class ParticleSwarm(Estimator):
         kernel_threads = self.threads if self.threads is not None else available_cores()
         engines: list[dict[str, Any]] = [{} for _ in costs]
         with torch_threads(threads), torch.inference_mode():
-            groups = self._engines(problems, costs, objective)
-            build_seconds = sum(group.details["engine_build_s"] for group in groups)
-            uniform = swarm.Draws([swarm.Uniform(p.generator(), objective.lower) for p in problems])
-            position = objective.lower.new_empty((objective.slots, settings.runs, objective.dimension))
-            run_costs = objective.lower.new_empty((objective.slots, settings.runs))
-            history = objective.lower.new_empty((rows, objective.slots, settings.runs))
+            if prepared is None:
+                groups = self._engines(problems, costs, objective)
+                build_seconds = sum(group.details["engine_build_s"] for group in groups)
+                self._keep_prepared(problems, costs, objective, groups)
+            else:
+                groups, build_seconds = prepared.groups, 0.0
+            uniform = swarm.Draws([swarm.Uniform.seeded(p.seed, objective.lower) for p in problems])
+            parts = []
             for group in groups:
                 used = kernel_threads if group.fast else threads
                 chunks = [
@@ -361,12 +363,28 @@ class ParticleSwarm(Estimator):
                 if group.fast:  # the threads its kernel calls used
                     swarms = len(group.members) * trials * chunk_runs
                     used = fast.thread_count(used, trials, swarms, settings.particles, settings.iterations)
-                slots = torch.tensor([t * count + c for t in range(trials) for c in group.members])
-                position[slots] = torch.cat([state.global_position for state, _ in chunks], dim=1)
-                run_costs[slots] = torch.cat([state.global_cost for state, _ in chunks], dim=1)
-                history[:, slots] = torch.cat([h for _, h in chunks], dim=2)
                 for c in group.members:
                     engines[c] = {**group.details, "threads": used}
+                parts.append(
+                    [
+                        torch.cat(part, dim=axis) if len(part) > 1 else part[0]
+                        for part, axis in (
+                            ([state.global_position for state, _ in chunks], 1),
+                            ([state.global_cost for state, _ in chunks], 1),
+                            ([h for _, h in chunks], 2),
+                        )
+                    ]
+                )
+            if len(groups) == 1:  # every slot in its place already
+                position, run_costs, history = parts[0]
+            else:
+                position = objective.lower.new_empty((objective.slots, settings.runs, objective.dimension))
+                run_costs = objective.lower.new_empty((objective.slots, settings.runs))
+                history = objective.lower.new_empty((rows, objective.slots, settings.runs))
+                for group, (group_position, group_costs, group_history) in zip(groups, parts, strict=True):
+                    slots = torch.tensor([t * count + c for t in range(trials) for c in group.members])
+                    position[slots], run_costs[slots] = group_position, group_costs
+                    history[:, slots] = group_history
             mean, kept = aggregate(position, run_costs, settings.keep)
             values = [objective.exact(s, mean[s]) for s in range(objective.slots)]
         # The one-time kernel build and base-map translation are recorded apart (engine_build_s).
@@ -401,6 +419,39 @@ class ParticleSwarm(Estimator):
                 estimate.details.update(engine)
         return estimates
 
+    def _objective(self, problems: list[Problem], costs: list[Cost]) -> Objective:
+        return Objective(problems, costs, space=self.space, use_regressor=self.use_regressor)
+
+    def _prepared(self, problems: list[Problem], costs: list[Cost]) -> Prepared | None:
+        """The objective and engine groups of the previous fit if it had the same trials and costs,
+        unchanged since (``Prepared``); else ``None``."""
+        kept = getattr(self, "_last_prepared", None)
+        if kept is None or kept.key != self._prepared_key(problems, costs):
+            return None
+        if any(a is not b for a, b in zip((*kept.problems, *kept.costs), (*problems, *costs), strict=True)):
+            return None
+        return kept if kept.versions == _versions(problems, costs) else None
+
+    def _prepared_key(self, problems: list[Problem], costs: list[Cost]) -> tuple:
+        ids = tuple(id(p) for p in problems), tuple(id(c) for c in costs)
+        return (*ids, self.space, self.use_regressor, self.engine)
+
+    def _keep_prepared(
+        self, problems: list[Problem], costs: list[Cost], objective: Objective, groups: list[EngineGroup]
+    ) -> None:
+        self._last_prepared = Prepared(
+            self._prepared_key(problems, costs),
+            tuple(problems),
+            tuple(costs),
+            _versions(problems, costs),
+            objective,
+            groups,
+        )
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the prepared objective (tensors of the last problems fitted)."""
+        return {k: v for k, v in self.__dict__.items() if k != "_last_prepared"}
+
     def _engines(self, problems: list[Problem], costs: list[Cost], objective: Objective) -> list[EngineGroup]:
         """Which costs run on which engine, and what ``details`` records about it (module docstring).
 
@@ -412,8 +463,7 @@ class ParticleSwarm(Estimator):
         def subset(members: list[int]) -> Objective:
             if len(members) == len(costs):
                 return objective
-            chosen = [costs[c] for c in members]
-            return Objective(problems, chosen, space=self.space, use_regressor=self.use_regressor)
+            return self._objective(problems, [costs[c] for c in members])
 
         def eager(members: list[int], why: str) -> EngineGroup:
             if self.engine == "auto":
@@ -455,6 +505,30 @@ class ParticleSwarm(Estimator):
         if rest:
             groups.append(eager(rest, "; ".join(sorted({refusals[c] for c in rest}))))
         return groups
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """What a fit builds before its first random number — the objective (regressor, divided
+    torques, fused norms) and which engine runs which cost (with the kernel's spec and base-map
+    tape) — kept by the estimator for its next fit. It depends only on the trials and costs, so a
+    repeated fit of the same ``Problem`` objects (a benchmark, an interactive session, the
+    one-run fits of a sweep) reuses it; the versions of the samples' tensors (bumped by any
+    in-place change) and the costs' declared structures must be unchanged, or it is rebuilt."""
+
+    key: tuple
+    problems: tuple[Problem, ...]  # held, so that the ids in ``key`` stay theirs
+    costs: tuple[Cost, ...]
+    versions: tuple
+    objective: Objective
+    groups: list[EngineGroup]
+
+
+def _versions(problems: list[Problem], costs: list[Cost]) -> tuple:
+    """What must not have changed for a ``Prepared`` to be reused: each sample tensor's version
+    counter (torch bumps it on every in-place change) and each cost's declared structure."""
+    tensors = tuple(getattr(p.samples, name)._version for p in problems for name in SAMPLE_ARRAYS)
+    return tensors, tuple(fast_structure(cost) for cost in costs)
 
 
 @dataclass(frozen=True)

@@ -94,10 +94,10 @@ def make_estimate(
     base = None
     if robot.has_regressor:
         alpha = objective.base(position)
-        base = dict(zip(robot.base_param_names, (float(v) for v in alpha), strict=True))
+        base = dict(zip(robot.base_param_names, alpha.tolist(), strict=True))
     return Estimate(
         estimator=label,
-        params=dict(zip(robot.param_names, (float(v) for v in params), strict=True)),
+        params=dict(zip(robot.param_names, params.tolist(), strict=True)),
         cost=cost,
         wall_time_s=wall_time_s,
         base_params=base,

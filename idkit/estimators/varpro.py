@@ -23,6 +23,7 @@ physically consistent, on the robot rebuilt with ``θ`` as its reference shape).
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from dataclasses import dataclass
@@ -33,8 +34,8 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
-from idkit.estimators.linear.observation import IdentificationError
-from idkit.estimators.linear.uncertainty import base_uncertainty
+from idkit.estimators.linear.observation import Conditioning, IdentificationError
+from idkit.estimators.linear.uncertainty import base_uncertainties
 from idkit.interfaces import Estimator, Robot
 from idkit.optim import swarm
 from idkit.problem import Problem
@@ -44,8 +45,12 @@ from idkit.runtime import resolve_threads, torch_threads
 #: Relative ridge on ``A`` (scale of its trace): a shape whose sigmoid is nearly linear in ``q̇``
 #: (collinear with viscous friction) gets a finite, slightly pessimistic cost instead of round-off.
 RIDGE = 1e-12
-#: The polish stops when a step lowers the residual sum of squares by less than this fraction.
+#: The polish stops when a step lowers the residual sum of squares by less than this fraction,
 CONVERGED = 1e-10
+#: or when the next step moves no shape by more than this fraction of its box width. On the search's
+#: subsampled data it stops at a looser fraction: the steps on every sample finish the descent.
+STEP_TOLERANCE = 1e-12
+COARSE_CONVERGED = 1e-6
 
 
 @dataclass(frozen=True)
@@ -56,7 +61,10 @@ class Projection:
         fixed: base-parameter columns that do not depend on ``θ`` ``[L]`` (indices into the base).
         scaled: base-parameter columns of ``φ1`` ``[n]`` (one per joint, in joint order).
         w_fixed: ``W_fixed`` ``[N·n, L]`` (rows sample-major).
-        q0: ``Q₀`` of ``W_fixed = Q₀ R₀`` as ``[N, n, L]`` (rows by sample and joint).
+        q0: ``Q₀`` of ``W_fixed = Q₀ R₀`` ``[N·n, L]`` (rows sample-major, as ``W_fixed``).
+        by_joint: ``Q₀``'s rows of each joint ``[n, N, L]`` (contiguous): the products with
+            columns that live on one joint's rows are ``n`` matrix products over ``N`` rows.
+        r0: ``R₀`` ``[L, L]``.
         tau: measured torques ``[N, n]``; ``tau_perp`` the part orthogonal to ``W_fixed`` ``[N, n]``.
         qd: joint velocities ``[N, n]``.
     """
@@ -65,6 +73,8 @@ class Projection:
     scaled: list[int]
     w_fixed: Tensor
     q0: Tensor
+    by_joint: Tensor
+    r0: Tensor
     tau: Tensor
     tau_perp: Tensor
     qd: Tensor
@@ -84,47 +94,76 @@ class Projection:
         n = self.qd.shape[1]
         return torch.cat([self.w_fixed, torch.diag_embed(self.columns(theta)).reshape(-1, n)], dim=1)
 
-    def jacobian(self, theta: Tensor) -> tuple[Tensor, Tensor]:
-        """Kaufman's Jacobian ``[N·n, 2n]`` of the projected residual and the residual ``[N·n]`` at one
-        shape ``theta[2n]`` (columns: every ``φ2``, then every ``φ3``)."""
-        n = self.qd.shape[1]
-        q0 = self.q0.reshape(-1, self.q0.shape[-1])
-        steepness, shift = self.split(theta)
-        inner = steepness * (self.qd + shift)
-        slope, rest = _sigmoid_slope(inner), _sigmoid_slope(steepness * shift)
-        s = torch.sigmoid(inner) - torch.sigmoid(steepness * shift)  # [N, n]
-        s_block = torch.diag_embed(s).reshape(-1, n)
-        s_perp = s_block - q0 @ (q0.T @ s_block)
-        qs, rs = torch.linalg.qr(s_perp)
-        tau_perp = self.tau_perp.reshape(-1)
-        amplitude = torch.linalg.solve_triangular(rs, (qs.T @ tau_perp)[:, None], upper=True)[:, 0]
-        residual = tau_perp - qs @ (qs.T @ tau_perp)
-        d_steepness = (slope * (self.qd + shift) - rest * shift) * amplitude
-        d_shift = (slope - rest) * steepness * amplitude
-        d = torch.cat([torch.diag_embed(d_steepness), torch.diag_embed(d_shift)], -1).reshape(-1, 2 * n)
-        d = d - q0 @ (q0.T @ d)
-        return -(d - qs @ (qs.T @ d)), residual
+    def _on_q0(self, columns: Tensor) -> Tensor:
+        """``Q₀ᵀ`` times per-joint columns ``columns[n, N, K]`` (column ``k`` of joint ``j`` on joint
+        ``j``'s rows) as ``[n, L, K]``."""
+        return torch.bmm(self.by_joint.mT, columns)
+
+    def _gain(self, s: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """For sigmoid columns ``s[..., N, n]``: ``G = Q₀ᵀS`` ``[..., L, n]``, the (ridged)
+        ``A = S⊥ᵀS⊥`` ``[..., n, n]`` and ``b = S⊥ᵀτ = Sᵀτ⊥`` ``[..., n]`` (module doc)."""
+        samples, n = s.shape[-2:]
+        g = self._on_q0(s.reshape(-1, samples, n).permute(2, 1, 0))  # [n, L, K]
+        g = g.permute(2, 1, 0).reshape(*s.shape[:-2], -1, n)
+        a = torch.diag_embed(s.square().sum(-2)) - g.mT @ g
+        ridge = RIDGE * a.diagonal(dim1=-2, dim2=-1).sum(-1).clamp_min(torch.finfo(a.dtype).tiny)
+        a = a + ridge[..., None, None] * torch.eye(a.shape[-1], dtype=a.dtype, device=a.device)
+        return g, a, (s * self.tau_perp).sum(-2)
 
     def residual(self, theta: Tensor) -> Tensor:
         """``r(θ)`` ``[...]`` for shapes ``theta[..., 2n]`` (module doc), ``≥ 0``."""
-        s = self.columns(theta)  # [..., N, n]
-        g = torch.einsum("inl,...in->...ln", self.q0, s)  # [..., L, n]
-        a = torch.diag_embed(s.square().sum(-2)) - g.mT @ g  # [..., n, n]
-        b = (s * self.tau_perp).sum(-2)  # [..., n]
-        ridge = RIDGE * a.diagonal(dim1=-2, dim2=-1).sum(-1).clamp_min(torch.finfo(a.dtype).tiny)
-        a = a + ridge[..., None, None] * torch.eye(a.shape[-1], dtype=a.dtype, device=a.device)
+        _, a, b = self._gain(self.columns(theta))
         gain = (b * torch.linalg.solve(a, b[..., None])[..., 0]).sum(-1)
         return (self.tau_perp.square().sum() - gain).clamp_min(0.0)
 
+    def linearised(self, theta: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """What a Gauss–Newton step at one shape ``theta[2n]`` needs: ``JᵀJ`` ``[2n, 2n]``, ``Jᵀr``
+        ``[2n]`` and ``‖r‖²``, with ``r`` the projected residual and ``J`` Kaufman's Jacobian
+        ``−P⊥ ∂S/∂θ φ1`` (columns: every ``φ2``, then every ``φ3``).
 
-def _sigmoid_slope(x: Tensor) -> Tensor:
-    """``σ'(x) = σ(x) (1 − σ(x))``."""
-    sigma = torch.sigmoid(x)
-    return sigma * (1 - sigma)
+        Every product is per joint or with ``Q₀`` (the columns of ``S`` and ``∂S/∂θ`` live on one
+        joint's rows each), so a step costs ``O(N n L)``, never a product with the whole ``W``:
+        ``JᵀJ = DᵀD − G_DᵀG_D − CᵀA⁻¹C`` with ``D = ∂S/∂θ φ1``, ``G_D = Q₀ᵀD``, ``C = S⊥ᵀD``, and
+        ``Jᵀr = −Dᵀr``; ``r = τ⊥ − S⊥φ1`` is formed explicitly (matrix–vector products), so
+        ``‖r‖²`` has no cancellation.
+        """
+        n = self.qd.shape[1]
+        steepness, shift = self.split(theta)
+        sigma, rest = torch.sigmoid(steepness * (self.qd + shift)), torch.sigmoid(steepness * shift)
+        s = sigma - rest  # [N, n]
+        slope, slope_rest = sigma * (1 - sigma), rest * (1 - rest)
+        # S and ∂S/∂φ2, ∂S/∂φ3 (not yet times φ1) per joint, and their products with Q₀ in one pass
+        columns = torch.stack(
+            [s, slope * (self.qd + shift) - slope_rest * shift, (slope - slope_rest) * steepness]
+        )
+        products = self._on_q0(columns.permute(2, 1, 0))  # [n, L, 3]
+        g = products[:, :, 0].T  # [L, n]
+        a = torch.diag_embed(s.square().sum(0)) - g.T @ g
+        ridge = RIDGE * a.diagonal().sum().clamp_min(torch.finfo(a.dtype).tiny)
+        a = a + ridge * torch.eye(n, dtype=a.dtype, device=a.device)
+        amplitude = torch.linalg.solve(a, (s * self.tau_perp).sum(0))  # φ1 [n]
+        # r = τ⊥ − S⊥φ1 = τ⊥ − Sφ1 + Q₀(Gφ1), by matrix–vector products
+        r = self.tau_perp - s * amplitude + (self.by_joint @ (g @ amplitude)).T  # [N, n]
+        d = columns[1:] * amplitude  # D = ∂S/∂θ · φ1 per joint [2, N, n]
+        g_d = (products[:, :, 1:] * amplitude[:, None, None]).permute(1, 2, 0).reshape(-1, 2 * n)  # [L, 2n]
+        joint = torch.arange(n, device=theta.device)
+        dd = theta.new_zeros((2, n, 2, n))
+        dd[:, joint, :, joint] = torch.einsum("kin,min->nkm", d, d)  # DᵀD: per joint
+        sd = theta.new_zeros((n, 2, n))
+        sd[joint, :, joint] = torch.einsum("in,kin->nk", s, d)
+        c = sd.reshape(n, 2 * n) - g.T @ g_d  # S⊥ᵀD
+        normal = dd.reshape(2 * n, 2 * n) - g_d.T @ g_d - c.T @ torch.linalg.solve(a, c)
+        gradient = -torch.einsum("kin,in->kn", d, r).reshape(-1)
+        return normal, gradient, r.square().sum()
 
 
 def projection(robot: Any, q: Tensor, qd: Tensor, qdd: Tensor, tau: Tensor) -> Projection:
     """The projected problem of ``robot`` (a ``urdf`` robot with ``friction="sigmoid"``) on samples."""
+    return _projection(robot, robot.regressor(q, qd, qdd), qd, tau)
+
+
+def _projection(robot: Any, regressor: Tensor, qd: Tensor, tau: Tensor) -> Projection:
+    """``projection`` given the regressor ``[N, n, B]`` of the samples."""
     names = list(robot.param_names)
     base = list(robot.base.indices)
     scaled_names = [f"{j}.phi1" for j in robot.joint_names]
@@ -139,12 +178,12 @@ def projection(robot: Any, q: Tensor, qd: Tensor, qdd: Tensor, tau: Tensor) -> P
     if shared:
         raise IdentificationError(f"varpro: other parameters regroup into the sigmoid amplitude {shared[0]}")
     fixed = [k for k in range(len(base)) if k not in scaled]
-    regressor = robot.regressor(q, qd, qdd)  # [N, n, B]
     w_fixed = regressor[..., fixed].reshape(-1, len(fixed))
-    q0 = torch.linalg.qr(w_fixed).Q
+    q0, r0 = torch.linalg.qr(w_fixed)
     tau_perp = tau.reshape(-1) - q0 @ (q0.T @ tau.reshape(-1))
     n = robot.n_joints
-    return Projection(fixed, scaled, w_fixed, q0.reshape(-1, n, len(fixed)), tau, tau_perp.reshape(-1, n), qd)
+    by_joint = q0.reshape(-1, n, len(fixed)).transpose(0, 1).contiguous()
+    return Projection(fixed, scaled, w_fixed, q0, by_joint, r0, tau, tau_perp.reshape(-1, n), qd)
 
 
 class VariableProjection(Estimator):
@@ -177,10 +216,10 @@ class VariableProjection(Estimator):
 
     def __init__(
         self,
-        particles: int = 32,
-        iterations: int = 30,
+        particles: int = 16,
+        iterations: int = 15,
         polish: int = 50,
-        search_samples: int = 500,
+        search_samples: int = 250,
         refine: Literal["none", "pcls"] = "none",
         prior_weight: float = 0.0,
         threads: int | None = None,
@@ -216,10 +255,13 @@ class VariableProjection(Estimator):
         searched = min(s.tau.shape[0], self.search_samples) * n  # the swarm's error-tensor size per particle
         threads = resolve_threads(self.threads, self.particles * searched)
         with torch_threads(threads), torch.no_grad():
-            data = projection(robot, s.q, s.qd, s.qdd, s.tau)
+            regressor = robot.regressor(s.q, s.qd, s.qdd)
+            data = _projection(robot, regressor, s.qd, s.tau)
             stride = -(-s.q.shape[0] // self.search_samples)  # the swarm's every stride-th sample
             coarse = (
-                data if stride == 1 else projection(robot, *(x[::stride] for x in (s.q, s.qd, s.qdd, s.tau)))
+                data
+                if stride == 1
+                else _projection(robot, regressor[::stride], s.qd[::stride], s.tau[::stride])
             )
             lower, upper = robot.bounds()
             box = [
@@ -227,19 +269,35 @@ class VariableProjection(Estimator):
             ]
             lower, upper = lower[box].to(s.tau), upper[box].to(s.tau)
             draws = swarm.Draws([swarm.Uniform(problem.generator(), s.tau)])
+            reference = robot.nominal_params()[box].to(s.tau)  # one particle starts at the robot's shape
             state, history = swarm.run(
-                coarse.residual, lower, upper, (), self.particles, self.iterations, swarm.SwarmRules(), draws
-            )
-            theta = _polish(data, state.global_position, lower, upper, self.polish)
+                coarse.residual, lower, upper, (), self.particles, self.iterations, swarm.SwarmRules(), draws,
+                start=reference[None],
+            )  # fmt: skip
+            theta = state.global_position
+            if coarse is not data:  # most steps where they are cheap; the last ones on every sample
+                theta = _polish(coarse, theta, lower, upper, self.polish, COARSE_CONVERGED)
+                theta = _polish(data, theta, lower, upper, self.polish, damping=1e-6)
+            else:
+                theta = _polish(data, theta, lower, upper, self.polish)
         search_time = time.perf_counter() - start
         steepness, shift = theta[:n], theta[n:]
-        with torch_threads(threads):
+        with torch_threads(threads), torch.no_grad():
             if self.refine == "pcls":
                 params, details = self._pcls(robot, problem, steepness, shift)
+                alpha = robot.base_params(params)
+                predicted = robot.inverse_dynamics(params, s.q, s.qd, s.qdd)
             else:
-                params, details = _least_squares(robot, data, theta)
-            alpha = robot.base_params(params)
-            predicted = robot.inverse_dynamics(params, s.q, s.qd, s.qdd)
+                solved = _solve(data, theta)
+                params = _standard(robot, data, theta, solved.alpha)
+                alpha = robot.base_params(params)
+                predicted = (solved.w @ solved.alpha).reshape(s.tau.shape)
+                order = data.fixed + data.scaled
+                names = [robot.base_param_names[k] for k in order]
+                details = base_uncertainties(
+                    solved.w[None], data.tau.reshape(1, -1), solved.alpha[None], names, solved.conditioning,
+                    robot.unidentifiable,
+                )[0].to_details()  # fmt: skip
         residual = float(torch.linalg.vector_norm(s.tau - predicted))
         cost = residual if problem.cost is None else float(problem.evaluate(params))
         details = {
@@ -257,15 +315,6 @@ class VariableProjection(Estimator):
             "threads": threads,
             **details,
         }
-        if "uncertainty" not in details:
-            order = data.fixed + data.scaled
-            names = [robot.base_param_names[k] for k in order]
-            w = data.matrix(theta).double()
-            details.update(
-                base_uncertainty(
-                    w, s.tau.reshape(-1).double(), alpha[order].double(), names, robot.unidentifiable
-                ).to_details()
-            )
         return Estimate(
             estimator=self.name,
             params=dict(zip(robot.param_names, params.tolist(), strict=True)),
@@ -292,31 +341,39 @@ class VariableProjection(Estimator):
         return params.to(problem.tensors().tau), {k: fitted.details[k] for k in keep}
 
 
-def _polish(data: Projection, theta: Tensor, lower: Tensor, upper: Tensor, steps: int) -> Tensor:
+def _polish(
+    data: Projection,
+    theta: Tensor,
+    lower: Tensor,
+    upper: Tensor,
+    steps: int,
+    converged: float = CONVERGED,
+    damping: float = 1e-3,
+) -> Tensor:
     """Levenberg–Marquardt on the projected residual from ``theta``, kept in the box.
 
     Kaufman's Jacobian of ``r(θ) = P⊥(θ) τ``: ``J = −P⊥ ∂S/∂θ · φ1`` (``P⊥`` the projector off
-    ``[W_fixed | S(θ)]``, ``φ1`` the amplitudes solved at ``θ``); ``∂S_j/∂θ_j`` lives on joint ``j``'s
-    rows, so a step costs products with ``Q₀`` and a QR of ``n`` columns, never of the whole ``W``.
-    Steps are scaled by the box widths; one that does not lower ``r`` raises the damping instead.
+    ``[W_fixed | S(θ)]``, ``φ1`` the amplitudes solved at ``θ``), through the small products of
+    ``Projection.linearised``. Steps are scaled by the box widths; one that does not lower ``r``
+    raises the damping instead (starting at ``damping``: small from a point that is already near
+    the minimum); it stops when a step lowers ``‖r‖²`` by less than the fraction ``converged``.
     """
     width = upper - lower
-    damping = 1e-3
-    jacobian, r = data.jacobian(theta)
-    current = r @ r
+    normal, gradient, current = data.linearised(theta)
     for _ in range(steps):
-        scaled = jacobian * width  # 2n columns: the normal equations are small and well scaled
-        normal = scaled.T @ scaled
-        normal = normal + damping * torch.diag(normal.diagonal().clamp_min(torch.finfo(r.dtype).tiny))
-        step = torch.linalg.solve(normal, scaled.T @ r) * width
+        scaled = normal * width[:, None] * width  # 2n columns: small and well scaled
+        scaled = scaled + damping * torch.diag(scaled.diagonal().clamp_min(torch.finfo(theta.dtype).tiny))
+        step = torch.linalg.solve(scaled, gradient * width) * width
+        if not bool((step.abs() > STEP_TOLERANCE * width).any()):
+            break  # at an exact fit ‖r‖² is round-off, and steps this small would be tried until
+            # the damping ran out
         candidate = torch.minimum(torch.maximum(theta - step, lower), upper)
-        candidate_jacobian, candidate_r = data.jacobian(candidate)
-        value = candidate_r @ candidate_r
+        candidate_normal, candidate_gradient, value = data.linearised(candidate)
         if value < current:
-            converged = current - value <= CONVERGED * current
-            theta, jacobian, r, current = candidate, candidate_jacobian, candidate_r, value
+            done = current - value <= converged * current
+            theta, normal, gradient, current = candidate, candidate_normal, candidate_gradient, value
             damping = max(damping / 10, 1e-12)
-            if converged:
+            if done:
                 break
         else:
             damping *= 10
@@ -325,14 +382,63 @@ def _polish(data: Projection, theta: Tensor, lower: Tensor, upper: Tensor, steps
     return theta
 
 
-def _least_squares(robot: Robot, data: Projection, theta: Tensor) -> tuple[Tensor, dict[str, Any]]:
-    """Standard parameters ``[P]`` of the least-squares linear parameters at shape ``theta``."""
-    w = data.matrix(theta)
-    driver = "gelsd" if w.device.type == "cpu" else None  # the CPU default (gelsy) varies in round-off
-    solution = torch.linalg.lstsq(w, data.tau.reshape(-1, 1), driver=driver).solution[:, 0]
-    alpha = torch.empty(len(robot.base_param_names), dtype=w.dtype, device=w.device)
+@dataclass(frozen=True)
+class Solved:
+    """The least-squares linear parameters at one shape, from a QR of ``W = [W_fixed | S(θ)]``
+    assembled from ``W_fixed``'s (``Q₀ R₀``, factored once) and an ``n``-column QR of ``S``'s part
+    off it — no factorisation of the whole ``W``.
+
+    Attributes:
+        w: ``W`` ``[N·n, L + n]``.
+        alpha: its least-squares solution ``[L + n]`` (``fixed`` then ``scaled`` columns).
+        conditioning: the SVD of the column-equilibrated ``W`` (``Q`` times that of the equilibrated ``R``).
+    """
+
+    w: Tensor
+    alpha: Tensor
+    conditioning: Conditioning
+
+
+def _solve(data: Projection, theta: Tensor) -> Solved:
+    """``Solved`` at shape ``theta[2n]``. The solution is taken through the SVD of the equilibrated
+    ``R`` with singular values below ``max(M, B) · eps · σ_max`` dropped (the rank rule of the
+    uncertainty report), so a shape that leaves a combination undetermined gives the minimum-norm
+    answer there instead of an overflow."""
+    n, width, q0 = data.qd.shape[1], data.r0.shape[0], data.q0
+    columns = data.columns(theta)  # [N, n]
+    g = data._on_q0(columns.T[:, :, None])[:, :, 0].T  # Q₀ᵀS [L, n], per joint
+    s = torch.diag_embed(columns).reshape(-1, n)  # S [N·n, n]
+    s_perp = s - q0 @ g
+    again = q0.T @ s_perp  # re-orthogonalised once: S may lie close to span(W_fixed)
+    s_perp, g = s_perp - q0 @ again, g + again
+    qs, rs = torch.linalg.qr(s_perp)
+    r = torch.cat([torch.cat([data.r0, g], 1), torch.cat([g.new_zeros((n, width)), rs], 1)])
+    tau = data.tau.reshape(-1)
+    rhs = torch.cat([q0.T @ tau, qs.T @ tau])
+    scale = torch.linalg.vector_norm(r, dim=0)  # the column norms of W (Q has orthonormal columns)
+    scale = torch.where(scale > 0, scale, torch.ones_like(scale))
+    u, sigma, vh = torch.linalg.svd(r / scale, full_matrices=False)
+    tol = max(tau.shape[0], len(scale)) * torch.finfo(sigma.dtype).eps * sigma[:1]
+    kept = sigma > tol
+    inverse = torch.where(kept, 1 / sigma, torch.zeros_like(sigma))
+    alpha = (vh.T @ (inverse * (u.T @ rhs))) / scale
+    conditioning = Conditioning(
+        scale[None],
+        torch.addmm(qs @ u[width:], q0, u[:width])[None],  # U of W = [Q₀ | Q_S] times U of R
+        sigma[None],
+        vh[None],
+        [int(kept.sum())],
+        [float(sigma[0] / sigma[-1]) if sigma[-1] > 0 else math.inf],
+    )
+    return Solved(torch.cat([data.w_fixed, s], 1), alpha, conditioning)
+
+
+def _standard(robot: Robot, data: Projection, theta: Tensor, solution: Tensor) -> Tensor:
+    """Standard parameters ``[P]`` of the linear parameters ``solution`` (``fixed`` then ``scaled``
+    columns) and the shape ``theta``."""
+    alpha = torch.empty(len(robot.base_param_names), dtype=solution.dtype, device=solution.device)
     alpha[data.fixed + data.scaled] = solution
     params = robot.params_from_base(alpha).clone()
     shapes = [robot.param_names.index(f"{j}.{key}") for key in ("phi2", "phi3") for j in robot.joint_names]
     params[shapes] = theta
-    return params, {}
+    return params

@@ -28,7 +28,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from functools import cache, lru_cache
+from functools import cache, cached_property, lru_cache
 
 import numpy as np
 import torch
@@ -163,6 +163,39 @@ class ProductSpec:
     base: Callable[[Tensor], Tensor]
     tape: Tape | None
 
+    @cached_property
+    def arrays(self) -> KernelArrays:
+        """The spec as the kernel's arrays (converted once per spec: a spec reused for many runs,
+        as the PSO estimator's cache of prepared problems does, pays the conversion once).
+
+        Raises:
+            ValueError: a factor without a kernel form (``factor_codes``).
+        """
+        code, parameter = factor_codes(self.structures, self.offset.shape[-1])
+        tape = self.tape if self.tape is not None else identity(0)
+        return KernelArrays(
+            linear=self.linear.contiguous().numpy(),
+            offset=self.offset.contiguous().numpy(),
+            codes=code,
+            parameters=parameter,
+            mode=codes.MAP_TAPE if self.tape is not None else codes.MAP_GIVEN,
+            tape=tape,
+        )
+
+
+@dataclass(frozen=True)
+class KernelArrays:
+    """A ``ProductSpec`` in the kernel's calling convention (``idkit.optim.codes``): ``linear[L, B, M]``,
+    ``offset[L, M]``, the factor ``codes``/``parameters`` ``[L, MAX_FACTORS]``, the base map's
+    ``mode`` and its ``tape`` (an empty one when the map runs in torch)."""
+
+    linear: np.ndarray
+    offset: np.ndarray
+    codes: np.ndarray
+    parameters: np.ndarray
+    mode: int
+    tape: Tape
+
 
 def factor_codes(structures: Sequence[NormStructure], entries: int) -> tuple[np.ndarray, np.ndarray]:
     """Per slot, the kernel's factor codes ``[L, MAX_FACTORS]`` (int64, 0 = none) and parameters.
@@ -216,16 +249,16 @@ def evaluate(spec: ProductSpec, x: Tensor) -> Tensor:
     slots, particles, dimension = x.shape
     position = x.to(torch.float64).contiguous().numpy().copy()
     pcost = np.full((slots, particles), np.inf)
-    code, parameter = factor_codes(spec.structures, spec.offset.shape[-1])
-    tape = spec.tape if spec.tape is not None else identity(0)
-    mode = codes.MAP_TAPE if spec.tape is not None else codes.MAP_GIVEN
+    arrays = spec.arrays
+    tape = arrays.tape
     given = spec.base(x).contiguous().numpy() if spec.tape is None else np.zeros((0, 0, 0))
     built.run_trial(
         np.random.Generator(np.random.SFC64(0)), 0, slots, np.empty(0), True, np.empty((1, slots)),
         position, np.zeros_like(position), position.copy(), pcost, np.empty((slots, dimension)),
-        spec.linear.contiguous().numpy(), spec.offset.contiguous().numpy(), np.arange(slots, dtype=np.int64),
-        code, parameter, int(spec.joints), np.zeros(dimension), np.ones(dimension), np.array([1.0, 1.0, 0.0]),
-        np.array([codes.CLAMP, 0, mode], dtype=np.int64), tape.ops, tape.constants, tape.outputs, given,
+        arrays.linear, arrays.offset, np.arange(slots, dtype=np.int64), arrays.codes, arrays.parameters,
+        int(spec.joints), np.zeros(dimension), np.ones(dimension), np.array([1.0, 1.0, 0.0]),
+        np.array([codes.CLAMP, 0, arrays.mode], dtype=np.int64), tape.ops, tape.constants, tape.outputs,
+        given,
     )  # fmt: skip
     _record_new_code(built)
     return torch.from_numpy(pcost)
@@ -296,25 +329,23 @@ def run(
     if slots % trials or any(stream.numpy is None for stream in draws.streams):
         raise ValueError(f"fast engine: {slots} slots do not split into {trials} CPU streams")
     dimension = lower.shape[-1]
-    x = (lower + (upper - lower) * draws.draw((slots, runs, particles, dimension))).reshape(
-        slots * runs, particles, dimension
-    )
-    state = [x.numpy().copy(), np.zeros(x.shape), x.numpy().copy(), np.full(x.shape[:2], np.inf)]
-    x, v, pbest, pcost = state
+    low, high = lower.numpy(), upper.numpy()
+    # the eager engine's initial positions, operation by operation (the same rounding)
+    x = low + (high - low) * draws.draw((slots, runs, particles, dimension)).numpy()
+    x = x.reshape(slots * runs, particles, dimension)
+    v, pbest, pcost = np.zeros(x.shape), x.copy(), np.full(x.shape[:2], np.inf)
     gpos = np.empty((slots * runs, dimension))
-    code, parameter = factor_codes(spec.structures, spec.offset.shape[-1])
-    tape = spec.tape
-    mode = codes.MAP_TAPE if tape is not None else codes.MAP_GIVEN
-    tape = tape if tape is not None else identity(0)
+    arrays = spec.arrays
+    mode, tape = arrays.mode, arrays.tape
     fixed = (
-        spec.linear.contiguous().numpy(),
-        spec.offset.contiguous().numpy(),
+        arrays.linear,
+        arrays.offset,
         np.repeat(np.arange(slots, dtype=np.int64), runs),
-        code,
-        parameter,
+        arrays.codes,
+        arrays.parameters,
         int(spec.joints),
-        lower.contiguous().numpy(),
-        upper.contiguous().numpy(),
+        low,
+        high,
         np.array([rules.c1, rules.c2, rules.velocity_limit or 0.0]),
         np.array([swarm.BOUNDARIES.index(rules.boundary), int(rules.per_particle), mode], dtype=np.int64),
         tape.ops,
@@ -336,6 +367,12 @@ def run(
     def call(trial: int, block: tuple[int, int, bool], given: np.ndarray) -> None:
         start, stop, last = block
         first = trial * per_trial
+        if stride == 1 and trials == 1:  # the kernel writes the history rows in place
+            built.run_trial(
+                draws.streams[0].numpy, 0, per_trial, weights[start:stop], last, history[start : stop + last],
+                x, v, pbest, pcost, gpos, *fixed, given,
+            )  # fmt: skip
+            return
         rows = np.empty((stop - start + last, per_trial))
         built.run_trial(
             draws.streams[trial].numpy, first, per_trial, weights[start:stop], last, rows,

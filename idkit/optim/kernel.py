@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numba.core.config
 import numpy as np
-from numba import njit
+from numba import carray, njit, types
+from numba.extending import intrinsic
 
 from idkit.optim import cache, codes
 from idkit.optim.codes import (
@@ -92,11 +93,12 @@ def _larger(current: float, value: float) -> float:
 
 
 @jit
-def _base_params(points, mode, tape, constants, outputs, registers, alpha):  # noqa: ANN001, ANN202
-    """``alpha[B, n]``: the base parameters of ``points[n, P]`` — the points themselves (a base-space
-    search, or base parameters given by the caller), or the tape run one operation at a time over
-    all points (the dispatch outside the loops, so every loop vectorises)."""
-    count, n = alpha.shape
+def _base_params(points, first, n, mode, tape, constants, outputs, registers, alpha):  # noqa: ANN001, ANN202
+    """``alpha[B, :n]``: the base parameters of points ``points[first : first + n]`` — the points
+    themselves (a base-space search, or base parameters given by the caller), or the tape run one
+    operation at a time over all points (the dispatch outside the loops, so every loop vectorises)."""
+    count = alpha.shape[0]
+    points = points[first : first + n]
     if mode != MAP_TAPE:
         for b in range(count):
             for k in range(n):
@@ -104,68 +106,71 @@ def _base_params(points, mode, tape, constants, outputs, registers, alpha):  # n
         return
     for row in range(tape.shape[0]):
         op, out, a, b = tape[row, 0], tape[row, 1], tape[row, 2], tape[row, 3]
-        target, left, right = registers[out, :n], registers[a, :n], registers[b, :n]
         if op == OP_X:
             for k in range(n):
-                target[k] = points[k, a]
+                registers[out, k] = points[k, a]
         elif op == OP_CONST:
-            target[:] = constants[row]
+            value = constants[row]
+            for k in range(n):
+                registers[out, k] = value
         elif op == OP_ADD:
             for k in range(n):
-                target[k] = left[k] + right[k]
+                registers[out, k] = registers[a, k] + registers[b, k]
         elif op == OP_SUB:
             for k in range(n):
-                target[k] = left[k] - right[k]
+                registers[out, k] = registers[a, k] - registers[b, k]
         elif op == OP_MUL:
             for k in range(n):
-                target[k] = left[k] * right[k]
+                registers[out, k] = registers[a, k] * registers[b, k]
         elif op == OP_DIV:
             for k in range(n):
-                target[k] = left[k] / right[k]
+                registers[out, k] = registers[a, k] / registers[b, k]
         elif op == OP_NEG:
             for k in range(n):
-                target[k] = -left[k]
+                registers[out, k] = -registers[a, k]
         elif op == OP_SIN:
             for k in range(n):
-                target[k] = math.sin(left[k])
+                registers[out, k] = math.sin(registers[a, k])
         elif op == OP_COS:
             for k in range(n):
-                target[k] = math.cos(left[k])
+                registers[out, k] = math.cos(registers[a, k])
         elif op == OP_SQRT:
             for k in range(n):
-                target[k] = math.sqrt(left[k])
+                registers[out, k] = math.sqrt(registers[a, k])
         else:  # OP_SQUARE
             for k in range(n):
-                target[k] = left[k] * left[k]
+                registers[out, k] = registers[a, k] * registers[a, k]
     for b in range(count):
-        alpha[b, :] = registers[outputs[b], :n]
+        source = outputs[b]
+        for k in range(n):
+            alpha[b, k] = registers[source, k]
 
 
 @jit
-def _errors(alpha, linear, offset, e):  # noqa: ANN001, ANN202
-    """``e[M, n] = offset[M] + alpha[B, n] · linear[B, M]``, summed in the eager engine's order
+def _errors(alpha, linear, offset, slot, n, e):  # noqa: ANN001, ANN202
+    """``e[M, :n] = offset[slot] + alpha[B, :n] · linear[slot]``, summed in the eager engine's order
     (``offset``, then each base parameter's term in turn), four terms per pass over a row so the
     row stays in registers (a missing fifth, sixth… term adds ``0 · alpha``, which changes nothing
     of a finite sum)."""
-    count, n = alpha.shape
-    for m in range(offset.shape[0]):
-        row = e[m]
-        for k in range(n):
-            row[k] = offset[m]
+    count, last = alpha.shape[0], alpha.shape[0] - 1
+    for m in range(offset.shape[1]):
         for b in range(0, count, 4):
-            last = count - 1
-            w0 = linear[b, m]
-            w1 = linear[b + 1, m] if b + 1 <= last else 0.0
-            w2 = linear[b + 2, m] if b + 2 <= last else 0.0
-            w3 = linear[b + 3, m] if b + 3 <= last else 0.0
-            a0, a1, a2, a3 = (
-                alpha[b],
-                alpha[min(b + 1, last)],
-                alpha[min(b + 2, last)],
-                alpha[min(b + 3, last)],
-            )
-            for k in range(n):
-                row[k] = row[k] + a0[k] * w0 + a1[k] * w1 + a2[k] * w2 + a3[k] * w3
+            w0 = linear[slot, b, m]
+            w1 = linear[slot, b + 1, m] if b + 1 <= last else 0.0
+            w2 = linear[slot, b + 2, m] if b + 2 <= last else 0.0
+            w3 = linear[slot, b + 3, m] if b + 3 <= last else 0.0
+            i1, i2, i3 = min(b + 1, last), min(b + 2, last), min(b + 3, last)
+            if b == 0:
+                start = offset[slot, m]
+                for k in range(n):
+                    e[m, k] = (
+                        start + alpha[0, k] * w0 + alpha[i1, k] * w1 + alpha[i2, k] * w2 + alpha[i3, k] * w3
+                    )
+            else:
+                for k in range(n):
+                    e[m, k] = (
+                        e[m, k] + alpha[b, k] * w0 + alpha[i1, k] * w1 + alpha[i2, k] * w2 + alpha[i3, k] * w3
+                    )
 
 
 @jit
@@ -196,78 +201,86 @@ def _spectral3(e, k: int, samples: int) -> float:  # noqa: ANN001
 
 
 @jit
-def _factor(code, parameter, e, joints, out, sums):  # noqa: ANN001, ANN202
-    """``out[K]``: factor ``code`` of each particle's error matrix ``e[M, K]`` (joint-major rows);
-    ``sums`` is scratch of at least ``max(M, K)``. Every loop over particles is innermost."""
-    entries, particles = e.shape
+def _factor(code, parameter, e, n, joints, out, row, column):  # noqa: ANN001, ANN202
+    """``out[:n]``: factor ``code`` of each particle's error matrix ``e[M, :n]`` (joint-major rows);
+    ``row`` (``≥ n``) and ``column`` (``M``) are scratch. Every loop over particles is innermost."""
+    entries = e.shape[0]
     samples = entries // joints
-    row = sums[:particles]
     if code == FRO:
-        out[:] = 0.0
+        for k in range(n):
+            out[k] = 0.0
         for m in range(entries):
-            for k in range(particles):
+            for k in range(n):
                 out[k] += e[m, k] * e[m, k]
-        for k in range(particles):
+        for k in range(n):
             out[k] = math.sqrt(out[k])
     elif code == SPECTRAL:
-        for k in range(particles):
+        for k in range(n):
             out[k] = _spectral3(e, k, samples)
     elif code == COLUMN_SUM:  # the largest column (sample) absolute sum
-        out[:] = -math.inf
+        for k in range(n):
+            out[k] = -math.inf
         for j in range(samples):
-            row[:] = 0.0
+            for k in range(n):
+                row[k] = 0.0
             for i in range(joints):
-                for k in range(particles):
+                for k in range(n):
                     row[k] += abs(e[i * samples + j, k])
-            for k in range(particles):
+            for k in range(n):
                 out[k] = _larger(out[k], row[k])
     elif code == ROW_SUM:  # the largest row (joint) absolute sum
-        out[:] = -math.inf
+        for k in range(n):
+            out[k] = -math.inf
         for i in range(joints):
-            row[:] = 0.0
+            for k in range(n):
+                row[k] = 0.0
             for j in range(samples):
-                for k in range(particles):
+                for k in range(n):
                     row[k] += abs(e[i * samples + j, k])
-            for k in range(particles):
+            for k in range(n):
                 out[k] = _larger(out[k], row[k])
     elif code == ROW_SQUARES:  # the largest row square sum
-        out[:] = -math.inf
+        for k in range(n):
+            out[k] = -math.inf
         for i in range(joints):
-            row[:] = 0.0
+            for k in range(n):
+                row[k] = 0.0
             for j in range(samples):
-                for k in range(particles):
+                for k in range(n):
                     row[k] += e[i * samples + j, k] * e[i * samples + j, k]
-            for k in range(particles):
+            for k in range(n):
                 out[k] = _larger(out[k], row[k])
     elif code == MAX_ABS:
-        out[:] = -math.inf
+        for k in range(n):
+            out[k] = -math.inf
         for m in range(entries):
-            for k in range(particles):
+            for k in range(n):
                 out[k] = _larger(out[k], abs(e[m, k]))
     elif code == HUBER:  # as idkit.costs.reductions.huber_mean
-        out[:] = 0.0
+        for k in range(n):
+            out[k] = 0.0
         for m in range(entries):
-            for k in range(particles):
+            for k in range(n):
                 a = abs(e[m, k])
                 inner = a if a < parameter else parameter
                 out[k] += inner * (a - 0.5 * inner)
-        for k in range(particles):
+        for k in range(n):
             out[k] /= entries
     else:  # TRIMMED: the parameter is the number of smallest squares kept
         keep = int(parameter)
-        column = sums[:entries]
-        for k in range(particles):
+        for k in range(n):
             for m in range(entries):
                 column[m] = e[m, k] * e[m, k]
-            ordered = np.sort(column)  # NaN sorts last: checked below, never trimmed away
+            column.sort()  # in place; NaN sorts last: checked below, never trimmed away
             total = 0.0
             for m in range(keep):
-                total += ordered[m]
-            out[k] = math.nan if ordered[entries - 1] != ordered[entries - 1] else total / keep
+                total += column[m]
+            out[k] = math.nan if column[entries - 1] != column[entries - 1] else total / keep
 
 
 @jit
 def _evaluate(
+    points,
     x,
     first,
     count,
@@ -275,6 +288,7 @@ def _evaluate(
     pcost,
     gpos,
     history,
+    move,
     linear,
     offset,
     slot_of,
@@ -285,15 +299,22 @@ def _evaluate(
     tape,
     constants,
     outputs,
-    given,
-    work,
+    registers,
+    alpha,
+    e,
+    cost,
+    row,
+    column,
 ):  # noqa: ANN001, ANN202
-    """Evaluate swarms ``[first, first + count)``: personal bests where strictly lower, each swarm's
+    """Evaluate swarms ``[first, first + count)`` (their points are rows of ``points``: the positions,
+    or the base parameters given by the caller): personal bests where strictly lower, each swarm's
     best (the first particle with the lowest personal best) into ``gpos`` and its cost into
-    ``history[s − first]``. Swarms of one slot are evaluated side by side, up to ``TILE`` particles
-    at a time: long loops for the vector units, an error matrix that stays in the cache."""
+    ``history[move, s − first]``. Swarms of one slot are evaluated side by side, up to ``TILE``
+    particles at a time: long loops for the vector units, an error matrix that stays in the cache.
+    The work arrays (``registers``, ``alpha``, ``e``, ``cost``) are ``[rows, ≥ tile]``; only their
+    first ``n`` columns are used, indexed without slicing (a slice would cost a reference count
+    per use, more than a small tile's arithmetic)."""
     particles, dimension = x.shape[1], x.shape[2]
-    entries, count_base = offset.shape[1], linear.shape[1]
     per_tile = max(1, TILE // particles)  # swarms per tile (a swarm larger than TILE: one alone)
     s = first
     while s < first + count:
@@ -301,28 +322,20 @@ def _evaluate(
         while stop > s + 1 and slot_of[stop - 1] != slot:
             stop -= 1
         n = (stop - s) * particles
-        source = x[s:stop] if mode != MAP_GIVEN else given[s:stop]
-        points = source.reshape((n, source.shape[2]))
-        # the work arrays as C-contiguous [rows, n] (a slice [:, :n] would not be, and its loops
-        # would not vectorise)
-        registers = work[0][: max(tape.shape[0], 1) * n].reshape((max(tape.shape[0], 1), n))
-        alpha = work[1][: count_base * n].reshape((count_base, n))
-        e = work[2][: entries * n].reshape((entries, n))
-        cost, value = work[3][:n], work[3][n : 2 * n]
-        _base_params(points, mode, tape, constants, outputs, registers, alpha)
-        _errors(alpha, linear[slot], offset[slot], e)
+        _base_params(points, s * particles, n, mode, tape, constants, outputs, registers, alpha)
+        _errors(alpha, linear, offset, slot, n, e)
         for f in range(codes.shape[1]):
             if codes[slot, f] == 0:
                 break
-            _factor(codes[slot, f], params[slot, f], e, joints, cost if f == 0 else value, work[4])
+            _factor(codes[slot, f], params[slot, f], e, n, joints, cost[min(f, 1)], row, column)
             if f > 0:
                 for k in range(n):
-                    cost[k] = cost[k] * value[k]
+                    cost[0, k] = cost[0, k] * cost[1, k]
         for t in range(s, stop):
-            base = (t - s) * particles
+            costs = cost[0, (t - s) * particles :]
             for k in range(particles):
-                if cost[base + k] < pcost[t, k]:  # strictly; NaN never is
-                    pcost[t, k] = cost[base + k]
+                if costs[k] < pcost[t, k]:  # strictly; NaN never is
+                    pcost[t, k] = costs[k]
                     for p in range(dimension):
                         pbest[t, k, p] = x[t, k, p]
             best, low = 0, pcost[t, 0]
@@ -331,7 +344,7 @@ def _evaluate(
                     best, low = k, pcost[t, k]
             for p in range(dimension):
                 gpos[t, p] = pbest[t, best, p]
-            history[t - first] = low
+            history[move, t - first] = low
         s = stop
 
 
@@ -340,7 +353,8 @@ def _move(xs, vs, best, gbest, r1, r2, u3, weight, box, boundary, per_particle, 
     """Move a tile of swarms (their positions ``xs``, velocities ``vs``, personal bests ``best``
     and each coordinate's swarm best ``gbest``, flat ``[n]``) with inertia ``weight`` and uniform
     numbers ``r1``, ``r2`` (``u3`` for random walls), flat ``[n]`` (``[n / P]`` per particle), then
-    apply the boundary rule: what ``swarm.step`` does, operation by operation, in flat loops.
+    apply the boundary rule: what ``swarm.step`` does, operation by operation, in flat loops (indexed
+    by the loop counter alone, so that they vectorise).
 
     ``box``: per coordinate ``[c1, c2, lower, upper, width, v_max]``, rows ``[6, ≥ n]``."""
     n = xs.shape[0]
@@ -426,8 +440,12 @@ def run_trial(  # noqa: ANN201, PLR0913
     ``flags``: ``[boundary rule, per-particle numbers (0/1), base-map mode]``. A move draws, in
     order, ``r1`` for every swarm, then ``r2``, then (random walls) ``u3``, each ``[count, K, P]``
     (``[count, K, 1]`` per particle), swarm-major: the eager engine's blocks.
+
+    The loop of moves (``_moves``) runs on views without reference counts (``_unowned``), so the
+    slices it takes per tile cost no atomic operations, and its loops index by their counter alone
+    (a computed index is checked for wrapping around, which keeps a loop from vectorising).
     """
-    particles, dimension = x.shape[1], x.shape[2]
+    swarms, particles, dimension = x.shape[0], x.shape[1], x.shape[2]
     entries, base, coordinates = offset.shape[1], linear.shape[1], particles * dimension
     limit = constants[VELOCITY_LIMIT]
     boundary, per_particle, mode = flags[BOUNDARY], flags[PER_PARTICLE], flags[MAP_MODE]
@@ -443,22 +461,46 @@ def run_trial(  # noqa: ANN201, PLR0913
         box[0, i], box[1, i], box[2, i], box[3, i] = constants[C1], constants[C2], lower[p], upper[p]
         box[4, i] = upper[p] - lower[p]
         box[5, i] = limit * box[4, i] if limit > 0 else math.inf
-    scratch = np.empty((4, span))  # scaled numbers, moved positions, the swarms' bests per coordinate
+    scratch = np.empty((4, span))  # spread numbers, moved positions, the swarms' bests per coordinate
     tile = per_tile * particles
-    # flat work arrays for a tile of particles (``_evaluate`` shapes them per tile): registers of
-    # the base-map tape, base parameters, error matrix, costs, per-factor sums
-    work = (
-        np.empty(max(tape.shape[0], 1) * tile),
-        np.empty(base * tile),
-        np.empty(entries * tile),
-        np.empty(2 * tile),
-        np.empty(max(entries, tile)),
-    )
+    # the points evaluated, one row per particle: positions, or the base parameters given
+    if mode == MAP_GIVEN:
+        points = given.reshape((given.shape[0] * given.shape[1], given.shape[2]))
+    else:
+        points = x.reshape((swarms * particles, dimension))
+    # work arrays for a tile of particles: registers of the base-map tape, base parameters, error
+    # matrix, costs (the product and one factor), per-factor sums
+    registers = np.empty((max(tape.shape[0], 1), tile))
+    alpha = np.empty((base, tile))
+    e = np.empty((entries, tile))
+    cost = np.empty((2, tile))
+    row = np.empty(tile)
+    column = np.empty(entries)
+    flat_x, flat_v, flat_best = x.reshape(x.size), v.reshape(v.size), pbest.reshape(pbest.size)
+    u = _unowned
+    _moves(
+        rng, first, count, weights, last, u(history), u(x), u(pbest), u(pcost), u(gpos), u(linear), u(offset),
+        u(slot_of), u(codes), u(params), joints, mode, u(tape), u(tape_constants), u(outputs), u(points),
+        u(registers), u(alpha), u(e), u(cost), u(row), u(column), u(random), u(box), u(scratch), u(flat_x),
+        u(flat_v), u(flat_best), boundary, per_particle, kinds, block, per_tile, width,
+    )  # fmt: skip
+
+
+@jit
+def _moves(
+    rng, first, count, weights, last, history, x, pbest, pcost, gpos, linear, offset, slot_of, codes, params,
+    joints, mode, tape, tape_constants, outputs, points, registers, alpha, e, cost, row, column, random, box,
+    scratch, flat_x, flat_v, flat_best, boundary, per_particle, kinds, block, per_tile, width,
+):  # fmt: skip  # noqa: ANN001, ANN202
+    """The loop of ``run_trial``, on views that carry no reference count (``_unowned``)."""
+    particles, dimension = x.shape[1], x.shape[2]
+    coordinates = particles * dimension
+    gbest = scratch[3]
     moves = weights.shape[0]
     for m in range(moves + (1 if last else 0)):
         _evaluate(
-            x, first, count, pbest, pcost, gpos, history[m], linear, offset, slot_of, codes, params, joints,
-            mode, tape, tape_constants, outputs, given, work,
+            points, x, first, count, pbest, pcost, gpos, history, m, linear, offset, slot_of, codes, params,
+            joints, mode, tape, tape_constants, outputs, registers, alpha, e, cost, row, column,
         )  # fmt: skip
         if m == moves:
             break
@@ -466,18 +508,41 @@ def run_trial(  # noqa: ANN201, PLR0913
             random[i] = rng.random()
         for s in range(first, first + count, per_tile):
             stop = min(s + per_tile, first + count)
-            n, gbest = (stop - s) * coordinates, scratch[3]
+            n = (stop - s) * coordinates
             for t in range(s, stop):
                 for k in range(particles):
-                    start = ((t - s) * particles + k) * dimension
-                    gbest[start : start + dimension] = gpos[t]
-            c0, c1 = (s - first) * particles * width, (stop - first) * particles * width
+                    # a view per particle: indexed by the loop counter alone, no index wraps around
+                    target = gbest[((t - s) * particles + k) * dimension :]
+                    for p in range(dimension):
+                        target[p] = gpos[t, p]
+            c0, c1, at = (s - first) * particles * width, (stop - first) * particles * width, s * coordinates
             _move(
-                x[s:stop].reshape(n), v[s:stop].reshape(n), pbest[s:stop].reshape(n), gbest[:n],
-                random[c0:c1], random[block + c0 : block + c1],
-                random[(kinds - 1) * block + c0 : (kinds - 1) * block + c1],
+                flat_x[at : at + n], flat_v[at : at + n], flat_best[at : at + n], gbest[:n], random[c0:c1],
+                random[block + c0 : block + c1], random[(kinds - 1) * block + c0 : (kinds - 1) * block + c1],
                 weights[m], box, boundary, per_particle, dimension, scratch,
             )  # fmt: skip
+
+
+@intrinsic
+def _data_pointer(context, array):  # noqa: ANN001, ANN202
+    """The data pointer of a C-contiguous ``array`` typed ``CPointer(dtype)``, as ``numba.carray``
+    takes it (any other layout is a typing error: ``carray`` reads its data as C-contiguous)."""
+    if not isinstance(array, types.Array) or array.layout != "C":
+        return None
+
+    def generate(codegen, builder, signature, arguments):  # noqa: ANN001, ANN202
+        return codegen.make_array(signature.args[0])(codegen, builder, arguments[0]).data
+
+    return types.CPointer(array.dtype)(array), generate
+
+
+@jit
+def _unowned(array):  # noqa: ANN001, ANN202
+    """A view of ``array`` without a reference count (``numba.carray`` over its data). Every array
+    passed to a compiled function is reference-counted on entry and exit — atomic operations, which
+    cost a one-run fit a quarter of its kernel time —, a view without one only a null test. The
+    caller keeps ``array`` alive while the view is used."""
+    return carray(_data_pointer(array), array.shape)
 
 
 numba.core.config.CACHE_DIR = _previous_cache_dir

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import math
 
+from idkit.memory import check_memory as check_machine_memory
+
 #: Most cost evaluations one search may plan per cost and trial (``runs × particles × iterations``,
 #: ``starts × steps``): about a minute of one core on the fast kernel, many on the eager engine. A
 #: bigger request is refused when the estimator is built, rather than running for hours unasked.
@@ -18,6 +20,10 @@ MAX_EVALUATIONS = 10**9
 HISTORY_ROWS = 1000
 #: Bytes per float64.
 FLOAT = 8
+#: Allocations below this are not checked against the machine's free memory: reading what the
+#: system has (``/proc/meminfo``, cgroup files) costs more than a small fit, and a size that small
+#: is not what exhausts a machine.
+UNCHECKED_BYTES = 1 << 20
 
 
 def check_evaluations(who: str, sizes: dict[str, int]) -> int:
@@ -51,3 +57,9 @@ def error_bytes(evaluations: int, entries: int, copies: int = 4) -> int:
     """The error tensors of one eager move: ``evaluations`` error matrices of ``entries`` entries,
     ``copies`` of them alive at once (the error, its absolute value, squares, sums)."""
     return FLOAT * evaluations * entries * copies
+
+
+def check_memory(what: str, needed: float, hint: str = "") -> None:
+    """``idkit.memory.check_memory`` for allocations of at least ``UNCHECKED_BYTES``."""
+    if needed >= UNCHECKED_BYTES:
+        check_machine_memory(what, needed, hint)

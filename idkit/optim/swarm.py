@@ -31,11 +31,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Literal, NamedTuple, get_args
 
 import numpy as np
 import torch
 from torch import Tensor
+
+from idkit.seeds import torch_generator
 
 #: What happens to a coordinate that left the box (module docstring).
 Boundary = Literal["clamp", "reflect", "random"]
@@ -110,6 +113,7 @@ def init(
     batch_shape: tuple[int, ...],
     particles: int,
     uniform: Draws,
+    start: Tensor | None = None,
 ) -> SwarmState:
     """Uniform positions in the box, zero velocities, bests from one evaluation.
 
@@ -119,9 +123,19 @@ def init(
         batch_shape: leading dimensions ``...`` (independent swarms).
         particles: ``K``.
         uniform: the only source of randomness.
+        start: ``[S, P]`` (``S ≤ K``) known positions that replace the first ``S`` drawn particles of
+            every swarm (e.g. a reference guess; clamped into the box). The numbers are drawn all
+            the same, so the random stream does not depend on ``start``.
     """
     u = uniform.draw((*batch_shape, particles, lower.shape[-1]))
     position = lower + (upper - lower) * u
+    if start is not None:
+        if start.ndim != 2 or start.shape[0] > particles or start.shape[1] != lower.shape[-1]:
+            raise ValueError(
+                f"start positions must be [S <= {particles}, {lower.shape[-1]}], got {tuple(start.shape)}"
+            )
+        known = torch.minimum(torch.maximum(start.to(position), lower), upper)
+        position[..., : start.shape[0], :] = known
     cost = objective(position)
     empty = SwarmState(
         position,
@@ -210,17 +224,38 @@ class Uniform:
     """
 
     def __init__(self, generator: torch.Generator, like: Tensor) -> None:
-        self.generator = generator
+        self.generator: torch.Generator | None = generator
         self.device, self.dtype = like.device, like.dtype
         self.numpy: np.random.Generator | None = None
         if self.device.type == "cpu":
             seed = int(torch.randint(0, 2**62, (), generator=generator))
             self.numpy = np.random.Generator(np.random.SFC64(seed))
 
+    @classmethod
+    def seeded(cls, seed: int, like: Tensor) -> Uniform:
+        """``Uniform(torch_generator(seed, like.device), like)``: the same numbers, but on the CPU the
+        numpy stream's seed is derived once per seed and process (``_stream_seed``: deriving it
+        through a fresh torch generator costs more than a paper-sized run on the fast kernel)."""
+        if like.device.type != "cpu":
+            return cls(torch_generator(seed, like.device), like)
+        uniform = cls.__new__(cls)
+        uniform.generator = None
+        uniform.device, uniform.dtype = like.device, like.dtype
+        uniform.numpy = np.random.Generator(np.random.SFC64(_stream_seed(seed)))
+        return uniform
+
     def __call__(self, shape: tuple[int, ...]) -> Tensor:
         if self.numpy is not None:
             return torch.from_numpy(self.numpy.random(shape)).to(self.dtype)
         return torch.rand(shape, generator=self.generator, device=self.device, dtype=self.dtype)
+
+
+@lru_cache(maxsize=4096)
+def _stream_seed(seed: int) -> np.random.SeedSequence:
+    """The seed of the CPU numpy stream of ``Uniform(torch_generator(seed), ...)``, as the
+    ``SeedSequence`` numpy makes of it (stateless for a bit generator's seeding: the same stream,
+    a fifth of the set-up)."""
+    return np.random.SeedSequence(int(torch.randint(0, 2**62, (), generator=torch_generator(seed))))
 
 
 def random_blocks(
@@ -321,8 +356,10 @@ def run(
     rules: SwarmRules,
     uniform: Draws,
     stride: int = 1,
+    start: Tensor | None = None,
 ) -> tuple[SwarmState, Tensor]:
-    """``iterations`` evaluations per particle (``init`` is the first), i.e. ``iterations − 1`` moves.
+    """``iterations`` evaluations per particle (``init`` is the first, with ``start`` as there),
+    i.e. ``iterations − 1`` moves.
 
     Returns:
         The final state and the history ``[rows, ...]`` of each swarm's global best cost at the
@@ -331,7 +368,7 @@ def run(
     if particles < 1 or iterations < 1:
         raise ValueError(f"need particles >= 1 and iterations >= 1, got {particles}, {iterations}")
     kept = set(history_rows(iterations, stride))
-    state = init(objective, lower, upper, batch_shape, particles, uniform)
+    state = init(objective, lower, upper, batch_shape, particles, uniform, start)
     history = [state.global_cost]
     for move, random in enumerate(move_draws(uniform, batch_shape, particles, iterations, lower, rules)):
         state = step(state, objective, rules.weight(move), random, lower, upper, rules)

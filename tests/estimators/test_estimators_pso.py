@@ -332,3 +332,33 @@ def test_pso_f1_is_ls_and_pso_f9_is_ls_rel(robot, scenario):
     f1, f9 = ParticleSwarm(history=False).fit_costs(problem, [paper.f1(), paper.f9()])
     np.testing.assert_allclose(f1.vector(), LeastSquares().fit(problem).vector(), rtol=1e-2)
     np.testing.assert_allclose(f9.vector(), LeastSquares(relative=True).fit(problem).vector(), rtol=1e-3)
+
+
+@pytest.mark.parametrize("engine", ["native", "eager"])
+def test_a_refit_reuses_the_prepared_problem_only_while_it_is_unchanged(robot, noisy, engine):
+    """The estimator keeps the last fit's objective; a sample changed in place, another cost or
+    another problem must not meet the old one."""
+    import pickle
+    from dataclasses import replace
+
+    from idkit.problem import Samples
+
+    samples = Samples(*(getattr(noisy, name).clone() for name in ("q", "qd", "qdd", "tau")))
+    problem = Problem(robot, samples, paper.f13(), seed=2)
+    pso = ParticleSwarm(engine=engine, **CHEAP)
+    first = pso.fit(problem)
+    kept = pso._last_prepared
+    assert pso.fit(problem).params == first.params and pso._last_prepared is kept  # reused
+    assert pickle.loads(pickle.dumps(pso)).__dict__.get("_last_prepared") is None
+
+    samples.tau.mul_(1.5)  # in place: the kept objective's torques are stale now
+    changed = pso.fit(problem)
+    assert pso._last_prepared is not kept
+    assert changed.params == ParticleSwarm(engine=engine, **CHEAP).fit(problem).params
+    assert changed.params != first.params
+
+    other_cost = pso.fit(replace(problem, cost=paper.f9()))  # another problem object, another cost
+    assert (
+        other_cost.params
+        == ParticleSwarm(engine=engine, **CHEAP).fit(replace(problem, cost=paper.f9())).params
+    )

@@ -15,7 +15,8 @@ import torch
 from scipy.optimize import least_squares
 
 from idkit.data.scenarios import simulate
-from idkit.estimators.varpro import VariableProjection, projection
+from idkit.estimators.linear.uncertainty import base_uncertainties, base_uncertainty
+from idkit.estimators.varpro import VariableProjection, _solve, projection
 from idkit.problem import IdentificationError, Problem, Samples
 from idkit.robots.drives import GAZ_PANDA_FRICTION, with_drive_values
 from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
@@ -136,3 +137,59 @@ def test_varpro_recovers_gaz_friction_on_the_kuka_arm(kuka_dir):
     index = phi_index(robot, "phi1", "phi2", "phi3")
     relative = ((params[index] - truth[index]).abs() / truth[index].abs()).max()
     assert relative < 1e-6  # the judged bound is 2 %
+
+
+def _dense_kaufman(data, theta: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Kaufman's ``JᵀJ``, ``Jᵀr`` and ``‖r‖²`` formed the slow way: the whole ``W(θ)`` factored, the
+    derivative columns built dense and projected off it."""
+    n = data.qd.shape[1]
+    w = data.matrix(theta)
+    q = torch.linalg.qr(w).Q
+    tau = data.tau.reshape(-1)
+    amplitude = torch.linalg.lstsq(w, tau[:, None], driver="gelsd").solution[-n:, 0]
+    steepness, shift = theta[:n], theta[n:]
+    sigma, rest = torch.sigmoid(steepness * (data.qd + shift)), torch.sigmoid(steepness * shift)
+    slope, slope_rest = sigma * (1 - sigma), rest * (1 - rest)
+    d_steepness = (slope * (data.qd + shift) - slope_rest * shift) * amplitude
+    d_shift = (slope - slope_rest) * steepness * amplitude
+    d = torch.cat([torch.diag_embed(d_steepness), torch.diag_embed(d_shift)], -1).reshape(-1, 2 * n)
+    jacobian = -(d - q @ (q.T @ d))
+    r = tau - q @ (q.T @ tau)
+    return jacobian.T @ jacobian, jacobian.T @ r, r @ r
+
+
+def test_the_linearisation_equals_kaufmans_jacobian_formed_densely(tree):
+    robot, _, samples = tree
+    data = projection(robot, samples.q, samples.qd, samples.qdd, samples.tau)
+    lower, upper = (bound[phi_index(robot, "phi2", "phi3")] for bound in robot.bounds())
+    generator = torch.Generator().manual_seed(4)
+    shapes = lower + (upper - lower) * torch.rand(3, len(lower), generator=generator, dtype=torch.float64)
+    for theta in shapes:
+        normal, gradient, value = data.linearised(theta)
+        dense_normal, dense_gradient, dense_value = _dense_kaufman(data, theta)
+        scale = dense_normal.diagonal().sqrt()
+        torch.testing.assert_close(normal / scale / scale[:, None], dense_normal / scale / scale[:, None])
+        floor = 1e-9 * float(value.sqrt())  # Jᵀr at r ⊥ J's span: what is left is round-off
+        torch.testing.assert_close(gradient / scale, dense_gradient / scale, rtol=1e-7, atol=floor)
+        torch.testing.assert_close(value, dense_value, rtol=1e-9, atol=0)
+
+
+def test_the_assembled_qr_solve_equals_lstsq_and_the_svd_uncertainty(tree):
+    """The final solve reuses ``W_fixed``'s QR; it must give numpy's least squares and the
+    uncertainty that an SVD of the whole ``W`` gives."""
+    robot, truth, samples = tree
+    data = projection(robot, samples.q, samples.qd, samples.qdd, samples.tau)
+    theta = truth[phi_index(robot, "phi2", "phi3")] * 1.3
+    solved = _solve(data, theta)
+    w = data.matrix(theta).numpy()
+    expected, *_ = np.linalg.lstsq(w, samples.tau.numpy().reshape(-1), rcond=None)
+    np.testing.assert_allclose(solved.alpha.numpy(), expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+    names = [f"c{k}" for k in range(w.shape[1])]
+    tau = data.tau.reshape(-1)
+    reference = base_uncertainty(torch.as_tensor(w), tau, solved.alpha, names)
+    assembled = base_uncertainties(solved.w[None], tau[None], solved.alpha[None], names, solved.conditioning)[
+        0
+    ]
+    torch.testing.assert_close(assembled.std, reference.std, rtol=1e-8, atol=0)
+    assert (assembled.rank, assembled.dof) == (reference.rank, reference.dof)
+    assert assembled.cond == pytest.approx(reference.cond, rel=1e-8)

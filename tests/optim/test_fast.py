@@ -236,3 +236,19 @@ def test_cuda_runs_the_same_code(problem):
     assert estimate.details["device"].startswith("cuda") and estimate.details["engine"] == "eager"
     cpu = ParticleSwarm(runs=3, particles=6, iterations=15, engine="eager").fit(problem)
     assert np.isfinite(estimate.vector()).all() and estimate.cost == pytest.approx(cpu.cost, rel=0.5)
+
+
+def test_one_trial_cut_into_blocks_of_moves_equals_one_call(problem, monkeypatch):
+    """With one trial and every iteration kept, the kernel writes the history in place, block by block."""
+    objective = Objective(problem, [paper.f13(), paper.f6()])
+    rules = RULES["random walls, per particle"]
+
+    def fit() -> tuple[swarm.SwarmState, torch.Tensor]:
+        return fast.run(
+            objective.spec(), objective.lower, objective.upper, 3, 4, 9, rules, _draws(2, objective.lower)
+        )
+
+    whole = fit()
+    monkeypatch.setattr(fast, "EVALUATIONS_PER_CALL", 40)  # blocks of 40 / (2 costs × 3 runs × 4) = 1 move
+    cut = fit()
+    assert torch.equal(whole[1], cut[1]) and torch.equal(whole[0].position, cut[0].position)
