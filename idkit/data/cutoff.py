@@ -7,7 +7,8 @@ and its predictions are noisy). Which one dominates depends on the sampling rate
 trajectory, all of which the training recording shows. :func:`choose_cutoff` asks it:
 
 1. every candidate of :data:`CANDIDATES_HZ` below a quarter of the (decimated) sampling rate
-   preprocesses every training recording (the other :class:`PreprocessOptions` as given);
+   preprocesses every training recording (the other :class:`PreprocessOptions` as given); one that
+   cannot (its trim leaves a short recording no samples) is left out, and the reason says so;
 2. only the samples every candidate keeps are used (the lowest cut-off trims the most), so all
    candidates are scored on the same samples;
 3. each recording's span is cut into ``folds`` contiguous blocks of equal duration; fold ``k`` is
@@ -118,6 +119,9 @@ def choose_cutoff(
         band: the fixed scoring band (Hz) of the held-out error.
         folds: contiguous blocks per recording (>= 2).
 
+    A candidate whose preprocessing fails (a low cut-off trims too much of a short recording) is left
+    out of the choice, and the reason names it and why.
+
     Raises:
         ValueError: no candidate below a quarter of the sampling rate, or none that leaves samples
             (naming the recording and why).
@@ -131,7 +135,7 @@ def choose_cutoff(
             "a quarter of the sampling rate; give preprocess.cutoff in Hz"
         )
     runs: dict[float, list[Any]] = {}
-    failure = ""
+    left_out: dict[float, str] = {}
     for cutoff in tried:
         try:
             with warnings.catch_warnings():  # gaps are said once, by the preprocessing that is kept
@@ -141,9 +145,9 @@ def choose_cutoff(
                     for r in recordings
                 ]
         except ValueError as exc:  # a low cut-off trims too much of a short recording
-            failure = str(exc)
+            left_out[cutoff] = str(exc)
     if not runs:
-        raise ValueError(f"cutoff=auto: {failure}")
+        raise ValueError(f"cutoff=auto: {list(left_out.values())[-1]}")
     scores = _cross_validated(runs, regressor, band, folds)
     best = min(scores, key=lambda c: scores[c])
     lowest, highest = min(scores), max(scores)
@@ -152,6 +156,9 @@ def choose_cutoff(
         f"data, {100 * scores[best]:.3g} % in the {band:g} Hz scoring band, among {len(scores)} cut-offs "
         f"{lowest:g}–{highest:g} Hz"
     )
+    if left_out:  # the choice was made without them: say so, and why
+        first = next(iter(left_out))
+        reason += f"; {', '.join(f'{c:g}' for c in left_out)} Hz left out ({first:g} Hz: {left_out[first]})"
     return CutoffChoice(best, reason, scores, band, folds)
 
 

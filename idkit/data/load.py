@@ -133,8 +133,8 @@ def load_data_file(
 
     Raises:
         ValueError: ``apply`` unknown; ``"on"`` for a file without timestamps; ``"off"`` (or
-            ``"auto"``) for a file with neither accelerations nor timestamps — naming the file; what
-            the readers refuse.
+            ``"auto"``) for a file with neither accelerations nor timestamps; torques that are all
+            zero — naming the file; what the readers refuse.
     """
     return from_source(read_source(path, apply, joints, log), options, stride, delay)
 
@@ -153,6 +153,7 @@ def read_source(
         if apply == "off":
             raise ValueError(f"{path}: a ROS log is a raw recording (no accelerations); preprocess it")
         recording, description = read_log(path, joints, log)
+        _refuse_zero_torques(path, recording.tau)
         return Source(str(path), recording, log=description)
     table = read_table(path)
     kind = file_kind(table)
@@ -163,6 +164,7 @@ def read_source(
                 f"{path}: a raw recording (no accelerations qdd); preprocess it (preprocess=auto or on)"
             )
         samples, _ = samples_from_table(table, FLOBAROID_KEYS if kind.flobaroid else None, joints)
+        _refuse_zero_torques(path, samples.tau.numpy())
         times = None
         if kind.timestamps:
             t = table.vector(FLOBAROID_RECORDING_KEYS["t"] if kind.flobaroid else "t")
@@ -180,7 +182,19 @@ def read_source(
             f"qdd and no timestamps t; it has {found}"
         )
     recording = recording_from_table(table, FLOBAROID_RECORDING_KEYS if kind.flobaroid else None, joints)
+    _refuse_zero_torques(path, recording.tau)
     return Source(str(path), recording)
+
+
+def _refuse_zero_torques(path: str | Path, tau: np.ndarray) -> None:
+    """Refuse a file whose torques ``[N, n]`` are all exactly zero: an empty effort column or topic,
+    never a measurement. Least squares fits it exactly with every base parameter 0, and every relative
+    error divides by it, so the run would report numbers with exit status 0."""
+    if not np.any(tau):
+        raise ValueError(
+            f"{path}: every torque in the file is exactly zero ({tau.shape[0]} samples × {tau.shape[1]} "
+            "joints): an empty effort column or topic? Nothing can be identified or scored from it"
+        )
 
 
 def from_source(

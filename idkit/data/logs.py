@@ -10,7 +10,7 @@ when a log is read. What :func:`read_log` does, in order:
    ``recording.effort_topic`` when the driver publishes them apart.
 2. **Joints by name.** Each message's ``name`` list says which value is which joint, in any order
    (the driver's). The robot's joints are taken in the robot's order; other joints are ignored; a
-   joint the robot needs and the log lacks is refused naming it.
+   joint the robot needs and the log lacks, or a message naming a joint twice, is refused naming it.
 3. **One clock.** Each stream's time is its header stamps. A stream whose header stamps are all zero
    (some drivers never set them) uses the log's receive time instead, and says so (a
    :class:`LogWarning`); stamps zero in only some messages, all-zero receive times, and stamps that
@@ -244,6 +244,12 @@ def _values(path: Path, stream: Stream, field: str, joints: Sequence[str]) -> np
     for k, (names, values) in enumerate(zip(stream.names, arrays, strict=True)):
         if names not in order:
             index = {name: i for i, name in enumerate(names)}
+            if len(index) < len(names):  # which of the two values is the joint's cannot be known
+                twice = next(name for name in names if names.count(name) > 1)
+                raise ValueError(
+                    f"{path}: {stream.topic} message {k} names joint {twice!r} twice; the log's joints: "
+                    + ", ".join(names)
+                )
             missing = [j for j in joints if j not in index]
             if missing:
                 everywhere = all(missing[0] not in n for n in stream.names)

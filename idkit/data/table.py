@@ -9,7 +9,8 @@ CSV:
     Latin-1/Windows-1252 text and binary files are refused naming the encoding problem), separated by
     commas, the first line naming the columns, then one line per sample (blank lines are skipped).
     Column names are matched case-insensitively (``Q1`` is ``q1``, ``TAU1`` is ``tau1``); a name that
-    appears twice, in any case, is refused — which one would be meant? A quantity's columns are either
+    appears twice, in any case, is refused — which one would be meant? — and so are two numbers of one
+    joint (``q1`` and ``q01``). A quantity's columns are either
     numbered from 1 (``q1..qn``) or named per joint (``<joint>.q``, the joint name as the robot spells
     it, the quantity in any case), not both. A first line that looks ``;``-, tab- or space-separated, or
     holds numbers, is refused saying what was found. Only the columns asked for are parsed as numbers;
@@ -233,7 +234,14 @@ class CsvTable(Table):
                 continue
             number = _NUMBERED.fullmatch(label)
             if number and number["prefix"].casefold() == prefix:
-                numbered[int(number["index"])] = col
+                index = int(number["index"])
+                if index in numbered:  # q1 and q01: two columns for one joint
+                    raise ValueError(
+                        f"{self.path}: columns {self.header[numbered[index]]!r} and {label!r} both number "
+                        f"joint {index} (columns {numbered[index] + 1} and {col + 1}); which one is meant? "
+                        "Name each column once"
+                    )
+                numbered[index] = col
         return numbered, named
 
     def has(self, name: str) -> bool:

@@ -596,6 +596,9 @@ def cross_validated_weight(
         f"{best:g}): {chosen:g} ({100 * scores[chosen]:.3g} %), among "
         + ", ".join(f"{w:g}" for w in candidates)
     )
+    failed = [w for w in candidates if w not in squared]
+    if failed:  # chosen without them: say which, and why
+        reason += f"; {', '.join(f'{w:g}' for w in failed)} left out (the solve failed: {failures[0]})"
     return WeightChoice(chosen, scores, per_fold, distance, folds, reason)
 
 

@@ -176,8 +176,9 @@ def read_armatures(urdf: str) -> dict[str, float]:
     """A-priori armature ``I_rotor · N²`` per joint from the URDF's transmissions (module doc).
 
     Joints without a transmission carrying ``<rotor_inertia>`` are absent. Raises a one-line
-    ``ValueError`` naming the transmission for a non-numeric, negative or non-finite value, or a
-    rotor inertia in a transmission that drives several joints.
+    ``ValueError`` naming the transmission for a non-numeric, negative or non-finite value, a
+    rotor inertia in a transmission that drives several joints, or a second transmission giving one
+    joint a rotor inertia.
     """
     data, label = read_urdf_text(urdf)
     root = ET.fromstring(data)
@@ -193,6 +194,11 @@ def read_armatures(urdf: str) -> dict[str, float]:
             raise ValueError(
                 f"urdf ({label}): transmission {name!r} has a <rotor_inertia> but drives {len(joints)} "
                 f"joint(s) with {len(actuators)} actuator(s); an armature needs one joint and one actuator"
+            )
+        if joints[0] in out:  # which of the two is the joint's rotor cannot be known
+            raise ValueError(
+                f"urdf ({label}): transmission {name!r} gives joint {joints[0]!r} a <rotor_inertia>, and an "
+                "earlier transmission gives it one too; keep one transmission per joint"
             )
         reduction = _child_number(transmission, actuators, "mechanicalReduction", name, label)
         out[joints[0]] = inertia * (1.0 if reduction is None else reduction) ** 2

@@ -40,7 +40,15 @@ def recorded_joint_terms(robot: Any) -> dict[str, float]:
 
 
 def _urdf_terms(urdf: str, joint_names: tuple[str, ...]) -> dict[str, float]:
-    data, _ = read_urdf_text(urdf)
+    data, label = read_urdf_text(urdf)
+
+    def number(text: str | None, what: str) -> float:
+        """``text`` as a float, or a one-line ``ValueError`` naming the file, joint and attribute."""
+        try:
+            return float(text or "")
+        except ValueError:
+            raise ValueError(f"urdf ({label}): {what} is {text!r}, not a number") from None
+
     root = ET.fromstring(data, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
     joints = {joint.get("name"): joint for joint in root.findall("joint")}
     out: dict[str, float] = {}
@@ -50,11 +58,15 @@ def _urdf_terms(urdf: str, joint_names: tuple[str, ...]) -> dict[str, float]:
         if dynamics is not None:
             for attribute, key in (("friction", "fc"), ("damping", "fv")):
                 if dynamics.get(attribute) is not None:
-                    out[f"{name}.{key}"] = float(dynamics.get(attribute, ""))
+                    what = f"joint {name!r}: <dynamics {attribute}>"
+                    out[f"{name}.{key}"] = number(dynamics.get(attribute), what)
         for child in joint:
             if child.tag is ET.Comment and (child.text or "").strip().startswith(MARK):
                 out.update(
-                    {f"{name}.{key}": float(value) for key, value in comment_pairs(child.text).items()}
+                    {
+                        f"{name}.{key}": number(value, f"joint {name!r}: {key} of its {MARK} comment")
+                        for key, value in comment_pairs(child.text).items()
+                    }
                 )
     return out
 

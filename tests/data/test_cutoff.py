@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import re
 
 import numpy as np
 import pytest
@@ -102,3 +103,10 @@ def test_candidates_stay_below_a_quarter_of_the_sampling_rate():
     assert candidates([slow], PreprocessOptions(decimate=2)) == [2.0, 3.0, 4.0]
     with pytest.raises(ValueError, match=r"no candidate cut-off .* is below a quarter of the sampling rate"):
         choose_cutoff([recording(0.0, rate=6.0)], regressor, PreprocessOptions(), band=2.0)
+
+
+def test_a_candidate_the_recording_is_too_short_for_is_left_out_and_said():
+    """3 s at 200 Hz: 2 Hz trims 1.5 s at each end, too much to filter; the others are scored."""
+    choice = choose_cutoff([recording(0.0, seconds=3.0)], regressor, PreprocessOptions(), band=6.0)
+    assert set(choice.scores) == set(CANDIDATES_HZ) - {2.0}
+    assert re.search(r"; 2 Hz left out \(2 Hz: preprocess \(arm\.csv\): .* leaves no samples", choice.reason)

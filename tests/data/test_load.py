@@ -62,3 +62,23 @@ def test_apply_modes(tmp_path):
         load_data_file(tmp_path / "r.npz", options, "yes")
     with pytest.raises(FileNotFoundError, match="data file not found"):
         load_data_file(tmp_path / "none.npz")
+
+
+@pytest.mark.parametrize(
+    ("name", "arrays"),
+    [("samples.npz", ("q", "qd", "qdd", "tau")), ("raw.npz", ("t", "q", "tau"))],
+)
+def test_torques_that_are_all_zero_are_refused_naming_the_file(tmp_path, name, arrays):
+    """An empty effort column: LS would answer it with zero parameters and exit status 0."""
+    t, q, qd, qdd = sines()
+    values = {"t": t, "q": q, "qd": qd, "qdd": qdd, "tau": np.zeros_like(q)}
+    np.savez(tmp_path / name, **{k: values[k] for k in arrays})
+    with pytest.raises(ValueError) as caught:
+        load_data_file(tmp_path / name, PreprocessOptions(cutoff=5.0))
+    assert str(caught.value) == (
+        f"{tmp_path / name}: every torque in the file is exactly zero (400 samples × 2 joints): an empty "
+        "effort column or topic? Nothing can be identified or scored from it"
+    )
+    values["tau"][7, 1] = 1e-9  # one non-zero torque is a measurement, however small
+    np.savez(tmp_path / name, **{k: values[k] for k in arrays})
+    assert load_data_file(tmp_path / name, PreprocessOptions(cutoff=5.0)).samples.n_samples > 0

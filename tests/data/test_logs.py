@@ -89,6 +89,19 @@ def test_a_joint_the_robot_needs_and_the_log_lacks_is_named(tmp_path):
     )
 
 
+@pytest.mark.parametrize("joints", [JOINTS, None])
+def test_a_joint_named_twice_in_one_message_is_refused(tmp_path, joints):
+    """Which of the two values is the elbow's cannot be known (the last one used to be taken)."""
+    s = signals()
+    path = write("mcap", tmp_path, [states(s, extra={"elbow": 0.5})])
+    with pytest.raises(ValueError) as caught:
+        read_log(path, joints)
+    assert str(caught.value) == (
+        f"{path}: /joint_states message 0 names joint 'elbow' twice; the log's joints: "
+        "wrist, shoulder, elbow, elbow"
+    )
+
+
 def test_efforts_on_their_own_topic_and_clock_are_interpolated_onto_the_states(tmp_path):
     s = signals()
     tau_t = s["t"][::2] + 0.0025  # 100 Hz, half a state step late

@@ -56,6 +56,14 @@ def test_names_differing_only_in_case_are_one_name(tmp_path, reader):
     assert "columns 'TAU1' and 'tau1' name the same column (names are read case-insensitively)" in message
 
 
+@pytest.mark.parametrize("reader", READERS)
+def test_two_numbers_of_one_joint_are_refused_naming_both(tmp_path, reader):
+    """``tau1`` and ``tau01`` both read as joint 1: the later one used to win without a word."""
+    path = write(tmp_path / "zero.csv", "t,q1,tau1,qd1,qdd1,tau01\n0,1,2,3,4,5\n1,1,2,3,4,6\n")
+    message = refusal(reader, path)
+    assert "columns 'tau1' and 'tau01' both number joint 1 (columns 3 and 6)" in message
+
+
 def test_upper_case_headers_read_like_lower_case(tmp_path):
     lower = load_recording(write(tmp_path / "lower.csv", RAW))
     upper = load_recording(write(tmp_path / "upper.csv", RAW.upper()))

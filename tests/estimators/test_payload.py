@@ -229,6 +229,26 @@ def test_a_trajectory_that_cannot_identify_the_payload_says_so():
     assert any("not identified by this recording" in line for line in payload_report.lines(estimate.details))
 
 
+@pytest.mark.parametrize(
+    ("inserted", "message"),
+    [
+        ('<dynamics friction="abc"/>', r"joint 'j2': <dynamics friction> is 'abc', not a number$"),
+        (
+            "<!-- idkit: offset=1.2.3 -->",
+            r"joint 'j2': offset of its idkit: comment is '1\.2\.3', not a number$",
+        ),
+    ],
+)
+def test_a_recorded_joint_term_that_is_no_number_is_named(inserted, message):
+    """The arm model reads these; a bare 'could not convert string to float' named neither file nor joint."""
+    from idkit.robots.joint_terms import recorded_joint_terms
+
+    tag = '<joint name="j2" type="prismatic">'
+    robot = URDFRobot(TREE_URDF.replace(tag, tag + inserted, 1), friction=True, offset=True)
+    with pytest.raises(ValueError, match=r"^urdf \(<URDF text>\): " + message):
+        recorded_joint_terms(robot)
+
+
 def test_bad_input_is_refused_in_one_line(tree, tmp_path, cylindrical):
     samples = simulate(tree, TREE_URDF, "j3", 50, seed=11)
     with pytest.raises(ValueError) as unknown:

@@ -234,3 +234,24 @@ def test_prior_weight_auto_on_too_few_samples_is_zero_and_says_why():
     fit = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.01, n=20)))
     assert fit.details["prior_weight"] == 0.0
     assert fit.details["prior_weight_cv"]["reason"].startswith("20 samples are too few to cross-validate")
+
+
+def test_prior_weight_auto_names_a_weight_whose_solve_failed(monkeypatch):
+    """A candidate the solver fails on drops out of the choice (score inf), and the reason says so."""
+    from idkit.estimators import physical
+
+    solve = physical.ConsistentProgram.solve
+
+    def failing(self, R, b, scale2, weight=0.0, once=False):
+        if weight == 3000.0:
+            raise IdentificationError("pcls: the conic solver failed (CLARABEL: status 'numerical')")
+        return solve(self, R, b, scale2, weight, once)
+
+    monkeypatch.setattr(physical.ConsistentProgram, "solve", failing)
+    robot = tree_robot()
+    fit = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.05, seed=3)))
+    cv = fit.details["prior_weight_cv"]
+    assert cv["scores"][cv["candidates"].index(3000)] == float("inf") and cv["chosen"] != 3000
+    assert cv["reason"].endswith(
+        "; 3000 left out (the solve failed: pcls: the conic solver failed (CLARABEL: status 'numerical'))"
+    )

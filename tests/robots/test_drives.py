@@ -155,6 +155,13 @@ def test_a_bad_rotor_inertia_is_named(element, message):
         read_armatures(bad)
 
 
+def test_two_transmissions_of_one_joint_are_refused():
+    """The second used to replace the first without a word: which rotor is the joint's?"""
+    twice = with_transmissions(TREE_DRIVES, {"j1": (10.0, 1e-4)})
+    with pytest.raises(ValueError, match=r"transmission 'j1_trans' gives joint 'j1' a <rotor_inertia>, and"):
+        read_armatures(twice)
+
+
 def test_merged_armature_is_named_and_kept_at_its_a_priori_value():
     with pytest.warns(UserWarning, match=r"j1\.armature merges with the link inertia \(a\.IzzR\)"):
         robot = URDFRobot(TREE_DRIVES, friction=True, armature=True)
