@@ -62,7 +62,7 @@ def test_the_projected_residual_is_the_least_squares_residual(tree):
     theta = lower + (upper - lower) * torch.rand(5, len(lower), generator=torch.Generator().manual_seed(0))
     for k in range(5):
         w = data.matrix(theta[k]).numpy()
-        tau = samples.tau.numpy().reshape(-1)
+        tau = data.tau.reshape(-1).numpy()  # rows in the order of the matrix's
         solution, *_ = np.linalg.lstsq(w, tau, rcond=None)
         expected = np.sum((tau - w @ solution) ** 2)
         np.testing.assert_allclose(float(data.residual(theta[k])), expected, rtol=1e-8)
@@ -102,7 +102,7 @@ def test_varpro_finds_the_least_squares_minimiser_of_noisy_data(tree):
 
     def residual(x: np.ndarray) -> np.ndarray:
         w = data.matrix(torch.as_tensor(x[: 2 * n])).numpy()
-        return w @ x[2 * n :] - noisy.tau.numpy().reshape(-1)
+        return w @ x[2 * n :] - data.tau.reshape(-1).numpy()
 
     alpha = robot.base_params(truth).numpy()
     x0 = np.concatenate([truth[shapes].numpy(), alpha[data.fixed + data.scaled]])
@@ -139,20 +139,30 @@ def test_varpro_recovers_gaz_friction_on_the_kuka_arm(kuka_dir):
     assert relative < 1e-6  # the judged bound is 2 %
 
 
+def _on_own_rows(values: torch.Tensor) -> torch.Tensor:
+    """Per-joint columns ``values[n, N]`` as a dense ``[n·N, n]`` matrix, joint ``j``'s column on
+    joint ``j``'s rows (the projection's joint-major row order)."""
+    n, samples = values.shape
+    dense = values.new_zeros(n, samples, n)
+    for j in range(n):
+        dense[j, :, j] = values[j]
+    return dense.reshape(-1, n)
+
+
 def _dense_kaufman(data, theta: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Kaufman's ``JᵀJ``, ``Jᵀr`` and ``‖r‖²`` formed the slow way: the whole ``W(θ)`` factored, the
     derivative columns built dense and projected off it."""
-    n = data.qd.shape[1]
+    n = data.qd.shape[0]
     w = data.matrix(theta)
     q = torch.linalg.qr(w).Q
     tau = data.tau.reshape(-1)
     amplitude = torch.linalg.lstsq(w, tau[:, None], driver="gelsd").solution[-n:, 0]
-    steepness, shift = theta[:n], theta[n:]
+    steepness, shift = theta[:n, None], theta[n:, None]
     sigma, rest = torch.sigmoid(steepness * (data.qd + shift)), torch.sigmoid(steepness * shift)
     slope, slope_rest = sigma * (1 - sigma), rest * (1 - rest)
-    d_steepness = (slope * (data.qd + shift) - slope_rest * shift) * amplitude
-    d_shift = (slope - slope_rest) * steepness * amplitude
-    d = torch.cat([torch.diag_embed(d_steepness), torch.diag_embed(d_shift)], -1).reshape(-1, 2 * n)
+    d_steepness = (slope * (data.qd + shift) - slope_rest * shift) * amplitude[:, None]
+    d_shift = (slope - slope_rest) * steepness * amplitude[:, None]
+    d = torch.cat([_on_own_rows(d_steepness), _on_own_rows(d_shift)], 1)
     jacobian = -(d - q @ (q.T @ d))
     r = tau - q @ (q.T @ tau)
     return jacobian.T @ jacobian, jacobian.T @ r, r @ r
@@ -182,7 +192,7 @@ def test_the_assembled_qr_solve_equals_lstsq_and_the_svd_uncertainty(tree):
     theta = truth[phi_index(robot, "phi2", "phi3")] * 1.3
     solved = _solve(data, theta)
     w = data.matrix(theta).numpy()
-    expected, *_ = np.linalg.lstsq(w, samples.tau.numpy().reshape(-1), rcond=None)
+    expected, *_ = np.linalg.lstsq(w, data.tau.reshape(-1).numpy(), rcond=None)
     np.testing.assert_allclose(solved.alpha.numpy(), expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
     names = [f"c{k}" for k in range(w.shape[1])]
     tau = data.tau.reshape(-1)
