@@ -23,7 +23,6 @@ physically consistent, on the robot rebuilt with ``θ`` as its reference shape).
 
 from __future__ import annotations
 
-import math
 import time
 import warnings
 from dataclasses import dataclass
@@ -34,8 +33,8 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
-from idkit.estimators.linear.observation import Conditioning, IdentificationError
-from idkit.estimators.linear.uncertainty import base_uncertainties
+from idkit.estimators.linear.observation import IdentificationError
+from idkit.estimators.linear.uncertainty import Spectrum, base_uncertainties
 from idkit.interfaces import Estimator, Robot
 from idkit.optim import swarm
 from idkit.problem import Problem
@@ -290,7 +289,7 @@ class VariableProjection(Estimator):
                 order = data.fixed + data.scaled
                 names = [robot.base_param_names[k] for k in order]
                 details = base_uncertainties(
-                    solved.w[None], data.tau.reshape(1, -1), solved.alpha[None], names, solved.conditioning,
+                    solved.w[None], data.tau.reshape(1, -1), solved.alpha[None], names, solved.spectrum,
                     robot.unidentifiable,
                 )[0].to_details()  # fmt: skip
         residual = float(torch.linalg.vector_norm(s.tau - predicted))
@@ -386,12 +385,14 @@ class Solved:
     Attributes:
         w: ``W`` ``[n·N, L + n]`` (rows joint-major, as ``Projection``).
         alpha: its least-squares solution ``[L + n]`` (``fixed`` then ``scaled`` columns).
-        conditioning: the SVD of the column-equilibrated ``W`` (``Q`` times that of the equilibrated ``R``).
+        spectrum: singular values and right vectors of the column-equilibrated ``W``: those of the
+            equilibrated ``R`` (``W = QR`` with orthonormal ``Q``; ``Q``'s product with ``R``'s left
+            vectors, ``W``'s own, is never needed).
     """
 
     w: Tensor
     alpha: Tensor
-    conditioning: Conditioning
+    spectrum: Spectrum
 
 
 def _solve(data: Projection, theta: Tensor) -> Solved:
@@ -420,15 +421,8 @@ def _solve(data: Projection, theta: Tensor) -> Solved:
     kept = sigma > tol
     inverse = torch.where(kept, 1 / sigma, torch.zeros_like(sigma))
     alpha = (vh.T @ (inverse * (u.T @ rhs))) / scale
-    conditioning = Conditioning(
-        scale[None],
-        torch.addmm(qs @ u[width:], q0, u[:width])[None],  # U of W = [Q₀ | Q_S] times U of R
-        sigma[None],
-        vh[None],
-        [int(kept.sum())],
-        [float(sigma[0] / sigma[-1]) if sigma[-1] > 0 else math.inf],
-    )
-    return Solved(torch.cat([data.w_fixed.reshape(-1, width), s], 1), alpha, conditioning)
+    spectrum = Spectrum(scale[None], sigma[None], vh[None])  # W's singular values are R's
+    return Solved(torch.cat([data.w_fixed.reshape(-1, width), s], 1), alpha, spectrum)
 
 
 def _standard(robot: Robot, data: Projection, theta: Tensor, solution: Tensor) -> Tensor:

@@ -197,9 +197,7 @@ def test_the_assembled_qr_solve_equals_lstsq_and_the_svd_uncertainty(tree):
     names = [f"c{k}" for k in range(w.shape[1])]
     tau = data.tau.reshape(-1)
     reference = base_uncertainty(torch.as_tensor(w), tau, solved.alpha, names)
-    assembled = base_uncertainties(solved.w[None], tau[None], solved.alpha[None], names, solved.conditioning)[
-        0
-    ]
+    assembled = base_uncertainties(solved.w[None], tau[None], solved.alpha[None], names, solved.spectrum)[0]
     torch.testing.assert_close(assembled.std, reference.std, rtol=1e-8, atol=0)
     assert (assembled.rank, assembled.dof) == (reference.rank, reference.dof)
     assert assembled.cond == pytest.approx(reference.cond, rel=1e-8)
