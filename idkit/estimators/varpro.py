@@ -49,7 +49,7 @@ CONVERGED = 1e-10
 #: or when the next step moves no shape by more than this fraction of its box width. On the search's
 #: subsampled data it stops at a looser fraction: the steps on every sample finish the descent.
 STEP_TOLERANCE = 1e-12
-COARSE_CONVERGED = 1e-6
+COARSE_CONVERGED = 1e-2
 
 
 @dataclass(frozen=True)
@@ -350,7 +350,8 @@ def _polish(
     ``[W_fixed | S(θ)]``, ``φ1`` the amplitudes solved at ``θ``), through the small products of
     ``Projection.linearised``. Steps are scaled by the box widths; one that does not lower ``r``
     raises the damping instead (starting at ``damping``: small from a point that is already near
-    the minimum); it stops when a step lowers ``‖r‖²`` by less than the fraction ``converged``.
+    the minimum); it stops when a step lowers ``‖r‖²`` by less than the fraction ``converged``, or
+    when the linear model predicts that the next one will (that step is taken without evaluating it).
     """
     width = upper - lower
     normal, gradient, current = data.linearised(theta)
@@ -362,6 +363,10 @@ def _polish(
             break  # at an exact fit ‖r‖² is round-off, and steps this small would be tried until
             # the damping ran out
         candidate = torch.minimum(torch.maximum(theta - step, lower), upper)
+        if float(2 * step @ gradient - step @ normal @ step) <= converged * float(current):
+            return candidate  # the linear model's decrease ‖r‖² − ‖r − J·step‖² is below the
+            # tolerance: a step this small is where the model is exact; evaluating it would only
+            # confirm that the descent is over
         candidate_normal, candidate_gradient, value = data.linearised(candidate)
         if value < current:
             done = current - value <= converged * current
