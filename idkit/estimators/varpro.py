@@ -121,27 +121,34 @@ class Projection:
         """
         n, width = self.qd.shape[0], self.q0.shape[-1]
         steepness, shift = theta[:n, None], theta[n:, None]  # [n, 1]
-        sigma, rest = torch.sigmoid(steepness * (self.qd + shift)), torch.sigmoid(steepness * shift)
-        s = sigma - rest  # [n, N]
+        moved = self.qd + shift
+        sigma, rest = torch.sigmoid(steepness * moved), torch.sigmoid(steepness * shift)
         slope, slope_rest = sigma * (1 - sigma), rest * (1 - rest)
-        # S and ∂S/∂φ2, ∂S/∂φ3 (not yet times φ1) per joint, and their products with Q₀ in one pass
+        # per joint: S and ∂S/∂φ2, ∂S/∂φ3 (not yet times φ1), and τ⊥ beside them for the Gram matrix
         columns = torch.stack(
-            [s, slope * (self.qd + shift) - slope_rest * shift, (slope - slope_rest) * steepness], -1
-        )  # [n, N, 3]
-        products = torch.bmm(self.q0.mT, columns)  # [n, L, 3]
+            [
+                sigma - rest,
+                slope * moved - slope_rest * shift,
+                (slope - slope_rest) * steepness,
+                self.tau_perp,
+            ],
+            -1,
+        )  # [n, N, 4]
+        gram = columns.mT @ columns  # [n, 4, 4]: every product of two columns of one joint
+        products = torch.bmm(self.q0.mT, columns[..., :3])  # Q₀ᵀ[S, ∂S] [n, L, 3] (Q₀ᵀτ⊥ = 0)
         g = products[..., 0]  # Gᵀ [n, L]
-        a = _ridged(torch.diag(s.square().sum(1)) - g @ g.T)
-        amplitude = torch.linalg.solve(a, (s * self.tau_perp).sum(1))  # φ1 [n]
+        a = _ridged(torch.diag(gram[:, 0, 0]) - g @ g.T)
+        amplitude = torch.linalg.solve(a, gram[:, 0, 3])  # φ1 [n]
         # r = τ⊥ − S⊥φ1 = τ⊥ − Sφ1 + Q₀(Gφ1), by matrix–vector products
-        r = self.tau_perp - s * amplitude[:, None] + self.q0 @ (amplitude @ g)  # [n, N]
-        d = columns[..., 1:] * amplitude[:, None, None]  # D = ∂S/∂θ · φ1 per joint [n, N, 2]
-        g_d = (products[..., 1:] * amplitude[:, None, None]).permute(1, 2, 0).reshape(width, 2 * n)
-        # DᵀD and SᵀD: per joint, on the diagonals of their blocks
-        dd = torch.diag_embed((d.mT @ d).permute(1, 2, 0)).transpose(1, 2).reshape(2 * n, 2 * n)
-        sd = torch.diag_embed((s[..., None] * d).sum(1).T).transpose(0, 1).reshape(n, 2 * n)
-        c = sd - g @ g_d  # S⊥ᵀD
-        normal = dd - g_d.T @ g_d - c.T @ torch.linalg.solve(a, c)
-        gradient = -(d * r[..., None]).sum(1).T.reshape(-1)
+        r = self.tau_perp - columns[..., 0] * amplitude[:, None] + self.q0 @ (amplitude @ g)  # [n, N]
+        scale = amplitude[:, None]  # D = ∂S/∂θ · φ1: joint j's columns times its φ1
+        g_d = (products[..., 1:] * scale[..., None]).permute(1, 2, 0).reshape(width, 2 * n)  # Q₀ᵀD
+        # DᵀD and SᵀD are per joint: on the diagonals of their n × n blocks
+        dd = torch.diag_embed((gram[:, 1:3, 1:3] * (scale * scale)[..., None]).permute(1, 2, 0))
+        sd = torch.diag_embed((gram[:, 0, 1:3] * scale).T)
+        c = sd.transpose(0, 1).reshape(n, 2 * n) - g @ g_d  # S⊥ᵀD
+        normal = dd.transpose(1, 2).reshape(2 * n, 2 * n) - g_d.T @ g_d - c.T @ torch.linalg.solve(a, c)
+        gradient = -((columns[..., 1:3] * r[..., None]).sum(1) * scale).T.reshape(-1)  # −Dᵀr
         return normal, gradient, r.square().sum()
 
 
