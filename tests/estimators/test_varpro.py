@@ -184,6 +184,64 @@ def test_the_linearisation_equals_kaufmans_jacobian_formed_densely(tree):
         torch.testing.assert_close(value, dense_value, rtol=1e-9, atol=0)
 
 
+def _residual_vector(data, theta: torch.Tensor) -> torch.Tensor:
+    """``r(θ) = τ − W(θ) α*(θ)``, ``α*`` by numpy-independent LAPACK least squares on the whole ``W``."""
+    w, tau = data.matrix(theta), data.tau.reshape(-1)
+    return tau - w @ torch.linalg.lstsq(w, tau[:, None], driver="gelsd").solution[:, 0]
+
+
+def test_the_gradient_is_the_derivative_of_the_projected_residual(tree):
+    """Kaufman's ``Jᵀr`` is half the exact gradient of ``‖r(θ)‖²`` (the term it drops is orthogonal
+    to ``r``): central differences of ``Projection.residual`` agree at random shapes."""
+    robot, _, samples = tree
+    data = projection(robot, samples.q, samples.qd, samples.qdd, samples.tau)
+    lower, upper = (bound[phi_index(robot, "phi2", "phi3")] for bound in robot.bounds())
+    generator = torch.Generator().manual_seed(5)
+    for theta in lower + (upper - lower) * torch.rand(
+        3, len(lower), generator=generator, dtype=torch.float64
+    ):
+        _, gradient, _ = data.linearised(theta)
+        step = 1e-5 * (upper - lower)
+        shifted = theta + torch.diag(step)  # one shape moved per row
+        lowered = theta - torch.diag(step)
+        differences = (data.residual(shifted) - data.residual(lowered)) / (2 * step)
+        torch.testing.assert_close(
+            2 * gradient, differences, rtol=1e-5, atol=1e-6 * float(differences.abs().max())
+        )
+
+
+def test_the_gauss_newton_matrix_is_the_jacobian_product_at_an_exact_fit(tree):
+    """Where the model fits exactly (``r = 0``) Kaufman's ``J`` is the Jacobian of the residual
+    vector: ``JᵀJ`` equals the product of its central-difference Jacobian, and Gauss–Newton steps
+    from nearby shapes converge quadratically to the true one."""
+    robot, truth, samples = tree
+    data = projection(robot, samples.q, samples.qd, samples.qdd, samples.tau)
+    shapes = phi_index(robot, "phi2", "phi3")
+    lower, upper = (bound[shapes] for bound in robot.bounds())
+    theta = truth[shapes]
+    normal, _, value = data.linearised(theta)
+    assert float(value) < 1e-16 * float(samples.tau.square().sum())
+    step = 1e-6 * (upper - lower)
+    columns = [
+        (_residual_vector(data, theta + step[k] * unit) - _residual_vector(data, theta - step[k] * unit))
+        / (2 * step[k])
+        for k, unit in enumerate(torch.eye(len(theta), dtype=theta.dtype))
+    ]
+    jacobian = torch.stack(columns, 1)
+    scale = normal.diagonal().sqrt()
+    torch.testing.assert_close(
+        normal / scale / scale[:, None], jacobian.T @ jacobian / scale / scale[:, None], rtol=1e-5, atol=1e-6
+    )
+    errors = []
+    for offset in (1e-3, 1e-4):  # of the box widths, in alternating directions
+        start = theta + offset * (upper - lower) * torch.linspace(-1, 1, len(theta), dtype=theta.dtype)
+        normal, gradient, _ = data.linearised(start)
+        landed = start - torch.linalg.solve(normal, gradient)
+        errors.append(float(((landed - theta) / (upper - lower)).abs().max()))
+    assert errors[1] < 1e-2 * 1e-4  # a hundredth of the start's offset
+    assert errors[1] < errors[0] / 30  # and quadratic: a tenth of the offset leaves ~a hundredth
+
+
 def test_the_assembled_qr_solve_equals_lstsq_and_the_svd_uncertainty(tree):
     """The final solve reuses ``W_fixed``'s QR; it must give numpy's least squares and the
     uncertainty that an SVD of the whole ``W`` gives."""
