@@ -23,7 +23,6 @@ physically consistent, on the robot rebuilt with ``θ`` as its reference shape).
 
 from __future__ import annotations
 
-import math
 import time
 import warnings
 from dataclasses import dataclass
@@ -34,8 +33,8 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
-from idkit.estimators.linear.observation import Conditioning, IdentificationError
-from idkit.estimators.linear.uncertainty import base_uncertainties
+from idkit.estimators.linear.observation import IdentificationError
+from idkit.estimators.linear.uncertainty import Spectrum, base_uncertainties
 from idkit.interfaces import Estimator, Robot
 from idkit.optim import swarm
 from idkit.problem import Problem
@@ -50,71 +49,64 @@ CONVERGED = 1e-10
 #: or when the next step moves no shape by more than this fraction of its box width. On the search's
 #: subsampled data it stops at a looser fraction: the steps on every sample finish the descent.
 STEP_TOLERANCE = 1e-12
-COARSE_CONVERGED = 1e-6
+COARSE_CONVERGED = 1e-2
 
 
 @dataclass(frozen=True)
 class Projection:
     """The data of the projected problem, built once per fit.
 
+    Rows are joint-major (joint ``j``'s ``N`` samples, then joint ``j + 1``'s): every column of
+    ``S(θ)`` and of its derivatives lives on one joint's block of rows, so its products with ``Q₀``
+    are ``n`` matrix products over ``N`` contiguous rows, with no reordering.
+
     Attributes:
         fixed: base-parameter columns that do not depend on ``θ`` ``[L]`` (indices into the base).
         scaled: base-parameter columns of ``φ1`` ``[n]`` (one per joint, in joint order).
-        w_fixed: ``W_fixed`` ``[N·n, L]`` (rows sample-major).
-        q0: ``Q₀`` of ``W_fixed = Q₀ R₀`` ``[N·n, L]`` (rows sample-major, as ``W_fixed``).
-        by_joint: ``Q₀``'s rows of each joint ``[n, N, L]`` (contiguous): the products with
-            columns that live on one joint's rows are ``n`` matrix products over ``N`` rows.
+        w_fixed: ``W_fixed`` ``[n, N, L]`` (joint ``j``'s rows in ``w_fixed[j]``).
+        q0: ``Q₀`` of ``W_fixed = Q₀ R₀`` ``[n, N, L]`` (rows as ``w_fixed``).
         r0: ``R₀`` ``[L, L]``.
-        tau: measured torques ``[N, n]``; ``tau_perp`` the part orthogonal to ``W_fixed`` ``[N, n]``.
-        qd: joint velocities ``[N, n]``.
+        q0_tau: ``Q₀ᵀτ`` ``[L]``.
+        tau: measured torques ``[n, N]``; ``tau_perp`` the part orthogonal to ``W_fixed`` ``[n, N]``.
+        qd: joint velocities ``[n, N]``.
     """
 
     fixed: list[int]
     scaled: list[int]
     w_fixed: Tensor
     q0: Tensor
-    by_joint: Tensor
     r0: Tensor
+    q0_tau: Tensor
     tau: Tensor
     tau_perp: Tensor
     qd: Tensor
 
-    def split(self, theta: Tensor) -> tuple[Tensor, Tensor]:
-        """``(φ2, φ3)`` each ``[..., 1, n]`` of shapes ``theta[..., 2n]`` (all ``φ2``, then all ``φ3``)."""
-        n = self.qd.shape[1]
-        return theta[..., None, :n], theta[..., None, n:]
+    def sigmoids(self, theta: Tensor) -> Tensor:
+        """``S(θ)`` of shapes ``theta[K, 2n]`` (all ``φ2``, then all ``φ3``) as ``[n, N, K]``: joint
+        ``j``'s sigmoids on its own rows, in the layout of ``q0``'s per-joint products."""
+        n = self.qd.shape[0]
+        return sigmoid_friction(self.qd[..., None], theta[:, :n].T[:, None], theta[:, n:].T[:, None])
 
     def columns(self, theta: Tensor) -> Tensor:
-        """``S(θ)`` as ``[..., N, n]``: joint ``j``'s sigmoid on its own rows."""
-        steepness, shift = self.split(theta)
-        return sigmoid_friction(self.qd, steepness, shift)
+        """``S(θ)`` of one shape ``theta[2n]`` as ``[n, N]``."""
+        return self.sigmoids(theta[None])[..., 0]
 
     def matrix(self, theta: Tensor) -> Tensor:
-        """``[W_fixed | S(θ)]`` ``[N·n, L + n]`` of one shape ``theta[2n]`` (regressor rows sample-major)."""
-        n = self.qd.shape[1]
-        return torch.cat([self.w_fixed, torch.diag_embed(self.columns(theta)).reshape(-1, n)], dim=1)
-
-    def _on_q0(self, columns: Tensor) -> Tensor:
-        """``Q₀ᵀ`` times per-joint columns ``columns[n, N, K]`` (column ``k`` of joint ``j`` on joint
-        ``j``'s rows) as ``[n, L, K]``."""
-        return torch.bmm(self.by_joint.mT, columns)
-
-    def _gain(self, s: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        """For sigmoid columns ``s[..., N, n]``: ``G = Q₀ᵀS`` ``[..., L, n]``, the (ridged)
-        ``A = S⊥ᵀS⊥`` ``[..., n, n]`` and ``b = S⊥ᵀτ = Sᵀτ⊥`` ``[..., n]`` (module doc)."""
-        samples, n = s.shape[-2:]
-        g = self._on_q0(s.reshape(-1, samples, n).permute(2, 1, 0))  # [n, L, K]
-        g = g.permute(2, 1, 0).reshape(*s.shape[:-2], -1, n)
-        a = torch.diag_embed(s.square().sum(-2)) - g.mT @ g
-        ridge = RIDGE * a.diagonal(dim1=-2, dim2=-1).sum(-1).clamp_min(torch.finfo(a.dtype).tiny)
-        a = a + ridge[..., None, None] * torch.eye(a.shape[-1], dtype=a.dtype, device=a.device)
-        return g, a, (s * self.tau_perp).sum(-2)
+        """``[W_fixed | S(θ)]`` ``[n·N, L + n]`` of one shape ``theta[2n]`` (rows joint-major)."""
+        n, samples, width = self.w_fixed.shape
+        s = self.w_fixed.new_zeros(n, samples, n)
+        s.diagonal(dim1=0, dim2=2).copy_(self.columns(theta).T)  # joint j's column on its rows
+        return torch.cat([self.w_fixed, s], 2).reshape(-1, width + n)
 
     def residual(self, theta: Tensor) -> Tensor:
         """``r(θ)`` ``[...]`` for shapes ``theta[..., 2n]`` (module doc), ``≥ 0``."""
-        _, a, b = self._gain(self.columns(theta))
+        n = self.qd.shape[0]
+        s = self.sigmoids(theta.reshape(-1, 2 * n))  # [n, N, K]
+        g = torch.bmm(self.q0.mT, s).permute(2, 0, 1)  # Gᵀ = (Q₀ᵀS)ᵀ per shape [K, n, L]
+        a = _ridged(torch.diag_embed(s.square().sum(1).T) - g @ g.mT)  # [K, n, n]
+        b = (s * self.tau_perp[..., None]).sum(1).T  # Sᵀτ⊥ [K, n]
         gain = (b * torch.linalg.solve(a, b[..., None])[..., 0]).sum(-1)
-        return (self.tau_perp.square().sum() - gain).clamp_min(0.0)
+        return (self.tau_perp.square().sum() - gain).clamp_min(0.0).reshape(theta.shape[:-1])
 
     def linearised(self, theta: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         """What a Gauss–Newton step at one shape ``theta[2n]`` needs: ``JᵀJ`` ``[2n, 2n]``, ``Jᵀr``
@@ -127,34 +119,43 @@ class Projection:
         ``Jᵀr = −Dᵀr``; ``r = τ⊥ − S⊥φ1`` is formed explicitly (matrix–vector products), so
         ``‖r‖²`` has no cancellation.
         """
-        n = self.qd.shape[1]
-        steepness, shift = self.split(theta)
-        sigma, rest = torch.sigmoid(steepness * (self.qd + shift)), torch.sigmoid(steepness * shift)
-        s = sigma - rest  # [N, n]
+        n, width = self.qd.shape[0], self.q0.shape[-1]
+        steepness, shift = theta[:n, None], theta[n:, None]  # [n, 1]
+        moved = self.qd + shift
+        sigma, rest = torch.sigmoid(steepness * moved), torch.sigmoid(steepness * shift)
         slope, slope_rest = sigma * (1 - sigma), rest * (1 - rest)
-        # S and ∂S/∂φ2, ∂S/∂φ3 (not yet times φ1) per joint, and their products with Q₀ in one pass
+        # per joint: S and ∂S/∂φ2, ∂S/∂φ3 (not yet times φ1), and τ⊥ beside them for the Gram matrix
         columns = torch.stack(
-            [s, slope * (self.qd + shift) - slope_rest * shift, (slope - slope_rest) * steepness]
-        )
-        products = self._on_q0(columns.permute(2, 1, 0))  # [n, L, 3]
-        g = products[:, :, 0].T  # [L, n]
-        a = torch.diag_embed(s.square().sum(0)) - g.T @ g
-        ridge = RIDGE * a.diagonal().sum().clamp_min(torch.finfo(a.dtype).tiny)
-        a = a + ridge * torch.eye(n, dtype=a.dtype, device=a.device)
-        amplitude = torch.linalg.solve(a, (s * self.tau_perp).sum(0))  # φ1 [n]
+            [
+                sigma - rest,
+                slope * moved - slope_rest * shift,
+                (slope - slope_rest) * steepness,
+                self.tau_perp,
+            ],
+            -1,
+        )  # [n, N, 4]
+        gram = columns.mT @ columns  # [n, 4, 4]: every product of two columns of one joint
+        products = torch.bmm(self.q0.mT, columns[..., :3])  # Q₀ᵀ[S, ∂S] [n, L, 3] (Q₀ᵀτ⊥ = 0)
+        g = products[..., 0]  # Gᵀ [n, L]
+        a = _ridged(torch.diag(gram[:, 0, 0]) - g @ g.T)
+        amplitude = torch.linalg.solve(a, gram[:, 0, 3])  # φ1 [n]
         # r = τ⊥ − S⊥φ1 = τ⊥ − Sφ1 + Q₀(Gφ1), by matrix–vector products
-        r = self.tau_perp - s * amplitude + (self.by_joint @ (g @ amplitude)).T  # [N, n]
-        d = columns[1:] * amplitude  # D = ∂S/∂θ · φ1 per joint [2, N, n]
-        g_d = (products[:, :, 1:] * amplitude[:, None, None]).permute(1, 2, 0).reshape(-1, 2 * n)  # [L, 2n]
-        joint = torch.arange(n, device=theta.device)
-        dd = theta.new_zeros((2, n, 2, n))
-        dd[:, joint, :, joint] = torch.einsum("kin,min->nkm", d, d)  # DᵀD: per joint
-        sd = theta.new_zeros((n, 2, n))
-        sd[joint, :, joint] = torch.einsum("in,kin->nk", s, d)
-        c = sd.reshape(n, 2 * n) - g.T @ g_d  # S⊥ᵀD
-        normal = dd.reshape(2 * n, 2 * n) - g_d.T @ g_d - c.T @ torch.linalg.solve(a, c)
-        gradient = -torch.einsum("kin,in->kn", d, r).reshape(-1)
+        r = self.tau_perp - columns[..., 0] * amplitude[:, None] + self.q0 @ (amplitude @ g)  # [n, N]
+        scale = amplitude[:, None]  # D = ∂S/∂θ · φ1: joint j's columns times its φ1
+        g_d = (products[..., 1:] * scale[..., None]).permute(1, 2, 0).reshape(width, 2 * n)  # Q₀ᵀD
+        # DᵀD and SᵀD are per joint: on the diagonals of their n × n blocks
+        dd = torch.diag_embed((gram[:, 1:3, 1:3] * (scale * scale)[..., None]).permute(1, 2, 0))
+        sd = torch.diag_embed((gram[:, 0, 1:3] * scale).T)
+        c = sd.transpose(0, 1).reshape(n, 2 * n) - g @ g_d  # S⊥ᵀD
+        normal = dd.transpose(1, 2).reshape(2 * n, 2 * n) - g_d.T @ g_d - c.T @ torch.linalg.solve(a, c)
+        gradient = -((columns[..., 1:3] * r[..., None]).sum(1) * scale).T.reshape(-1)  # −Dᵀr
         return normal, gradient, r.square().sum()
+
+
+def _ridged(a: Tensor) -> Tensor:
+    """``A`` ``[..., n, n]`` plus ``RIDGE`` times its trace on the diagonal."""
+    ridge = RIDGE * a.diagonal(dim1=-2, dim2=-1).sum(-1).clamp_min(torch.finfo(a.dtype).tiny)
+    return a + ridge[..., None, None] * torch.eye(a.shape[-1], dtype=a.dtype, device=a.device)
 
 
 def projection(robot: Any, q: Tensor, qd: Tensor, qdd: Tensor, tau: Tensor) -> Projection:
@@ -163,7 +164,7 @@ def projection(robot: Any, q: Tensor, qd: Tensor, qdd: Tensor, tau: Tensor) -> P
 
 
 def _projection(robot: Any, regressor: Tensor, qd: Tensor, tau: Tensor) -> Projection:
-    """``projection`` given the regressor ``[N, n, B]`` of the samples."""
+    """``projection`` given the regressor ``[N, n, B]`` of the samples (``qd``, ``tau`` ``[N, n]``)."""
     names = list(robot.param_names)
     base = list(robot.base.indices)
     scaled_names = [f"{j}.phi1" for j in robot.joint_names]
@@ -178,12 +179,12 @@ def _projection(robot: Any, regressor: Tensor, qd: Tensor, tau: Tensor) -> Proje
     if shared:
         raise IdentificationError(f"varpro: other parameters regroup into the sigmoid amplitude {shared[0]}")
     fixed = [k for k in range(len(base)) if k not in scaled]
-    w_fixed = regressor[..., fixed].reshape(-1, len(fixed))
-    q0, r0 = torch.linalg.qr(w_fixed)
-    tau_perp = tau.reshape(-1) - q0 @ (q0.T @ tau.reshape(-1))
-    n = robot.n_joints
-    by_joint = q0.reshape(-1, n, len(fixed)).transpose(0, 1).contiguous()
-    return Projection(fixed, scaled, w_fixed, q0, by_joint, r0, tau, tau_perp.reshape(-1, n), qd)
+    w_fixed = regressor[..., fixed].transpose(0, 1).contiguous()  # [n, N, L]
+    q0, r0 = torch.linalg.qr(w_fixed.reshape(-1, len(fixed)))  # rows joint-major: Q₀ is too
+    q0 = q0.reshape(w_fixed.shape)
+    tau = tau.T.contiguous()
+    q0_tau = q0.reshape(-1, q0.shape[-1]).T @ tau.reshape(-1)
+    return Projection(fixed, scaled, w_fixed, q0, r0, q0_tau, tau, tau - q0 @ q0_tau, qd.T.contiguous())
 
 
 class VariableProjection(Estimator):
@@ -291,11 +292,11 @@ class VariableProjection(Estimator):
                 solved = _solve(data, theta)
                 params = _standard(robot, data, theta, solved.alpha)
                 alpha = robot.base_params(params)
-                predicted = (solved.w @ solved.alpha).reshape(s.tau.shape)
+                predicted = (solved.w @ solved.alpha).reshape(n, -1).T  # rows joint-major
                 order = data.fixed + data.scaled
                 names = [robot.base_param_names[k] for k in order]
                 details = base_uncertainties(
-                    solved.w[None], data.tau.reshape(1, -1), solved.alpha[None], names, solved.conditioning,
+                    solved.w[None], data.tau.reshape(1, -1), solved.alpha[None], names, solved.spectrum,
                     robot.unidentifiable,
                 )[0].to_details()  # fmt: skip
         residual = float(torch.linalg.vector_norm(s.tau - predicted))
@@ -356,7 +357,8 @@ def _polish(
     ``[W_fixed | S(θ)]``, ``φ1`` the amplitudes solved at ``θ``), through the small products of
     ``Projection.linearised``. Steps are scaled by the box widths; one that does not lower ``r``
     raises the damping instead (starting at ``damping``: small from a point that is already near
-    the minimum); it stops when a step lowers ``‖r‖²`` by less than the fraction ``converged``.
+    the minimum); it stops when a step lowers ``‖r‖²`` by less than the fraction ``converged``, or
+    when the linear model predicts that the next one will (that step is taken without evaluating it).
     """
     width = upper - lower
     normal, gradient, current = data.linearised(theta)
@@ -368,6 +370,10 @@ def _polish(
             break  # at an exact fit ‖r‖² is round-off, and steps this small would be tried until
             # the damping ran out
         candidate = torch.minimum(torch.maximum(theta - step, lower), upper)
+        if float(2 * step @ gradient - step @ normal @ step) <= converged * float(current):
+            return candidate  # the linear model's decrease ‖r‖² − ‖r − J·step‖² is below the
+            # tolerance: a step this small is where the model is exact; evaluating it would only
+            # confirm that the descent is over
         candidate_normal, candidate_gradient, value = data.linearised(candidate)
         if value < current:
             done = current - value <= converged * current
@@ -389,14 +395,16 @@ class Solved:
     off it — no factorisation of the whole ``W``.
 
     Attributes:
-        w: ``W`` ``[N·n, L + n]``.
+        w: ``W`` ``[n·N, L + n]`` (rows joint-major, as ``Projection``).
         alpha: its least-squares solution ``[L + n]`` (``fixed`` then ``scaled`` columns).
-        conditioning: the SVD of the column-equilibrated ``W`` (``Q`` times that of the equilibrated ``R``).
+        spectrum: singular values and right vectors of the column-equilibrated ``W``: those of the
+            equilibrated ``R`` (``W = QR`` with orthonormal ``Q``; ``Q``'s product with ``R``'s left
+            vectors, ``W``'s own, is never needed).
     """
 
     w: Tensor
     alpha: Tensor
-    conditioning: Conditioning
+    spectrum: Spectrum
 
 
 def _solve(data: Projection, theta: Tensor) -> Solved:
@@ -404,17 +412,20 @@ def _solve(data: Projection, theta: Tensor) -> Solved:
     ``R`` with singular values below ``max(M, B) · eps · σ_max`` dropped (the rank rule of the
     uncertainty report), so a shape that leaves a combination undetermined gives the minimum-norm
     answer there instead of an overflow."""
-    n, width, q0 = data.qd.shape[1], data.r0.shape[0], data.q0
-    columns = data.columns(theta)  # [N, n]
-    g = data._on_q0(columns.T[:, :, None])[:, :, 0].T  # Q₀ᵀS [L, n], per joint
-    s = torch.diag_embed(columns).reshape(-1, n)  # S [N·n, n]
+    n, samples, width = data.q0.shape
+    q0 = data.q0.reshape(-1, width)
+    columns = data.columns(theta)  # [n, N]
+    g = (data.q0.mT @ columns[..., None])[..., 0].T  # Q₀ᵀS [L, n], per joint
+    s = columns.new_zeros(n, samples, n)
+    s.diagonal(dim1=0, dim2=2).copy_(columns.T)
+    s = s.reshape(-1, n)  # S [n·N, n]: joint j's column on its rows
     s_perp = s - q0 @ g
     again = q0.T @ s_perp  # re-orthogonalised once: S may lie close to span(W_fixed)
     s_perp, g = s_perp - q0 @ again, g + again
     qs, rs = torch.linalg.qr(s_perp)
     r = torch.cat([torch.cat([data.r0, g], 1), torch.cat([g.new_zeros((n, width)), rs], 1)])
     tau = data.tau.reshape(-1)
-    rhs = torch.cat([q0.T @ tau, qs.T @ tau])
+    rhs = torch.cat([data.q0_tau, qs.T @ tau])
     scale = torch.linalg.vector_norm(r, dim=0)  # the column norms of W (Q has orthonormal columns)
     scale = torch.where(scale > 0, scale, torch.ones_like(scale))
     u, sigma, vh = torch.linalg.svd(r / scale, full_matrices=False)
@@ -422,15 +433,8 @@ def _solve(data: Projection, theta: Tensor) -> Solved:
     kept = sigma > tol
     inverse = torch.where(kept, 1 / sigma, torch.zeros_like(sigma))
     alpha = (vh.T @ (inverse * (u.T @ rhs))) / scale
-    conditioning = Conditioning(
-        scale[None],
-        torch.addmm(qs @ u[width:], q0, u[:width])[None],  # U of W = [Q₀ | Q_S] times U of R
-        sigma[None],
-        vh[None],
-        [int(kept.sum())],
-        [float(sigma[0] / sigma[-1]) if sigma[-1] > 0 else math.inf],
-    )
-    return Solved(torch.cat([data.w_fixed, s], 1), alpha, conditioning)
+    spectrum = Spectrum(scale[None], sigma[None], vh[None])  # W's singular values are R's
+    return Solved(torch.cat([data.w_fixed.reshape(-1, width), s], 1), alpha, spectrum)
 
 
 def _standard(robot: Robot, data: Projection, theta: Tensor, solution: Tensor) -> Tensor:

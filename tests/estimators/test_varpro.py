@@ -62,7 +62,7 @@ def test_the_projected_residual_is_the_least_squares_residual(tree):
     theta = lower + (upper - lower) * torch.rand(5, len(lower), generator=torch.Generator().manual_seed(0))
     for k in range(5):
         w = data.matrix(theta[k]).numpy()
-        tau = samples.tau.numpy().reshape(-1)
+        tau = data.tau.reshape(-1).numpy()  # rows in the order of the matrix's
         solution, *_ = np.linalg.lstsq(w, tau, rcond=None)
         expected = np.sum((tau - w @ solution) ** 2)
         np.testing.assert_allclose(float(data.residual(theta[k])), expected, rtol=1e-8)
@@ -102,7 +102,7 @@ def test_varpro_finds_the_least_squares_minimiser_of_noisy_data(tree):
 
     def residual(x: np.ndarray) -> np.ndarray:
         w = data.matrix(torch.as_tensor(x[: 2 * n])).numpy()
-        return w @ x[2 * n :] - noisy.tau.numpy().reshape(-1)
+        return w @ x[2 * n :] - data.tau.reshape(-1).numpy()
 
     alpha = robot.base_params(truth).numpy()
     x0 = np.concatenate([truth[shapes].numpy(), alpha[data.fixed + data.scaled]])
@@ -139,20 +139,30 @@ def test_varpro_recovers_gaz_friction_on_the_kuka_arm(kuka_dir):
     assert relative < 1e-6  # the judged bound is 2 %
 
 
+def _on_own_rows(values: torch.Tensor) -> torch.Tensor:
+    """Per-joint columns ``values[n, N]`` as a dense ``[n·N, n]`` matrix, joint ``j``'s column on
+    joint ``j``'s rows (the projection's joint-major row order)."""
+    n, samples = values.shape
+    dense = values.new_zeros(n, samples, n)
+    for j in range(n):
+        dense[j, :, j] = values[j]
+    return dense.reshape(-1, n)
+
+
 def _dense_kaufman(data, theta: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Kaufman's ``JᵀJ``, ``Jᵀr`` and ``‖r‖²`` formed the slow way: the whole ``W(θ)`` factored, the
     derivative columns built dense and projected off it."""
-    n = data.qd.shape[1]
+    n = data.qd.shape[0]
     w = data.matrix(theta)
     q = torch.linalg.qr(w).Q
     tau = data.tau.reshape(-1)
     amplitude = torch.linalg.lstsq(w, tau[:, None], driver="gelsd").solution[-n:, 0]
-    steepness, shift = theta[:n], theta[n:]
+    steepness, shift = theta[:n, None], theta[n:, None]
     sigma, rest = torch.sigmoid(steepness * (data.qd + shift)), torch.sigmoid(steepness * shift)
     slope, slope_rest = sigma * (1 - sigma), rest * (1 - rest)
-    d_steepness = (slope * (data.qd + shift) - slope_rest * shift) * amplitude
-    d_shift = (slope - slope_rest) * steepness * amplitude
-    d = torch.cat([torch.diag_embed(d_steepness), torch.diag_embed(d_shift)], -1).reshape(-1, 2 * n)
+    d_steepness = (slope * (data.qd + shift) - slope_rest * shift) * amplitude[:, None]
+    d_shift = (slope - slope_rest) * steepness * amplitude[:, None]
+    d = torch.cat([_on_own_rows(d_steepness), _on_own_rows(d_shift)], 1)
     jacobian = -(d - q @ (q.T @ d))
     r = tau - q @ (q.T @ tau)
     return jacobian.T @ jacobian, jacobian.T @ r, r @ r
@@ -174,6 +184,64 @@ def test_the_linearisation_equals_kaufmans_jacobian_formed_densely(tree):
         torch.testing.assert_close(value, dense_value, rtol=1e-9, atol=0)
 
 
+def _residual_vector(data, theta: torch.Tensor) -> torch.Tensor:
+    """``r(θ) = τ − W(θ) α*(θ)``, ``α*`` by numpy-independent LAPACK least squares on the whole ``W``."""
+    w, tau = data.matrix(theta), data.tau.reshape(-1)
+    return tau - w @ torch.linalg.lstsq(w, tau[:, None], driver="gelsd").solution[:, 0]
+
+
+def test_the_gradient_is_the_derivative_of_the_projected_residual(tree):
+    """Kaufman's ``Jᵀr`` is half the exact gradient of ``‖r(θ)‖²`` (the term it drops is orthogonal
+    to ``r``): central differences of ``Projection.residual`` agree at random shapes."""
+    robot, _, samples = tree
+    data = projection(robot, samples.q, samples.qd, samples.qdd, samples.tau)
+    lower, upper = (bound[phi_index(robot, "phi2", "phi3")] for bound in robot.bounds())
+    generator = torch.Generator().manual_seed(5)
+    for theta in lower + (upper - lower) * torch.rand(
+        3, len(lower), generator=generator, dtype=torch.float64
+    ):
+        _, gradient, _ = data.linearised(theta)
+        step = 1e-5 * (upper - lower)
+        shifted = theta + torch.diag(step)  # one shape moved per row
+        lowered = theta - torch.diag(step)
+        differences = (data.residual(shifted) - data.residual(lowered)) / (2 * step)
+        torch.testing.assert_close(
+            2 * gradient, differences, rtol=1e-5, atol=1e-6 * float(differences.abs().max())
+        )
+
+
+def test_the_gauss_newton_matrix_is_the_jacobian_product_at_an_exact_fit(tree):
+    """Where the model fits exactly (``r = 0``) Kaufman's ``J`` is the Jacobian of the residual
+    vector: ``JᵀJ`` equals the product of its central-difference Jacobian, and Gauss–Newton steps
+    from nearby shapes converge quadratically to the true one."""
+    robot, truth, samples = tree
+    data = projection(robot, samples.q, samples.qd, samples.qdd, samples.tau)
+    shapes = phi_index(robot, "phi2", "phi3")
+    lower, upper = (bound[shapes] for bound in robot.bounds())
+    theta = truth[shapes]
+    normal, _, value = data.linearised(theta)
+    assert float(value) < 1e-16 * float(samples.tau.square().sum())
+    step = 1e-6 * (upper - lower)
+    columns = [
+        (_residual_vector(data, theta + step[k] * unit) - _residual_vector(data, theta - step[k] * unit))
+        / (2 * step[k])
+        for k, unit in enumerate(torch.eye(len(theta), dtype=theta.dtype))
+    ]
+    jacobian = torch.stack(columns, 1)
+    scale = normal.diagonal().sqrt()
+    torch.testing.assert_close(
+        normal / scale / scale[:, None], jacobian.T @ jacobian / scale / scale[:, None], rtol=1e-5, atol=1e-6
+    )
+    errors = []
+    for offset in (1e-3, 1e-4):  # of the box widths, in alternating directions
+        start = theta + offset * (upper - lower) * torch.linspace(-1, 1, len(theta), dtype=theta.dtype)
+        normal, gradient, _ = data.linearised(start)
+        landed = start - torch.linalg.solve(normal, gradient)
+        errors.append(float(((landed - theta) / (upper - lower)).abs().max()))
+    assert errors[1] < 1e-2 * 1e-4  # a hundredth of the start's offset
+    assert errors[1] < errors[0] / 30  # and quadratic: a tenth of the offset leaves ~a hundredth
+
+
 def test_the_assembled_qr_solve_equals_lstsq_and_the_svd_uncertainty(tree):
     """The final solve reuses ``W_fixed``'s QR; it must give numpy's least squares and the
     uncertainty that an SVD of the whole ``W`` gives."""
@@ -182,14 +250,12 @@ def test_the_assembled_qr_solve_equals_lstsq_and_the_svd_uncertainty(tree):
     theta = truth[phi_index(robot, "phi2", "phi3")] * 1.3
     solved = _solve(data, theta)
     w = data.matrix(theta).numpy()
-    expected, *_ = np.linalg.lstsq(w, samples.tau.numpy().reshape(-1), rcond=None)
+    expected, *_ = np.linalg.lstsq(w, data.tau.reshape(-1).numpy(), rcond=None)
     np.testing.assert_allclose(solved.alpha.numpy(), expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
     names = [f"c{k}" for k in range(w.shape[1])]
     tau = data.tau.reshape(-1)
     reference = base_uncertainty(torch.as_tensor(w), tau, solved.alpha, names)
-    assembled = base_uncertainties(solved.w[None], tau[None], solved.alpha[None], names, solved.conditioning)[
-        0
-    ]
+    assembled = base_uncertainties(solved.w[None], tau[None], solved.alpha[None], names, solved.spectrum)[0]
     torch.testing.assert_close(assembled.std, reference.std, rtol=1e-8, atol=0)
     assert (assembled.rank, assembled.dof) == (reference.rank, reference.dof)
     assert assembled.cond == pytest.approx(reference.cond, rel=1e-8)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor
@@ -67,12 +67,22 @@ class BaseUncertainty:
         }
 
 
+class Spectrum(NamedTuple):
+    """What the report reads of the SVD of each trial's column-equilibrated ``W``: ``scale[T, B]``
+    (the column norms), ``sigma[T, B]``, ``Vh[T, B, B]``. A ``Conditioning`` has them too (and ``U``,
+    which a caller that factored ``W`` another way need not form)."""
+
+    scale: Tensor
+    sigma: Tensor
+    Vh: Tensor
+
+
 def base_uncertainties(
     W: Tensor,
     tau: Tensor,
     alpha: Tensor,
     names: Sequence[str],
-    conditioning: Conditioning | None = None,
+    conditioning: Conditioning | Spectrum | None = None,
     structural: Sequence[str] = (),
 ) -> list[BaseUncertainty]:
     """Standard deviations ``sqrt(diag(σ² (WᵀW)⁻¹))`` of each trial's ``alpha[T, B]`` fitted on
@@ -81,7 +91,8 @@ def base_uncertainties(
     Args:
         W, tau, alpha: the (possibly relative) linear systems and their estimates.
         names: base parameter names ``[B]``.
-        conditioning: the SVD of the equilibrated ``W`` if already computed (the LS family has it).
+        conditioning: the SVD of the equilibrated ``W`` if already computed (the LS family has it,
+            varpro assembles it from its QR).
         structural: what the robot says no data can identify (``Robot.unidentifiable``), listed first.
     """
     W, tau, alpha = W.detach().double(), tau.detach().double(), alpha.detach().to(W).double()
