@@ -199,7 +199,9 @@ class VariableProjection(Estimator):
         refine: ``"none"``: least squares for the linear parameters at the final shape;
             ``"pcls"``: physically consistent least squares there (pseudo-inertia LMIs, armature and
             friction ≥ 0), on the robot rebuilt with the found shape as its reference.
-        prior_weight: ``pcls``'s prior weight when ``refine="pcls"``.
+        prior_weight: ``pcls``'s prior weight when ``refine="pcls"``: ``0`` (no pull towards the
+            a-priori model) unless given; ``"auto"`` cross-validates it as ``pcls``'s default does,
+            one conic program per fold and candidate weight.
         threads: torch intra-op threads; ``None`` = ``idkit.runtime``'s size rule.
 
     ``details``: ``shape`` (``φ2``, ``φ3`` per joint), ``criterion_value`` (‖τ − Wα‖), ``history``
@@ -222,7 +224,7 @@ class VariableProjection(Estimator):
         polish: int = 50,
         search_samples: int = 250,
         refine: Literal["none", "pcls"] = "none",
-        prior_weight: float = 0.0,
+        prior_weight: float | Literal["auto"] = 0.0,
         threads: int | None = None,
     ) -> None:
         self.particles = particles
@@ -230,6 +232,9 @@ class VariableProjection(Estimator):
         self.polish = polish
         self.search_samples = search_samples
         self.refine = refine
+        from idkit.estimators.physical import ConsistentSettings  # cvxpy stays unimported until a fit
+
+        ConsistentSettings.checked("varpro", prior_weight, auto=True)  # refused now, not after the search
         self.prior_weight = prior_weight
         self.threads = threads
 

@@ -128,6 +128,12 @@ def test_varpro_refuses_a_robot_without_shapes():
         VariableProjection().fit(Problem(robot, samples))
 
 
+@pytest.mark.parametrize("weight", [-1.0, float("inf"), "often"])
+def test_a_prior_weight_pcls_would_refuse_is_refused_before_the_search(weight):
+    with pytest.raises(ValueError, match=r"varpro: prior_weight must be a finite number >= 0 or 'auto'"):
+        VariableProjection(refine="pcls", prior_weight=weight)
+
+
 @pytest.mark.kuka
 def test_varpro_recovers_gaz_friction_on_the_kuka_arm(kuka_dir):
     robot = sigmoid_robot(str(kuka_dir / "kuka_lwr4.urdf"))
