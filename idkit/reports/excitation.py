@@ -35,14 +35,22 @@ def _excursions(study: ExcitationStudy, which: str) -> str:
     return ", ".join(found) if found else "none"
 
 
+def criterion_change(criterion: str, before: float, after: float) -> str:
+    """How the optimised motion's criterion compares with the default motion's, in words: a
+    motion kept inside the limits can end worse than a default that leaves them, and says so."""
+    if criterion == "logdet":
+        return f"{after - before:+.3g}"
+    ratio = before / after
+    return f"{ratio:.2f} times smaller" if ratio >= 1 else f"{1 / ratio:.2f} times larger"
+
+
 def text(study: ExcitationStudy) -> str:
     """The criterion before and after, and whether each motion stays within the limits."""
     from idkit.studies.excitation import ACCELERATION_SOURCES
 
     r = study.result
     n, t_end = int(r.t.numel()), float(r.grid[-1])
-    ratio = r.after - r.before if r.criterion == "logdet" else r.before / r.after
-    change = f"{ratio:+.3g}" if r.criterion == "logdet" else f"{ratio:.2f} times smaller"
+    change = criterion_change(r.criterion, r.before, r.after)
     shrunk = r.details.get("shrunk_by", 1.0)
     shrink = (
         []
