@@ -321,3 +321,16 @@ def test_ctrl_c_leaves_a_partial_study_and_one_line(tmp_path):
     document = json.loads((run_dir / "result.json").read_text())
     assert document["status"] == "partial" and document["progress"]["requested"] == 100000
     assert 0 <= document["progress"]["done"] < 100000
+
+
+def test_help_into_a_closed_pipe_is_quiet(tmp_path):
+    """``idkit --help | head -1``: the reader has left before the help is written; no traceback."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        process = subprocess.run(
+            [*IDKIT, "--help"], cwd=tmp_path, stdout=write_end, stderr=subprocess.PIPE, text=True, timeout=120
+        )
+    finally:
+        os.close(write_end)
+    assert "Traceback" not in process.stderr and "BrokenPipeError" not in process.stderr, process.stderr
