@@ -410,10 +410,27 @@ def reader_like_data(
     in messages) read exactly as the ``data=`` files were — ``preprocess`` with the cut-off the
     training resolved, the ``recording`` node's torque delay and topics, the robot's effort scale —
     so that its rows and the data's are filtered alike (``Problem.read_like_data``).
+
+    ``read`` raises ``ValueError`` for a ``data=`` file given again (the same path or bytes,
+    :func:`refuse_training_files`'s test, or the same samples in another file): compared with itself a
+    recording shows nothing, and the fit would say so with a number (a payload of about 0 kg).
     """
 
     def read(path: str, role: str) -> DataFile:
+        for train in as_paths(data):
+            same = _sameness(train, path)
+            if same:
+                raise ValueError(
+                    f"{role} file {path} is the data file {_shown(train)} ({same}); compared with itself "
+                    "it shows nothing: give a recording of its own"
+                )
         item = load_files(robot, [path], preprocess, role=role, recording=recording)[0]
+        rows = _repeated_rows(training, item.samples)
+        if rows is not None:
+            raise ValueError(
+                f"{role} file {path} holds the same samples as the data (its rows {rows.start}–"
+                f"{rows.stop - 1}); compared with itself it shows nothing: give a recording of its own"
+            )
         return item
 
     return read

@@ -4,6 +4,7 @@ one-line refusals."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -150,3 +151,29 @@ def test_the_reference_is_preprocessed_as_the_data(files, raw, correction):
     assert made["samples"] == trained.n_samples  # the trim of 3 Hz (1 s at each end), not of 10 Hz
     assert details["payload"]["mass"] == pytest.approx(MASS, rel=2e-3)
 
+
+def test_the_data_given_as_its_own_reference_is_refused_in_one_line(files, raw, run_idkit):
+    """The data file as the reference (its path, a copy, or the same samples in a samples file) would
+    show a payload of about 0 kg with exit status 0: refused naming both files."""
+    from idkit.studies import single
+
+    data, _ = raw
+    copy = files / "copy.csv"
+    copy.write_bytes(data.read_bytes())
+    same = files / "same_samples.npz"
+    save_samples(single.load_data(URDFRobot(str(files / "arm.urdf")), data=str(data))[0], same)
+    common = ["robot=urdf", f"robot.urdf={files / 'arm.urdf'}", "estimator=payload", "estimator.link=c"]
+    cases = {
+        data: r"is the data file .*with_tool.csv \(same file\)",
+        copy: r"is the data file .*with_tool.csv \(same content\)",
+        same: r"holds the same samples as the data \(its rows 0–\d+\)",
+    }
+    for reference, how in cases.items():
+        run = files / f"run_{reference.stem}"
+        status, said = run_idkit(
+            *common, f"data={data}", f"estimator.reference={reference}", f"hydra.run.dir={run}"
+        )
+        assert status == 1 and len(said) == 1, said
+        assert re.fullmatch(
+            f"idkit: payload: reference file {reference} {how}; compared with itself .*", said[0]
+        )
