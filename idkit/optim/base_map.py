@@ -232,8 +232,9 @@ def cached_tape(
     if tape is _MISSING:
         tape = trace(function, parameters)
         if file is not None:
-            cache.write_atomically(file, (tape.to_json() if tape is not None else "null").encode())
-            manifest.record()
+            with manifest.locked():  # another process's check never sees the file unrecorded
+                cache.write_atomically(file, (tape.to_json() if tape is not None else "null").encode())
+                manifest.record()
     seconds = time.perf_counter() - started
     with contextlib.suppress(TypeError):  # not weak-referenceable: traced (or read) again next time
         _KNOWN[id(owner)] = (weakref.ref(owner), tape, seconds)
