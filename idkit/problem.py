@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -13,6 +14,7 @@ from torch import Tensor
 from idkit.seeds import check_seed, torch_generator
 
 if TYPE_CHECKING:
+    from idkit.data.load import DataFile
     from idkit.interfaces import Cost, Robot
 
 SAMPLE_ARRAYS = ("q", "qd", "qdd", "tau")
@@ -149,6 +151,9 @@ class Problem:
     """Everything an estimator needs: robot, samples, cost, seed and where to compute.
 
     ``cost`` may be ``None`` for estimators that fix their own criterion (the least-squares family).
+    ``read_like_data(path, role)`` reads another recording (a payload's reference) exactly as the
+    study read the ``data=`` files (the resolved cut-off, torque delay, log topics, effort scale), and
+    refuses a data file given again; ``None`` when the samples were not read from files by a study.
     Frozen, so that the samples moved to ``device``/``dtype`` can be cached; derive variants with
     ``dataclasses.replace``.
     """
@@ -159,6 +164,7 @@ class Problem:
     seed: int = 0
     device: str = "cpu"
     dtype: str | torch.dtype = "float64"
+    read_like_data: Callable[[str, str], DataFile] | None = None
 
     def __post_init__(self) -> None:
         if self.samples.n_joints != self.robot.n_joints:

@@ -67,3 +67,18 @@ def test_the_suite_never_uses_the_real_cache_directory():
         where = Path(os.environ[name]).resolve()
         assert not where.is_relative_to(home_cache.resolve()), name
         assert where.is_relative_to(Path(tempfile.gettempdir()).resolve()), name
+
+
+#: Features idkit's source uses and the torch release that first has them: the declared floor must
+#: admit no release without them (an older torch would install and then fail mid-fit).
+TORCH_FEATURES = {"fused=True": (2, 4)}  # torch.optim.Adam(fused=True) on CPU tensors: torch 2.4
+
+
+def test_the_torch_floor_has_every_feature_the_source_uses():
+    declared = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["dependencies"]
+    floor = next(d for d in declared if d.replace(" ", "").startswith("torch>="))
+    version = tuple(int(part) for part in floor.split(">=")[1].split(",")[0].split(".")[:2])
+    source = "\n".join(p.read_text() for p in (REPO / "idkit").rglob("*.py"))
+    for feature, needed in TORCH_FEATURES.items():
+        if feature in source:
+            assert version >= needed, f"{feature} needs torch>={'.'.join(map(str, needed))}, declared {floor}"

@@ -257,14 +257,21 @@ class Objective:
 
 
 def _map_key(robot: Robot, dimension: int) -> str | None:
-    """What identifies a robot's base map across processes: its pickled state, its class's source,
-    the dimension and the torch version (hashed); ``None`` if the robot cannot be pickled."""
+    """What identifies a robot's base map across processes (hashed): its pickled state, its class's
+    source, the dimension, and what made the tape — idkit's version, the translator's source
+    (:mod:`idkit.optim.base_map`) and torch's version (its tracer); ``None`` if the robot cannot be
+    pickled. A base map inherited from another module is not in the key: ``cached_tape`` checks a
+    tape read back against the map itself."""
+    import idkit
+    from idkit.optim import base_map
+
     try:
         state = pickle.dumps(robot)
         code = inspect.getsource(type(robot))
     except Exception:  # not picklable, or no source: traced once per process
         return None
-    parts = (state, code.encode(), str(dimension).encode(), torch.__version__.encode())
+    made_by = (idkit.__version__, inspect.getsource(base_map), torch.__version__)
+    parts = (state, code.encode(), str(dimension).encode(), *(part.encode() for part in made_by))
     return hashlib.sha256(b"\n".join(parts)).hexdigest()[:32]
 
 

@@ -72,9 +72,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any, ClassVar, Literal, get_args
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, get_args
 
 import numpy as np
 import torch
@@ -96,6 +96,9 @@ from idkit.problem import Problem, Samples
 from idkit.robots.inertia import centroidal, frame_change, pseudo_inertia
 from idkit.robots.joint_terms import recorded_joint_terms
 from idkit.robots.urdf_model import INERTIAL_NAMES
+
+if TYPE_CHECKING:
+    from idkit.data.load import DataFile
 
 #: Weight of the pull towards the unconstrained LS solution, relative to the data term of a
 #: unit-norm column (module doc): negligible wherever the data determine a direction.
@@ -381,26 +384,38 @@ def base_units(robot: Any) -> np.ndarray:
     return np.abs(robot.base_map.double().numpy()) @ standard
 
 
-def load_reference(robot: Any, path: str, like: Samples) -> tuple[Samples, bool]:
-    """The reference recording as samples on ``like``'s device and dtype, and whether it was
-    preprocessed (raw recordings are, with the default options; samples files are used as they are).
-    Its columns and log joints are matched by the robot's joint names, and its efforts become joint
-    torques as a ``data=`` file's do (``robot.joint_torques``: the ``effort_scale``).
+def load_reference(
+    robot: Any, path: str, like: Samples, read: Callable[[str, str], DataFile] | None = None
+) -> tuple[Samples, dict[str, Any]]:
+    """The reference recording as samples on ``like``'s device and dtype, and how it was made
+    (``preprocessed``, ``preprocess``: ``"as data="`` or ``"defaults"``, ``delay`` if any).
+
+    ``read`` (``Problem.read_like_data``, given by a study) reads it as the ``data=`` files were read
+    — the same cut-off, torque delay and effort scale — so the reference rows and the data rows are
+    filtered alike, and refuses a data file given again. Without it (a ``Problem`` built by hand) a
+    raw recording is preprocessed with the default options; its columns and log joints are matched
+    by the robot's joint names, and its efforts become joint torques (``robot.joint_torques``).
 
     Raises:
-        ValueError: unreadable file, or another number of joints than the robot's.
+        ValueError: unreadable file, another number of joints than the robot's, the data itself.
     """
-    from idkit.data.load import load_data_file
+    if read is not None:
+        item = read(path, "payload: reference")
+        samples, how = item.samples, "as data="
+    else:
+        from idkit.data.load import load_data_file
 
-    loaded = load_data_file(path, joints=list(robot.joint_names))
-    samples, preprocessed = loaded.samples, loaded.preprocessed
-    if samples.n_joints != robot.n_joints:
-        raise ValueError(
-            f"payload: reference file {path} has {samples.n_joints} joints but the robot has "
-            f"{robot.n_joints}: {', '.join(robot.joint_names)}"
-        )
-    samples = replace(samples, tau=robot.joint_torques(samples.tau))
-    return samples.to(device=like.q.device, dtype=like.q.dtype), preprocessed
+        item = load_data_file(path, joints=list(robot.joint_names))
+        if item.samples.n_joints != robot.n_joints:
+            raise ValueError(
+                f"payload: reference file {path} has {item.samples.n_joints} joints but the robot has "
+                f"{robot.n_joints}: {', '.join(robot.joint_names)}"
+            )
+        samples, how = replace(item.samples, tau=robot.joint_torques(item.samples.tau)), "defaults"
+    about = {"preprocessed": item.preprocessed, "preprocess": how if item.preprocessed else "none"}
+    if item.delay:
+        about["delay"] = item.delay
+    return samples.to(device=like.q.device, dtype=like.q.dtype), about
 
 
 @dataclass(frozen=True)
@@ -492,8 +507,16 @@ class PayloadIdentification(Estimator):
     def name(self) -> str:
         return "payload" + (f"+reference-{self.settings.correction}" if self.settings.reference else "")
 
-    def system(self, robot: Any, samples: Samples, arm: ArmModel, where: Attachment) -> System:
-        """The equations of the fit on ``samples`` (the problem's), with the reference if any."""
+    def system(
+        self,
+        robot: Any,
+        samples: Samples,
+        arm: ArmModel,
+        where: Attachment,
+        read: Callable[[str, str], DataFile] | None = None,
+    ) -> System:
+        """The equations of the fit on ``samples`` (the problem's), with the reference if any, read by
+        ``read`` (``Problem.read_like_data``: :func:`load_reference`)."""
         settings = self.settings
         model = settings.reference is not None and settings.correction == "model"
         rows = _rows(robot, samples, base=model)
@@ -507,13 +530,13 @@ class PayloadIdentification(Estimator):
         plain = System(A, b, rows.tau, groups, names, units, len(b), None)
         if settings.reference is None:
             return plain
-        ref_samples, preprocessed = load_reference(robot, settings.reference, samples)
+        ref_samples, made = load_reference(robot, settings.reference, samples, read)
         ref = _rows(robot, ref_samples, base=model)
         ref_residual = ref.tau - ref.Y @ arm_params
         about = {
             "file": settings.reference,
             "samples": ref_samples.n_samples,
-            "preprocessed": preprocessed,
+            **made,
             "correction": settings.correction,
             "rel_error_arm": float(ref_residual.norm() / ref.tau.norm()),
         }
@@ -543,7 +566,7 @@ class PayloadIdentification(Estimator):
         where = attachment(robot, self.settings.link)
         arm = arm_model(robot)
         s = problem.tensors()
-        system = self.system(robot, s, arm, where)
+        system = self.system(robot, s, arm, where, problem.read_like_data)
         solution = _solve(system, self.settings)
         phi = solution.x[:10]
         lowest, outside = cone_violations(["payload"], pseudo_inertia(torch.as_tensor(phi)[None]).numpy())

@@ -483,6 +483,10 @@ def nearest_consistent(
     return solve_consistent(robot, R, b, scale2, settings, who="nearest_consistent")
 
 
+class PriorWeightWarning(UserWarning):
+    """``prior_weight=auto`` could not cross-validate and fell back to a fixed weight: which, and why."""
+
+
 @dataclass(frozen=True)
 class WeightChoice:
     """How ``prior_weight="auto"`` chose: :func:`cross_validated_weight`.
@@ -670,6 +674,13 @@ class PhysicallyConsistentLS(Estimator):
 
             chosen = cross_validated_weight(programs, robot, W, tau, scale2)
             weight = chosen.weight
+            if not chosen.scores:  # no candidate was scored: a fallback, not a choice the data made
+                warnings.warn(
+                    f"pcls prior_weight=auto: {chosen.reason} (the data alone, no pull towards the CAD "
+                    "prior; set estimator.prior_weight to choose one)",
+                    PriorWeightWarning,
+                    stacklevel=2,
+                )
             solution = programs(weight > 0).solve(R, b, scale2, weight)
             cv_time = time.perf_counter() - started
         else:

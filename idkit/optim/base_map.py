@@ -19,6 +19,7 @@ import contextlib
 import json
 import operator
 import time
+import warnings
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -220,11 +221,20 @@ def cached_tape(
     folder, manifest = cache.prepared("maps") if name is not None else (None, None)
     file = folder / f"{name}.json" if folder is not None else None
     tape = _read(file) if file is not None else _MISSING
+    if isinstance(tape, Tape) and not agrees(tape, function, parameters):
+        warnings.warn(
+            f"idkit's cache file {file} holds a base-map tape that disagrees with the map it stands for "
+            "(stale or altered); traced again",
+            cache.CacheWarning,
+            stacklevel=2,
+        )
+        tape = _MISSING
     if tape is _MISSING:
         tape = trace(function, parameters)
         if file is not None:
-            cache.write_atomically(file, (tape.to_json() if tape is not None else "null").encode())
-            manifest.record()
+            with manifest.locked():  # another process's check never sees the file unrecorded
+                cache.write_atomically(file, (tape.to_json() if tape is not None else "null").encode())
+                manifest.record()
     seconds = time.perf_counter() - started
     with contextlib.suppress(TypeError):  # not weak-referenceable: traced (or read) again next time
         _KNOWN[id(owner)] = (weakref.ref(owner), tape, seconds)
@@ -232,6 +242,21 @@ def cached_tape(
 
 
 _MISSING = object()
+
+
+def agrees(tape: Tape, function: Callable[[Tensor], Tensor], parameters: int) -> bool:
+    """Whether ``tape`` computes ``function`` at one probe point ``[1, P]`` (fixed, in 0.5–1.5 so a
+    square root or a quotient stays finite): a tape read from disk may be stale (a map whose code the
+    cache key does not cover) or altered, and a wrong tape would silently change every fit."""
+    probe = 0.5 + torch.rand(1, parameters, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    try:
+        expected = function(probe).detach().to("cpu", torch.float64)
+        found = tape(probe)
+    except Exception:  # a tape that does not fit the map (other sizes) cannot even run
+        return False
+    return found.shape == expected.shape and torch.allclose(
+        found, expected, rtol=1e-9, atol=1e-12, equal_nan=True
+    )
 
 
 def _read(file: Path) -> Tape | None | object:

@@ -10,8 +10,12 @@ damaged entry must not turn into a traceback on every fit or a silent slow path.
   line says why and how to fix it, and this process keeps its cache in a private temporary
   directory instead (nothing is read from the refused one);
 - every file written through ``Manifest`` is recorded with its SHA-256; before anything is read, a
-  file whose hash does not match (or that the manifest does not know) is removed, with one warning,
-  and rebuilt by whoever needs it.
+  file whose hash does not match is removed, with one warning, and rebuilt by whoever needs it;
+- several processes share the cache (a sweep's jobs): the manifest is read, checked and written
+  under a file lock, and a writer holds it from its write to its record, so no process sees
+  another's half-recorded entry. A file the manifest does not know yet is left alone: another
+  process may be about to record it (writes are atomic renames, so it is whole), and its reader
+  checks it anyway (numba's index, a base-map tape's probe).
 """
 
 from __future__ import annotations
@@ -27,11 +31,17 @@ import tempfile
 import warnings
 from functools import cache
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import filelock
 
 #: Environment variable that overrides the cache's root directory.
 ENVIRONMENT = "IDKIT_CACHE_DIR"
 #: The manifest's file name inside each cache part.
 MANIFEST = "manifest.json"
+#: The lock held while the manifest is read, checked or written (never removed: see ``clear``).
+LOCK = "manifest.lock"
 
 
 class CacheWarning(UserWarning):
@@ -106,16 +116,24 @@ class Manifest:
 
     ``check`` runs before anything in the folder is read: entries built from other sources are
     removed (an update of idkit), and so is every file whose hash does not match — with one
-    ``CacheWarning``, since that is damage — or that the manifest does not know (a write that a
-    crash interrupted). ``record`` adds what a build wrote. The manifest lives in the same
-    owner-only directory: it guards against damage (a full disk, a crash mid-write, garbage), the
-    directory's mode against other users.
+    ``CacheWarning``, since that is damage. A file it does not know is left for its writer to
+    record (module doc). ``record`` adds what a build wrote. Both hold ``locked()``, as a writer
+    does from its write to its ``record``. The manifest lives in the same owner-only directory: it
+    guards against damage (a full disk, garbage), the directory's mode against other users.
     """
 
     def __init__(self, folder: Path, sources: str = "") -> None:
+        import filelock
+
         self.folder = folder
         self.file = folder / MANIFEST
         self.sources = sources
+        self._lock = filelock.FileLock(folder / LOCK)  # re-entrant: record() inside locked() is fine
+
+    def locked(self) -> filelock.FileLock:
+        """The folder's lock, for ``with``: hold it from a write to its ``record``, so that another
+        process's ``check`` never sees the new file with the old manifest."""
+        return self._lock
 
     def _read(self) -> dict | None:
         """The manifest's content; ``None`` if it is missing; ``{}`` if it is unreadable."""
@@ -131,11 +149,15 @@ class Manifest:
         return [
             p
             for p in sorted(self.folder.rglob("*"))
-            if p.is_file() and p != self.file and ".tmp" not in p.name
+            if p.is_file() and p.name not in (MANIFEST, LOCK) and ".tmp" not in p.name
         ]
 
     def check(self) -> list[str]:
         """Remove what cannot be trusted (class docstring); return the names of damaged files."""
+        with self._lock:
+            return self._check()
+
+    def _check(self) -> list[str]:
         known = self._read()
         entries = self._entries()
         if known is not None and known.get("sources", self.sources) != self.sources:
@@ -145,6 +167,8 @@ class Manifest:
         damaged = []
         for path in entries:
             name = path.relative_to(self.folder).as_posix()
+            if known != {} and name not in files:
+                continue  # not recorded yet: its writer records it (module doc)
             try:
                 good = files.get(name) == digest(path.read_bytes())
             except OSError:
@@ -152,8 +176,7 @@ class Manifest:
             if not good:
                 with contextlib.suppress(OSError):
                     path.unlink()
-                if name in files or known == {}:
-                    damaged.append(name)
+                damaged.append(name)
         if known == {}:
             with contextlib.suppress(OSError):
                 self.file.unlink()
@@ -161,19 +184,24 @@ class Manifest:
         return damaged
 
     def record(self) -> None:
-        """Record every file now in the folder, with the sources (written atomically)."""
-        files = {}
-        for path in self._entries():
-            with contextlib.suppress(OSError):
-                files[path.relative_to(self.folder).as_posix()] = digest(path.read_bytes())
-        text = json.dumps({"sources": self.sources, "files": files}, indent=0, sort_keys=True)
-        write_atomically(self.file, text.encode())
+        """Record every file now in the folder, with the sources (written atomically, under the lock:
+        two processes recording at once cannot drop each other's entries)."""
+        with self._lock:
+            files = {}
+            for path in self._entries():
+                with contextlib.suppress(OSError):
+                    files[path.relative_to(self.folder).as_posix()] = digest(path.read_bytes())
+            text = json.dumps({"sources": self.sources, "files": files}, indent=0, sort_keys=True)
+            write_atomically(self.file, text.encode())
 
     def clear(self) -> None:
-        """Remove every file of the folder (a rebuild from nothing)."""
-        for path in sorted(self.folder.rglob("*"), reverse=True):
-            with contextlib.suppress(OSError):
-                path.rmdir() if path.is_dir() else path.unlink()
+        """Remove every file of the folder (a rebuild from nothing), under the lock; the lock file
+        itself stays (removing a held lock's file would let a second process take a new one)."""
+        with self._lock:
+            for path in sorted(self.folder.rglob("*"), reverse=True):
+                if path.name != LOCK:
+                    with contextlib.suppress(OSError):
+                        path.rmdir() if path.is_dir() else path.unlink()
 
 
 def prepared(part: str, sources: str = "") -> tuple[Path, Manifest]:

@@ -75,7 +75,10 @@ def kernel() -> Build | str:
         return f"the fast kernel cannot be loaded ({type(error).__name__}: {error})"
     for attempt in (1, 2):
         try:
-            misses = _warm_up(compiled.run_trial)
+            with compiled.MANIFEST.locked():  # numba's files are recorded before another process checks
+                misses = _warm_up(compiled.run_trial)
+                if misses:
+                    compiled.MANIFEST.record()
             break
         except Exception as error:
             if attempt == 2:
@@ -89,7 +92,6 @@ def kernel() -> Build | str:
             compiled.MANIFEST.clear()
     seconds = time.perf_counter() - started
     if misses:
-        compiled.MANIFEST.record()
         how = f"compiled by numba in {seconds:.1f} s (once per machine; cached in {compiled.FOLDER})"
     else:
         how = f"loaded from the cache in {seconds:.2f} s"

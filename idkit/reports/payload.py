@@ -82,12 +82,20 @@ def _arm_lines(arm: Mapping[str, Any]) -> list[str]:
     return out
 
 
+#: How the reference was preprocessed (``details["reference"]["preprocess"]``), in the report's words.
+_HOW = {"as data=": " as data= was", "defaults": " with the default options, not as data="}
+
+
 def _reference_lines(reference: Mapping[str, Any] | None) -> list[str]:
     if not reference:
         return []
     head = (
         f"reference {reference['file']} ({reference['samples']} samples"
-        + (", preprocessed" if reference.get("preprocessed") else "")
+        + (
+            f", preprocessed{_HOW.get(reference.get('preprocess'), '')}"
+            if reference.get("preprocessed")
+            else ""
+        )
         + f"; arm model ‖E‖/‖T‖ {100 * reference['rel_error_arm']:.2f} % on it): "
     )
     if reference["correction"] == "samples":

@@ -19,7 +19,7 @@ from __future__ import annotations
 import hashlib
 import os
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
@@ -376,21 +376,61 @@ def refuse_seen_samples(training: Samples, held_out: list[DataFile]) -> None:
     Raises:
         ValueError: naming the file and the training rows it repeats.
     """
+    for held in held_out:
+        rows = _repeated_rows(training, held.samples)
+        if rows is not None:
+            raise ValueError(
+                f"validate file {held.path} holds the same samples as the training data (its rows "
+                f"{rows.start}–{rows.stop - 1}): a score on the data the model was fitted to is not "
+                "held-out validation; validate on a recording the fit does not see"
+            )
+
+
+def _repeated_rows(training: Samples, block: Samples) -> slice | None:
+    """The rows of ``training`` that ``block`` repeats exactly (every array), or ``None``."""
     import torch
 
-    for held in held_out:
-        block = held.samples
-        if block.n_joints != training.n_joints or block.n_samples > training.n_samples:
-            continue
-        first = (training.q == block.q[0].to(training.q)).all(dim=1)
-        for start in first.nonzero().flatten().tolist():
-            rows = slice(start, start + block.n_samples)
-            if rows.stop <= training.n_samples and all(
-                torch.equal(getattr(training, k)[rows], getattr(block, k).to(getattr(training, k)))
-                for k in SAMPLE_ARRAYS
-            ):
+    if block.n_joints != training.n_joints or block.n_samples > training.n_samples:
+        return None
+    first = (training.q == block.q[0].to(training.q)).all(dim=1)
+    for start in first.nonzero().flatten().tolist():
+        rows = slice(start, start + block.n_samples)
+        if rows.stop <= training.n_samples and all(
+            torch.equal(getattr(training, k)[rows], getattr(block, k).to(getattr(training, k)))
+            for k in SAMPLE_ARRAYS
+        ):
+            return rows
+    return None
+
+
+def reader_like_data(
+    robot: Robot, data: Any, training: Samples, preprocess: Any, recording: Any
+) -> Callable[[str, str], DataFile]:
+    """``read(path, role)``: another recording of the study (a payload's reference, ``role`` names it
+    in messages) read exactly as the ``data=`` files were — ``preprocess`` with the cut-off the
+    training resolved, the ``recording`` node's torque delay and topics, the robot's effort scale —
+    so that its rows and the data's are filtered alike (``Problem.read_like_data``).
+
+    ``read`` raises ``ValueError`` for a ``data=`` file given again (the same path or bytes,
+    :func:`refuse_training_files`'s test, or the same samples in another file): compared with itself a
+    recording shows nothing, and the fit would say so with a number (a payload of about 0 kg).
+    """
+
+    def read(path: str, role: str) -> DataFile:
+        for train in as_paths(data):
+            same = _sameness(train, path)
+            if same:
                 raise ValueError(
-                    f"validate file {held.path} holds the same samples as the training data (its rows "
-                    f"{rows.start}–{rows.stop - 1}): a score on the data the model was fitted to is not "
-                    "held-out validation; validate on a recording the fit does not see"
+                    f"{role} file {path} is the data file {_shown(train)} ({same}); compared with itself "
+                    "it shows nothing: give a recording of its own"
                 )
+        item = load_files(robot, [path], preprocess, role=role, recording=recording)[0]
+        rows = _repeated_rows(training, item.samples)
+        if rows is not None:
+            raise ValueError(
+                f"{role} file {path} holds the same samples as the data (its rows {rows.start}–"
+                f"{rows.stop - 1}); compared with itself it shows nothing: give a recording of its own"
+            )
+        return item
+
+    return read

@@ -38,6 +38,7 @@ from idkit.studies.recordings import (
     load_files,
     load_training,
     preprocess_options,
+    reader_like_data,
     refuse_seen_samples,
     refuse_training_files,
 )
@@ -365,7 +366,10 @@ def run(
         source = _describe_files(held_out, resolved, source)
     cost_obj = build("cost", cost)
     estimator_obj = build("estimator", estimator)
-    problem = Problem(robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype)
+    read = None if data is None else reader_like_data(robot_obj, data, samples, resolved, recording)
+    problem = Problem(
+        robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype, read_like_data=read
+    )
     problem.check_identifiable()  # for every estimator, a third party's included, before its fit
     fitted = estimator_obj.fit(problem)
     label = estimator_label(estimator, cost, with_cost=isinstance(estimator_obj, CostSearcher))

@@ -230,10 +230,18 @@ def test_prior_weight_auto_follows_cad_only_as_far_as_the_data_allow():
 
 
 def test_prior_weight_auto_on_too_few_samples_is_zero_and_says_why():
+    """Said in result.json and in one warning (the command prints it as one ``warning:`` line)."""
+    from idkit.estimators.physical import PriorWeightWarning
+
     robot = tree_robot()
-    fit = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.01, n=20)))
+    problem = Problem(robot, simulated(robot, true_params(robot), 0.01, n=20))
+    with pytest.warns(PriorWeightWarning) as said:
+        fit = PhysicallyConsistentLS().fit(problem)
     assert fit.details["prior_weight"] == 0.0
     assert fit.details["prior_weight_cv"]["reason"].startswith("20 samples are too few to cross-validate")
+    assert len(said) == 1
+    assert str(said[0].message).startswith("pcls prior_weight=auto: 20 samples are too few to cross-validate")
+    assert "prior weight 0 " in str(said[0].message)
 
 
 def test_prior_weight_auto_names_a_weight_whose_solve_failed(monkeypatch):

@@ -82,3 +82,34 @@ def test_a_damaged_tape_file_is_traced_again_with_a_warning(tmp_path, monkeypatc
         assert second is not None and second.ops.tolist() == first.ops.tolist()
     finally:
         base_map.cache.directory.cache_clear()
+
+
+def test_a_stale_or_altered_tape_is_detected_and_traced_again(tmp_path, monkeypatch):
+    """A tape file that the manifest vouches for (so not damaged) but that computes another map — an
+    older translation, or an edit — is checked against the map on a probe point and replaced."""
+    monkeypatch.setenv("IDKIT_CACHE_DIR", str(tmp_path))
+    base_map.cache.directory.cache_clear()
+    try:
+        robot = CylindricalRobot()
+        first, _ = cached_tape(robot, robot.base_params, 4, lambda: "key")
+        altered = Tape(first.ops, first.constants, first.outputs[::-1].copy())  # base parameters swapped
+        folder, manifest = base_map.cache.prepared("maps")
+        (folder / "key.json").write_text(altered.to_json())
+        manifest.record()
+        other = CylindricalRobot()
+        with pytest.warns(base_map.cache.CacheWarning, match="disagrees with the map"):
+            second, _ = cached_tape(other, other.base_params, 4, lambda: "key")
+        assert second.ops.tolist() == first.ops.tolist() and second.outputs.tolist() == first.outputs.tolist()
+        assert Tape.from_json((folder / "key.json").read_text()).outputs.tolist() == first.outputs.tolist()
+    finally:
+        base_map.cache.directory.cache_clear()
+
+
+def test_the_disk_key_changes_with_idkit_and_the_translator(monkeypatch):
+    import idkit
+    from idkit.estimators.objective import _map_key
+
+    robot = CylindricalRobot()
+    before = _map_key(robot, 4)
+    monkeypatch.setattr(idkit, "_version", lambda: "999.0")
+    assert _map_key(robot, 4) not in (None, before)

@@ -53,7 +53,8 @@ def test_a_world_writable_cache_is_refused_and_never_read(root, tmp_path):
         folder, _ = cache.prepared("kernel")
     assert root not in folder.parents and not marker.exists()
     assert planted.exists()  # refused, not touched
-    assert stat.S_IMODE(folder.stat().st_mode) == 0o700 and not any(folder.iterdir())
+    assert stat.S_IMODE(folder.stat().st_mode) == 0o700
+    assert [p.name for p in folder.iterdir()] in ([], [cache.LOCK])
 
 
 @pytest.mark.skipif(
@@ -67,7 +68,7 @@ def test_a_cache_owned_by_someone_else_is_refused(root):
     assert root not in folder.parents
 
 
-def test_damaged_files_are_removed_with_a_warning_and_unknown_ones_quietly(root):
+def test_damaged_files_are_removed_with_a_warning_and_unknown_ones_left_to_their_writer(root):
     folder, manifest = cache.prepared("part", "sources-1")
     (folder / "a.bin").write_bytes(b"built")
     (folder / "sub").mkdir()
@@ -76,14 +77,62 @@ def test_damaged_files_are_removed_with_a_warning_and_unknown_ones_quietly(root)
     assert cache.Manifest(folder, "sources-1").check() == []  # intact: nothing removed
     (folder / "sub" / "b.bin").write_bytes(b"garbage")
     (folder / "c.tmp.1234").write_bytes(b"a write in progress")  # another process's: left alone
-    (folder / "stray.bin").write_bytes(b"from a crash before record")
+    (folder / "fresh.bin").write_bytes(b"another process's entry, not recorded yet")
     with pytest.warns(cache.CacheWarning, match="1 damaged file"):
         cache.prepared("part", "sources-1")
     assert sorted(p.name for p in folder.rglob("*") if p.is_file()) == [
         "a.bin",
         "c.tmp.1234",
+        "fresh.bin",
         "manifest.json",
+        cache.LOCK,
     ]
+
+
+def test_an_entry_being_written_by_another_process_is_neither_removed_nor_called_damaged(root, recwarn):
+    """The interleaving of a sweep's jobs: B checks the cache between A's write and A's record.
+    Before, B removed A's fresh file (A's record then listed nothing) or, for a rewritten file,
+    warned of damage."""
+    folder, writer = cache.prepared("part", "s")
+    (folder / "index.bin").write_bytes(b"version 1")
+    writer.record()
+    cache.write_atomically(folder / "new.bin", b"just built")  # A: written, not yet recorded
+    assert cache.Manifest(folder, "s").check() == []  # B
+    writer.record()  # A
+    assert cache.Manifest(folder, "s").check() == []
+    assert (folder / "new.bin").read_bytes() == b"just built"
+    assert not [w for w in recwarn if w.category is cache.CacheWarning]
+
+
+def _job(folder: str, job: int, entries: int) -> list[str]:
+    """One of two processes sharing a cache part: write entries as the base-map cache does (under the
+    lock, from the write to the record), check the cache before each; returns the damage it saw."""
+    import warnings
+
+    seen = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for k in range(entries):
+            manifest = cache.Manifest(Path(folder), "s")
+            seen += manifest.check()
+            with manifest.locked():
+                cache.write_atomically(Path(folder) / f"job{job}-{k}.bin", os.urandom(2000))
+                manifest.record()
+    return seen
+
+
+def test_two_processes_sharing_the_cache_keep_each_others_entries(root):
+    import multiprocessing
+
+    folder, _ = cache.prepared("part", "s")
+    entries = 60
+    with multiprocessing.get_context("spawn").Pool(2) as pool:
+        seen = pool.starmap(_job, [(str(folder), job, entries) for job in (0, 1)])
+    assert seen == [[], []]  # no false damage
+    names = sorted(p.name for p in folder.glob("job*.bin"))
+    assert len(names) == 2 * entries  # nothing of the other job removed
+    assert cache.Manifest(folder, "s").check() == []
+    assert set(json.loads((folder / cache.MANIFEST).read_text())["files"]) == set(names)
 
 
 def test_a_cache_overwritten_with_garbage_is_emptied_once(root):
@@ -94,7 +143,7 @@ def test_a_cache_overwritten_with_garbage_is_emptied_once(root):
         path.write_bytes(b"\xff\xfe garbage, not even UTF-8")
     with pytest.warns(cache.CacheWarning, match="damaged"):
         folder, manifest = cache.prepared("part", "s")
-    assert not list(folder.iterdir())
+    assert [p.name for p in folder.iterdir()] == [cache.LOCK]  # the lock file stays (Manifest.clear)
     manifest.record()
     assert json.loads((folder / cache.MANIFEST).read_text()) == {"files": {}, "sources": "s"}
 
