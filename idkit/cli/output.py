@@ -4,7 +4,8 @@ Python prints a warning as ``path:line: Category: message`` plus the source line
 two lines of idkit internals per warning, and the same warning again after every
 ``warnings.catch_warnings`` block resets the once-per-location registry (a 1000-trial study printed
 its IRLS warning once per chunk). The command installs :class:`OneLineWarnings` instead:
-``warning: <message>`` on one line, each distinct message once. A line printed while a progress
+``warning: <message>`` on one line, each distinct message once (``note: <message>`` for an
+:class:`idkit.notes.Note`, a choice made automatically). A line printed while a progress
 bar runs goes through tqdm, which clears the bar and draws it again below: the bar stays one bar.
 
 ``IDKIT_DEBUG=1`` shows each warning as Python would (source path and line, every occurrence) and
@@ -20,10 +21,13 @@ import warnings
 from collections.abc import Iterator
 from typing import TextIO
 
+from idkit.notes import Note
+
 #: The environment switch for source paths in warnings and tracebacks in errors.
 DEBUG_VARIABLE = "IDKIT_DEBUG"
 
 PREFIX = "warning: "
+NOTE_PREFIX = "note: "  #: a choice idkit made (:class:`idkit.notes.Note`), not a problem
 
 
 def debugging() -> bool:
@@ -77,7 +81,7 @@ class OneLineWarnings:
         text = single_line(str(message))
         if text not in self.seen:
             self.seen.add(text)
-            write_line(PREFIX + text)
+            write_line((NOTE_PREFIX if issubclass(category, Note) else PREFIX) + text)
         return ""
 
 

@@ -64,6 +64,7 @@ from idkit.estimate import Estimate, to_python
 from idkit.estimators.linear.observation import IdentificationError
 from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator, Robot
+from idkit.notes import Note
 from idkit.problem import Problem, Samples
 from idkit.robots.drives import NONNEGATIVE
 from idkit.robots.inertia import link_count, pseudo_inertia, pseudo_inertia_rows
@@ -487,6 +488,10 @@ class PriorWeightWarning(UserWarning):
     """``prior_weight=auto`` could not cross-validate and fell back to a fixed weight: which, and why."""
 
 
+class PriorWeightNote(Note):
+    """``prior_weight=auto`` chose a weight by cross-validation: which, and why (as the cut-off's note)."""
+
+
 @dataclass(frozen=True)
 class WeightChoice:
     """How ``prior_weight="auto"`` chose: :func:`cross_validated_weight`.
@@ -681,6 +686,8 @@ class PhysicallyConsistentLS(Estimator):
                     PriorWeightWarning,
                     stacklevel=2,
                 )
+            else:
+                warnings.warn(f"pcls prior_weight=auto: {chosen.reason}", PriorWeightNote, stacklevel=2)
             solution = programs(weight > 0).solve(R, b, scale2, weight)
             cv_time = time.perf_counter() - started
         else:

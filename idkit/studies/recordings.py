@@ -32,6 +32,7 @@ from idkit.data.load import DataFile, Source, from_source, read_source
 from idkit.data.preprocess import FILTER_CUTOFF_HZ, PreprocessOptions
 from idkit.data.recording import Recording, RecordingOptions
 from idkit.interfaces import Robot
+from idkit.notes import Note
 from idkit.problem import SAMPLE_ARRAYS, Samples
 from idkit.studies.build import plain
 from idkit.studies.validation import BAND_OF_RATE, SCORE_BAND_HZ
@@ -113,7 +114,7 @@ def as_paths(files: Any) -> list[Any]:
     return list(files)
 
 
-class CutoffNote(UserWarning):
+class CutoffNote(Note):
     """The low-pass cut-off was chosen automatically (``preprocess.cutoff=auto``): which, and why."""
 
 

@@ -125,3 +125,15 @@ def test_main_refuses_a_bare_word_in_one_line(run_idkit):
         errors.USAGE,
         ["idkit: 'paper' is not an override (key=value); did you mean +experiment=paper?"],
     )
+
+
+def test_a_note_is_one_line_marked_as_a_note(capsys, monkeypatch):
+    """A choice idkit made (``idkit.notes.Note``) is not a problem: ``note:``, not ``warning:``."""
+    from idkit.notes import Note
+
+    monkeypatch.delenv(output.DEBUG_VARIABLE, raising=False)
+    with output.one_line_warnings():
+        warnings.formatwarning(Note("cut-off 6 Hz\n (auto: …)"), Note, "x.py", 1)
+        warnings.formatwarning(UserWarning("torques floored"), UserWarning, "x.py", 1)
+    printed = capsys.readouterr().err.splitlines()
+    assert printed == ["note: cut-off 6 Hz (auto: …)", "warning: torques floored"]

@@ -209,13 +209,19 @@ def test_stribeck_friction_never_drives_the_joint():
 def test_prior_weight_auto_follows_cad_only_as_far_as_the_data_allow():
     """prior_weight=auto (the default): on data simulated from the CAD model itself the prior is right
     and cross-validation leans on it; with inertias 30 % off CAD and little noise the data win."""
+    from idkit.estimators.physical import PriorWeightNote
+
     robot = tree_robot()
     nb = len(robot.link_names)
     off = true_params(robot).clone()
     off[: 10 * nb] *= 1.3
-    right = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.05, seed=3)))
+    cad_data = Problem(robot, simulated(robot, true_params(robot), 0.05, seed=3))
+    with pytest.warns(PriorWeightNote) as said:
+        right = PhysicallyConsistentLS().fit(cad_data)
     wrong = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, off, 1e-3, seed=3)))
     assert right.details["prior_weight"] >= 1000 and wrong.details["prior_weight"] <= 100
+    reason = right.details["prior_weight_cv"]["reason"]
+    assert [str(note.message) for note in said] == [f"pcls prior_weight=auto: {reason}"]  # the choice, said
     for fit in (right, wrong):
         cv = fit.details["prior_weight_cv"]
         assert cv["candidates"] == [0, 1, 3, 10, 30, 100, 300, 1000, 3000, 10000]
