@@ -50,6 +50,10 @@ TASKS: dict[str, Task] = {
 COMMAND_KEYS = ("task", "plots")
 #: Study arguments the command line supplies itself (never from the config).
 SUPPLIED = ("progress", "checkpoint")
+#: Config groups a user may delete (``'~cost'``): the study then gets ``None`` — for ``cost``, the
+#: estimator's own criterion is reported — instead of the signature's default, which would bring back
+#: what was deleted without a word.
+REMOVABLE = ("cost",)
 
 
 def get_task(name: str) -> Task:
@@ -87,6 +91,8 @@ def arguments(name: str, config: Mapping[str, Any], study: Callable[..., Any]) -
         if key not in takes or key in SUPPLIED:
             raise ValueError(f"{task.section}.{key} is not an option of the {name} task; it takes {options}")
     kwargs = dict(section)
+    deleted = [key for key in REMOVABLE if key in takes and key not in config and key not in section]
+    kwargs.update(dict.fromkeys(deleted))
     for key, value in config.items():
         if key in COMMAND_KEYS or key == task.section:
             continue

@@ -198,3 +198,14 @@ def test_help_mode_serves_names_only():
         assert source.list("cost", None) == sorted(registry.available("cost"))
     finally:
         setup(names_only=False)
+
+
+def test_a_deleted_cost_reaches_the_study_as_none(hydra_compose):
+    """``'~cost'`` means no cost (the estimator's own criterion is reported), not the default f13."""
+    from idkit.studies import single
+
+    cfg = OmegaConf.to_container(hydra_compose("estimator=ls", "~cost"), resolve=True)
+    assert "cost" not in cfg
+    assert arguments("single", cfg, single.run)["cost"] is None
+    cfg = OmegaConf.to_container(hydra_compose("estimator=ls"), resolve=True)
+    assert arguments("single", cfg, single.run)["cost"] == cfg["cost"]
