@@ -28,7 +28,7 @@ import numpy as np
 
 from idkit.data.cutoff import CutoffChoice, choose_cutoff, lowest_rate
 from idkit.data.delay import shift_torques, torque_delay
-from idkit.data.load import DataFile, Source, from_source, read_source
+from idkit.data.load import DataFile, Source, from_source, read_source, refuse_delay_on_samples
 from idkit.data.preprocess import FILTER_CUTOFF_HZ, PreprocessOptions
 from idkit.data.recording import Recording, RecordingOptions
 from idkit.interfaces import Robot
@@ -151,6 +151,8 @@ def load_training(
         path if isinstance(path, Samples) else read_source(os.fspath(path), apply, joints, log)
         for path in paths
     ]
+    for source in sources:  # before the cut-off is chosen on the recordings among them
+        _check_delay(source, log)
     choice = None
     if options.cutoff == "auto":
         raw = [s for s in sources if isinstance(s, Source) and s.recording is not None]
@@ -237,9 +239,11 @@ def load_files(
     loaded = []
     for path in paths:
         if isinstance(path, Samples):
+            _check_delay(path, log)
             item = DataFile("<Samples>", path, None, False)
         else:
             source = path if isinstance(path, Source) else read_source(os.fspath(path), apply, joints, log)
+            _check_delay(source, log)
             if source.recording is not None and options.cutoff == "auto":
                 raise ValueError(
                     f"{role} file {source.path}: preprocess.cutoff=auto is resolved on the training data"
@@ -255,6 +259,15 @@ def load_files(
         loaded.append(item)
     # Where recorded efforts become joint torques (robot.effort_scale): every figure after is in N·m.
     return [replace(f, samples=replace(f.samples, tau=robot.joint_torques(f.samples.tau))) for f in loaded]
+
+
+def _check_delay(source: Source | Samples, log: RecordingOptions) -> None:
+    """Refuse ``recording.delay`` (a number or ``auto``) for samples used as they are: only a raw
+    recording's torques can be shifted, and ``auto`` has no recording to estimate the delay on."""
+    if isinstance(source, Samples):
+        refuse_delay_on_samples("<Samples>", log.delay)
+    elif source.recording is None:
+        refuse_delay_on_samples(source.path, log.delay)
 
 
 def _check_joints(robot: Robot, path: str, joints: int, role: str) -> None:

@@ -533,6 +533,32 @@ def test_a_bag_without_a_robot_joint_is_one_line_naming_it(files, tmp_path, monk
     ]
 
 
+def test_a_torque_delay_on_samples_used_as_they_are_is_refused(files, tmp_path, monkeypatch, capsys):
+    """delay=auto on a samples file (its torques are not shifted: there is no recording to estimate a
+    delay on) used to end with exit 0 as if no delay had been asked for; so did any delay given for
+    ``Samples`` in memory. A samples file in a data= list is refused before a cut-off is chosen."""
+    robot = URDFRobot(str(ASSET), friction=True, offset=True)
+    t, q, qd, qdd = motion(6.0, 0.2, 5)
+    tau = robot.inverse_dynamics(truth(robot), *map(torch.from_numpy, (q, qd, qdd))).numpy()
+    samples = tmp_path / "samples.npz"
+    np.savez(samples, q=q, qd=qd, qdd=qdd, tau=tau)
+    cases = (("auto", samples), ("auto", f"[{files['train']},{samples}]"), ("0.02", samples))
+    for k, (delay, data) in enumerate(cases):
+        args = [*ls_args(files, data), f"recording.delay={delay}"]
+        code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / str(k))
+        assert code == 1 and out == "", err
+        assert err.splitlines() == [
+            f"idkit: {samples}: recording.delay={delay} shifts a raw recording's torques, but this file "
+            "holds samples used as they are (preprocess=on reads a samples file with timestamps as a "
+            "recording)"
+        ]
+        assert not (tmp_path / str(k) / "result.json").exists()
+    in_memory = single.load_data(robot, data=samples)[0]
+    with pytest.raises(ValueError, match=r"^<Samples>: recording\.delay=0\.01 shifts a raw recording's"):
+        single.run(robot, "ls", None, data=in_memory, recording={"delay": 0.01})
+    assert single.run(robot, "ls", None, data=in_memory, recording={"delay": 0}).estimate is not None
+
+
 def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
     """Torques logged 4 samples (20 ms) after their states: delay=auto finds it (the lag where the
     robot's regressor explains the torques best), and the fit is as good as with the delay given, or
