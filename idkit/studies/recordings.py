@@ -5,7 +5,8 @@ One or several files (``data=a.npz`` or ``data=[a.npz, b.csv, run.mcap]``) are e
 ``preprocess`` options), checked to have the robot's number of joints, and — for training — stacked
 into one ``Samples`` (:func:`idkit.data.recording.stack_samples`; each file is filtered on its own, so
 no filter runs across a seam). A ``validate=`` file that is a training file — the same path, the
-same bytes, or the same samples — is refused: its score would not be held-out validation.
+same bytes, or the same samples — is refused: its score would not be held-out validation. So is a file
+given twice in one list: stacked twice, its samples would count double in the fit.
 
 ``preprocess.cutoff=auto`` (the default) is resolved by :func:`load_training` from the training
 recordings alone (:func:`idkit.data.cutoff.choose_cutoff`, scored in the validation's band), said in
@@ -146,6 +147,7 @@ def load_training(
     options, apply = preprocess_options(preprocess)
     log = recording_options(recording)
     paths = as_paths(files)
+    refuse_repeated_files(paths, "data")
     joints = list(robot.joint_names)
     sources = [
         path if isinstance(path, Samples) else read_source(os.fspath(path), apply, joints, log)
@@ -235,6 +237,7 @@ def load_files(
     paths = as_paths(files)
     if not paths:
         raise ValueError(f"{role}= is an empty list; give a file or a list of files")
+    refuse_repeated_files(paths, role)
     joints = list(robot.joint_names)
     loaded = []
     for path in paths:
@@ -341,6 +344,30 @@ def refuse_training_files(data: Any, validate: Any) -> None:
                     f"validate file {_shown(held)} is the training file {_shown(train)} ({same}): a score on "
                     "the data the model was fitted to is not held-out validation; validate on a recording "
                     "the fit does not see"
+                )
+
+
+def refuse_repeated_files(files: Any, role: str) -> None:
+    """Refuse a file that ``data=`` (or ``validate=``, the ``role``) gives twice: the same path, the
+    same bytes, or the same ``Samples`` object. Stacked twice, a training file's samples would count
+    double in the fit, silently; a held-out file would be scored twice. (Files already read, as
+    :func:`load_training` hands them to :func:`load_files`, were checked before.)
+
+    Raises:
+        ValueError: naming the file, the earlier one it repeats and how they are the same.
+    """
+    items = [item for item in as_paths(files) if not isinstance(item, Source)]
+    effect = (
+        "would be stacked twice and count double in the fit" if role == "data" else "would be scored twice"
+    )
+    for k, later in enumerate(items):
+        for earlier in items[:k]:
+            same = _sameness(earlier, later)
+            if same:
+                first = "" if _shown(earlier) == _shown(later) else f" as {_shown(earlier)}"
+                raise ValueError(
+                    f"{role}= gives {_shown(later)} twice ({same}{first}): its samples "
+                    f"{effect}; give each recording once"
                 )
 
 

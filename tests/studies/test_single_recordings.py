@@ -447,6 +447,38 @@ def test_validating_on_the_training_file_is_refused(files, tmp_path, monkeypatch
         single.run("cylindrical", "ls", None, data=train, validate=[train])
 
 
+def test_a_file_given_twice_is_refused(files, tmp_path, monkeypatch, capsys):
+    """data=[train.csv, train.csv] used to stack the file twice, each sample counting double in the
+    fit, with exit 0; a copy of it (same bytes) is the same recording, and so is a validate= file
+    given twice."""
+    copy = tmp_path / "copy.csv"
+    copy.write_bytes(files["train"].read_bytes())
+    train, test = files["train"], files["test"]
+    cases = [
+        (
+            [f"[{train},{files['train2']},{train}]"],
+            f"data= gives {train} twice (same file)",
+            "data",
+        ),
+        ([f"[{train},{copy}]"], f"data= gives {copy} twice (same content as {train})", "data"),
+        (
+            [str(train), f"validate=[{test},{test}]"],
+            f"validate= gives {test} twice (same file)",
+            "",
+        ),
+    ]
+    for k, ((data, *more), said, role) in enumerate(cases):
+        args = [*ls_args(files, data), *more]
+        code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / str(k))
+        effect = "would be stacked twice and count double in the fit" if role else "would be scored twice"
+        assert code == 1 and out == ""
+        assert err.splitlines() == [f"idkit: {said}: its samples {effect}; give each recording once"]
+        assert not (tmp_path / str(k) / "result.json").exists()
+    samples = single.load_data(URDFRobot(str(ASSET)), data=train)[0]
+    with pytest.raises(ValueError, match=r"^data= gives <Samples> twice \(the same samples\)"):
+        single.run("cylindrical", "ls", None, data=[samples, samples])
+
+
 @pytest.mark.integration
 def test_the_judged_bad_recordings_as_a_subprocess(files, tmp_path):
     """A duplicated column: one line, exit 1. A 2-second gap: one warning line naming it, exit 0."""
