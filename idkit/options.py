@@ -115,6 +115,12 @@ def check_setting(name: str, value: Any, annotation: Any, default: Any = inspect
     return _check(f"setting {name!r}", value, annotation, default)
 
 
+def positive_number(value: Any) -> bool:
+    """Whether ``value`` is a finite number > 0 (a bool is not a number): a duration, period, rate or
+    step of 0 divides by zero, a negative one runs backwards, an infinite one never ends."""
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and 0 < value < math.inf
+
+
 def closest_first(word: str, names: typing.Iterable[str]) -> list[str]:
     """``names`` ordered by similarity to ``word`` (``difflib``), the closest first."""
     names = list(names)

@@ -130,9 +130,15 @@ def choose_cutoff(
         raise ValueError(f"choose_cutoff: folds must be >= 2, got {folds}")
     tried = candidates(recordings, options)
     if not tried:
+        rates = [lowest_rate([r], options) for r in recordings]
+        slowest = recordings[int(np.argmin(rates))]
+        kept = (
+            f" keeping every preprocess.decimate={options.decimate}-th sample" if options.decimate > 1 else ""
+        )
         raise ValueError(
             f"cutoff=auto: no candidate cut-off ({', '.join(f'{c:g}' for c in CANDIDATES_HZ)} Hz) is below "
-            "a quarter of the sampling rate; give preprocess.cutoff in Hz"
+            f"a quarter of the {min(rates):.3g} Hz sampling rate of {slowest.source}{kept}; give "
+            "preprocess.cutoff in Hz"
         )
     runs: dict[float, list[Any]] = {}
     left_out: dict[float, str] = {}

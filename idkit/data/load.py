@@ -204,14 +204,26 @@ def from_source(
     shifted back by ``delay`` s first), or its samples as they are; every ``stride``-th sample."""
     if source.recording is not None:
         return _preprocessed(source.path, source.recording, options, stride, delay, source.log)
-    if delay != 0:
-        raise ValueError(
-            f"{source.path}: recording.delay={delay:g} shifts a raw recording's torques, but this file holds "
-            "samples used as they are (preprocess=on reads it as a recording)"
-        )
+    refuse_delay_on_samples(source.path, delay)
     assert source.samples is not None
     times = None if source.times is None else source.times[::stride]
     return DataFile(source.path, _thin(source.samples, stride), times, False)
+
+
+def refuse_delay_on_samples(path: str, delay: float | str) -> None:
+    """Refuse a torque ``delay`` (seconds or ``"auto"``; ``0``: none) for samples used as they are.
+
+    A delay moves a raw recording's torques along its timestamps before preprocessing; samples keep
+    their torques, so a delay given for them (``auto`` too: there is nothing to estimate it on) would
+    be silently ignored.
+    """
+    if delay == 0:
+        return
+    shown = delay if isinstance(delay, str) else f"{delay:g}"
+    raise ValueError(
+        f"{path}: recording.delay={shown} shifts a raw recording's torques, but this file holds samples "
+        "used as they are (preprocess=on reads a samples file with timestamps as a recording)"
+    )
 
 
 def _preprocessed(

@@ -51,10 +51,14 @@ import numpy as np
 import torch
 
 from idkit.data.recording import Recording
+from idkit.memory import check_memory
 from idkit.problem import Samples
 
 #: The cut-off of :class:`PreprocessOptions` when no robot model is there to choose one (module doc).
 FILTER_CUTOFF_HZ = 10.0
+#: Arrays of ``[grid points, joints]`` float64 one segment holds at once (q, qd, qdd, tau, raw tau):
+#: with the grid itself, a lower bound of what resampling at ``rate`` allocates.
+SEGMENT_ARRAYS = 5
 
 
 @dataclass(frozen=True)
@@ -191,6 +195,7 @@ def preprocess_recording(recording: Recording, options: PreprocessOptions | None
     if not rate > 0:
         raise ValueError(f"preprocess ({recording.source}): rate must be > 0 Hz, got {rate}")
     _check(options, rate, recording)
+    _check_grid_memory(recording, [t[rows] for rows in stretches], rate, median)
     from scipy import signal  # ~1 s of import: only for recordings, not for every command
 
     sos = signal.butter(options.order, options.cutoff, fs=rate, output="sos")
@@ -225,6 +230,20 @@ def preprocess_recording(recording: Recording, options: PreprocessOptions | None
         stacked[4],
         tuple(segments),
         note,
+    )
+
+
+def _check_grid_memory(recording: Recording, stretches: list[np.ndarray], rate: float, median: float) -> None:
+    """Refuse a ``rate`` whose resampling grids (of the ``stretches`` of timestamps between gaps)
+    would not fit in memory, before any grid is allocated: ``preprocess.rate=1e9`` on a 10 s
+    recording asks for 1e10 points, and numpy's allocation error names no option."""
+    seconds = sum(s[-1] - s[0] for s in stretches)
+    points = sum(np.floor((s[-1] - s[0]) * rate + 0.5) + 1 for s in stretches)
+    check_memory(
+        f"preprocess ({recording.source}): preprocess.rate={rate:g} Hz resamples {seconds:.3g} s of "
+        f"{recording.n_joints} joints to {points:.3g} points, which",
+        8 * points * (SEGMENT_ARRAYS * recording.n_joints + 1),
+        f"lower preprocess.rate (the recording's median rate is {1 / median:.4g} Hz)",
     )
 
 

@@ -20,8 +20,9 @@ guarantee, iterates can zig-zag between active pieces, and only the decaying lea
 them settle, not necessarily at a minimum. The multi-start and the keep rule limit the damage;
 compare the final costs with the PSO's before trusting a non-smooth Adam fit.
 
-Sizes, as for ``pso`` (``idkit.optim.sizes``): ``starts × steps`` is capped at ``MAX_EVALUATIONS``
-per cost and trial, a batch's memory is checked before anything is allocated, and
+Sizes, as for ``pso`` (``idkit.optim.sizes``): ``starts × steps``, plus the steps' own cost
+(``ADAM_STEP_EVALUATIONS`` each), is capped at ``MAX_EVALUATIONS`` per cost and trial, a search
+that will be long says so before it starts, a batch's memory is checked before anything is allocated, and
 ``details["history"]`` keeps every ``details["history_stride"]``-th step (and the last), at most
 ``HISTORY_ROWS`` + 1 per start.
 """
@@ -122,7 +123,9 @@ class AdamMultiStart(Estimator):
         betas = tuple(float(b) for b in self.betas)
         if len(betas) != 2 or not all(0 <= b < 1 for b in betas):
             raise ValueError(f"adam option betas must be two numbers in [0, 1), got {self.betas!r}")
-        sizes.check_evaluations("adam", {"starts": self.starts, "steps": self.steps})
+        sizes.check_evaluations(
+            "adam", {"starts": self.starts, "steps": self.steps}, "steps", sizes.ADAM_STEP_EVALUATIONS
+        )
         return AdamSettings(
             starts=self.starts,
             steps=self.steps,
@@ -155,6 +158,13 @@ class AdamMultiStart(Estimator):
         problems, costs = list(problems), criteria(problems, costs)
         for problem in problems:
             problem.check_identifiable()
+        sizes.announce_long_search(
+            "adam",
+            self.resolved.starts * self.resolved.steps,
+            len(costs),
+            [p.samples.tau.numel() for p in problems],
+            sizes.ADAM_RESIDUAL_NS,
+        )
 
         def trials_per_batch(problem: Problem) -> int:
             return trial_chunk(

@@ -40,8 +40,10 @@ When ``"auto"`` has to take the slower eager engine, a ``SlowEngineWarning`` say
 reason and process. Both engines draw the same random numbers; their trajectories agree to
 rounding, and the same seed gives identical numbers for a given engine.
 
-Sizes (``idkit.optim.sizes``). ``runs × particles × iterations`` is capped at ``MAX_EVALUATIONS``
-per cost and trial (a bigger request is refused when the estimator is built), the memory a batch
+Sizes (``idkit.optim.sizes``). ``runs × particles × iterations``, plus the iterations' own cost
+(``PSO_STEP_EVALUATIONS`` each), is capped at ``MAX_EVALUATIONS`` per cost and trial (a bigger
+request is refused when the estimator is built), a search that will be long (a big recording,
+many trials) says so in one line before it starts, the memory a batch
 needs is checked against the machine's before anything is allocated, and the history kept in
 ``details["history"]`` has at most ``HISTORY_ROWS`` + 1 rows per run: every
 ``details["history_stride"]``-th iteration from the first, and the last.
@@ -230,7 +232,10 @@ class ParticleSwarm(Estimator):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"pso option {name} must be an integer >= 1, got {value!r}")
         sizes.check_evaluations(
-            "pso", {"runs": self.runs, "particles": values["particles"], "iterations": values["iterations"]}
+            "pso",
+            {"runs": self.runs, "particles": values["particles"], "iterations": values["iterations"]},
+            "iterations",
+            sizes.PSO_STEP_EVALUATIONS,
         )
         inertia = tuple(values["inertia"])
         if len(inertia) != 3:
@@ -296,6 +301,13 @@ class ParticleSwarm(Estimator):
         for problem in problems:
             problem.check_identifiable()
         check_chunk(chunk)
+        sizes.announce_long_search(
+            "pso",
+            settings.runs * settings.particles * settings.iterations,
+            len(costs),
+            [p.samples.tau.numel() for p in problems],
+            sizes.PSO_RESIDUAL_NS,
+        )
 
         def per_run(problem: Problem) -> int:
             """Error-tensor elements of one run of every cost on this trial."""

@@ -15,7 +15,6 @@ the real test; the acceleration limit only keeps the search from proposing viole
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import torch
@@ -23,6 +22,7 @@ from torch import Tensor
 
 from idkit.interfaces import Robot
 from idkit.limits import MotionLimits
+from idkit.options import positive_number
 from idkit.seeds import torch_generator
 
 #: Share of a joint's effort limit its own inertia may take at the default acceleration limit.
@@ -111,11 +111,7 @@ def acceleration_bounded_limits(
         values = (
             [acceleration_limit] if isinstance(acceleration_limit, (int, float)) else list(acceleration_limit)
         )
-        bad = [
-            v
-            for v in values
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < math.inf
-        ]
+        bad = [v for v in values if not positive_number(v)]
         if bad or len(values) not in (1, len(names)):
             raise ValueError(
                 f"excitation.acceleration_limit must be one positive number or one per joint "

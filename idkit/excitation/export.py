@@ -23,17 +23,29 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from idkit.memory import check_memory
+from idkit.options import positive_number
+
 #: The per-joint quantities of a trajectory file, in column order.
 QUANTITIES = ("q", "qd", "qdd")
+#: ``[T, joints]`` float64 arrays a task holds at the controller times at least: the motion's
+#: ``q, qd, qdd`` and the exported trajectory's copy of them.
+SAMPLE_ARRAYS = 2 * len(QUANTITIES)
 
 
-def controller_times(t_end: float, rate: float) -> Tensor:
+def controller_times(t_end: float, rate: float, joints: int = 1) -> Tensor:
     """``t[T]`` (float64): ``T = t_end · rate + 1`` evenly spaced instants over ``[0, t_end]``.
 
+    ``joints``: how many joints will be sampled at them, for the memory check (the samples of
+    ``excitation.t_end=1e9`` at 1 kHz would need terabytes).
+
     Raises:
-        ValueError: ``rate`` not positive, or ``t_end · rate`` not a whole number of steps.
+        ValueError: ``t_end`` or ``rate`` not a finite number > 0, or ``t_end · rate`` not a whole
+            number of steps; ``idkit.memory.SizeError`` for samples that do not fit in memory.
     """
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < math.inf:
+    if not positive_number(t_end):
+        raise ValueError(f"excitation.t_end must be a finite number of seconds > 0, got {t_end!r}")
+    if not positive_number(rate):
         raise ValueError(
             f"excitation.rate must be a positive number of samples per second (Hz), got {rate!r}"
         )
@@ -44,7 +56,14 @@ def controller_times(t_end: float, rate: float) -> Tensor:
             f"({steps:.6g} steps); choose t_end = {max(1, math.floor(steps)) / rate:g} or "
             f"{math.ceil(steps) / rate:g} s"
         )
-    return torch.linspace(0.0, t_end, round(steps) + 1, dtype=torch.float64)
+    count = round(steps) + 1
+    check_memory(
+        f"excitation.t_end × excitation.rate = {t_end:g} s × {rate:g} Hz = {count:.3g} samples of "
+        f"{joints} joint(s), which",
+        8 * count * (SAMPLE_ARRAYS * joints + 1),
+        "lower excitation.t_end or excitation.rate",
+    )
+    return torch.linspace(0.0, t_end, count, dtype=torch.float64)
 
 
 def columns(joint_names: Sequence[str]) -> list[str]:

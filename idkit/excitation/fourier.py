@@ -40,6 +40,7 @@ from torch import Tensor
 from idkit.excitation.sines import amplitude_caps, as_matrix, offset_box
 from idkit.interfaces import Excitation
 from idkit.limits import MotionLimits
+from idkit.options import positive_number
 
 #: ``(sqrt(5) - 1) / 2``: phases ``2π·frac(j·k·GOLDEN)`` are spread out and differ between joints.
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
@@ -86,7 +87,7 @@ class FourierExcitation(Excitation):
         for name, value in (("n_joints", n_joints), ("harmonics", harmonics)):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"fourier excitation: {name} must be an integer >= 1, got {value!r}")
-        if isinstance(period, bool) or not isinstance(period, (int, float)) or not 0 < period < math.inf:
+        if not positive_number(period):
             raise ValueError(
                 f"fourier excitation: period must be a finite number > 0 (seconds), got {period!r}"
             )

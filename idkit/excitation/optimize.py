@@ -49,6 +49,7 @@ from idkit.excitation.spec import build_excitation
 from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
 from idkit.optim import swarm
+from idkit.options import positive_number
 from idkit.runtime import resolve_threads, torch_threads
 from idkit.seeds import torch_generator
 
@@ -103,10 +104,15 @@ class ExcitationResult:
         return (self.t, *self.excitation(self.t))
 
 
-def _check_budget(**values: int) -> None:
+def _check_budget(t_end: float, learning_rate: float, **values: int) -> None:
+    """Refuse a count below 1, or a duration or step that is not a finite number > 0 (``t_end=0``
+    divides by zero; a negative learning rate climbs the criterion instead of descending it)."""
     for key, value in values.items():
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ValueError(f"optimize_excitation: {key} must be an integer >= 1, got {value!r}")
+    for key, value in (("t_end", t_end), ("learning_rate", learning_rate)):
+        if not positive_number(value):
+            raise ValueError(f"optimize_excitation: {key} must be a finite number > 0, got {value!r}")
 
 
 def optimize_excitation(
@@ -160,6 +166,8 @@ def optimize_excitation(
     if method not in METHODS:
         raise ValueError(f"optimize_excitation: unknown method {method!r}; use one of {', '.join(METHODS)}")
     _check_budget(
+        t_end,
+        learning_rate,
         n_samples=n_samples,
         swarms=swarms,
         particles=particles,

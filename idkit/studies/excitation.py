@@ -94,11 +94,13 @@ def rest_options(family: str, options: Mapping[str, Any] | None, t_end: float) -
     """``options`` with ``rest=True`` and, unless given, ``period = t_end``.
 
     Raises:
-        ValueError: the family cannot start and end at rest, or ``t_end`` is not a whole number of
-            periods (the motion would stop mid-period, not at rest).
+        ValueError: the family cannot start and end at rest, ``t_end`` or the period is not a finite
+            number > 0, or ``t_end`` is not a whole number of periods (the motion would stop
+            mid-period, not at rest).
     """
     import inspect
 
+    from idkit.options import positive_number
     from idkit.registry import load
 
     accepted = inspect.signature(load("excitation", family)).parameters
@@ -109,6 +111,9 @@ def rest_options(family: str, options: Mapping[str, Any] | None, t_end: float) -
         )
     chosen = {**dict(options or {}), "rest": True}
     period = chosen.setdefault("period", t_end)
+    for name, value in (("t_end", t_end), ("options.period", period)):
+        if not positive_number(value):
+            raise ValueError(f"excitation.{name} must be a finite number of seconds > 0, got {value!r}")
     periods = t_end / period
     if abs(periods - round(periods)) > 1e-9 * periods or round(periods) < 1:
         raise ValueError(
@@ -186,7 +191,7 @@ def run(
     robot_obj = build("robot", robot)
     limits, source = acceleration_bounded_limits(robot_obj, acceleration_limit)
     options = rest_options(family, options, t_end) if rest else dict(options or {})
-    times = controller_times(t_end, rate) if rate is not None else None
+    times = controller_times(t_end, rate, robot_obj.n_joints) if rate is not None else None
     if check_points is None:
         check_points = 10001 if times is None else times.numel()
     test = self_collision(robot_obj) if collision else NotChecked("switched off (excitation.collision=false)")

@@ -5,7 +5,8 @@ One or several files (``data=a.npz`` or ``data=[a.npz, b.csv, run.mcap]``) are e
 ``preprocess`` options), checked to have the robot's number of joints, and — for training — stacked
 into one ``Samples`` (:func:`idkit.data.recording.stack_samples`; each file is filtered on its own, so
 no filter runs across a seam). A ``validate=`` file that is a training file — the same path, the
-same bytes, or the same samples — is refused: its score would not be held-out validation.
+same bytes, or the same samples — is refused: its score would not be held-out validation. So is a file
+given twice in one list: stacked twice, its samples would count double in the fit.
 
 ``preprocess.cutoff=auto`` (the default) is resolved by :func:`load_training` from the training
 recordings alone (:func:`idkit.data.cutoff.choose_cutoff`, scored in the validation's band), said in
@@ -28,7 +29,7 @@ import numpy as np
 
 from idkit.data.cutoff import CutoffChoice, choose_cutoff, lowest_rate
 from idkit.data.delay import shift_torques, torque_delay
-from idkit.data.load import DataFile, Source, from_source, read_source
+from idkit.data.load import DataFile, Source, from_source, read_source, refuse_delay_on_samples
 from idkit.data.preprocess import FILTER_CUTOFF_HZ, PreprocessOptions
 from idkit.data.recording import Recording, RecordingOptions
 from idkit.interfaces import Robot
@@ -147,11 +148,14 @@ def load_training(
     options, apply = preprocess_options(preprocess)
     log = recording_options(recording)
     paths = as_paths(files)
+    refuse_repeated_files(paths, "data")
     joints = list(robot.joint_names)
     sources = [
         path if isinstance(path, Samples) else read_source(os.fspath(path), apply, joints, log)
         for path in paths
     ]
+    for source in sources:  # before the cut-off is chosen on the recordings among them
+        _check_delay(source, log)
     choice = None
     if options.cutoff == "auto":
         raw = [s for s in sources if isinstance(s, Source) and s.recording is not None]
@@ -234,13 +238,16 @@ def load_files(
     paths = as_paths(files)
     if not paths:
         raise ValueError(f"{role}= is an empty list; give a file or a list of files")
+    refuse_repeated_files(paths, role)
     joints = list(robot.joint_names)
     loaded = []
     for path in paths:
         if isinstance(path, Samples):
+            _check_delay(path, log)
             item = DataFile("<Samples>", path, None, False)
         else:
             source = path if isinstance(path, Source) else read_source(os.fspath(path), apply, joints, log)
+            _check_delay(source, log)
             if source.recording is not None and options.cutoff == "auto":
                 raise ValueError(
                     f"{role} file {source.path}: preprocess.cutoff=auto is resolved on the training data"
@@ -256,6 +263,15 @@ def load_files(
         loaded.append(item)
     # Where recorded efforts become joint torques (robot.effort_scale): every figure after is in N·m.
     return [replace(f, samples=replace(f.samples, tau=robot.joint_torques(f.samples.tau))) for f in loaded]
+
+
+def _check_delay(source: Source | Samples, log: RecordingOptions) -> None:
+    """Refuse ``recording.delay`` (a number or ``auto``) for samples used as they are: only a raw
+    recording's torques can be shifted, and ``auto`` has no recording to estimate the delay on."""
+    if isinstance(source, Samples):
+        refuse_delay_on_samples("<Samples>", log.delay)
+    elif source.recording is None:
+        refuse_delay_on_samples(source.path, log.delay)
 
 
 def _check_joints(robot: Robot, path: str, joints: int, role: str) -> None:
@@ -329,6 +345,30 @@ def refuse_training_files(data: Any, validate: Any) -> None:
                     f"validate file {_shown(held)} is the training file {_shown(train)} ({same}): a score on "
                     "the data the model was fitted to is not held-out validation; validate on a recording "
                     "the fit does not see"
+                )
+
+
+def refuse_repeated_files(files: Any, role: str) -> None:
+    """Refuse a file that ``data=`` (or ``validate=``, the ``role``) gives twice: the same path, the
+    same bytes, or the same ``Samples`` object. Stacked twice, a training file's samples would count
+    double in the fit, silently; a held-out file would be scored twice. (Files already read, as
+    :func:`load_training` hands them to :func:`load_files`, were checked before.)
+
+    Raises:
+        ValueError: naming the file, the earlier one it repeats and how they are the same.
+    """
+    items = [item for item in as_paths(files) if not isinstance(item, Source)]
+    effect = (
+        "would be stacked twice and count double in the fit" if role == "data" else "would be scored twice"
+    )
+    for k, later in enumerate(items):
+        for earlier in items[:k]:
+            same = _sameness(earlier, later)
+            if same:
+                first = "" if _shown(earlier) == _shown(later) else f" as {_shown(earlier)}"
+                raise ValueError(
+                    f"{role}= gives {_shown(later)} twice ({same}{first}): its samples "
+                    f"{effect}; give each recording once"
                 )
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -101,8 +102,18 @@ def test_candidates_stay_below_a_quarter_of_the_sampling_rate():
     slow = recording(0.0, rate=40.0)
     assert candidates([slow], PreprocessOptions()) == [2.0, 3.0, 4.0, 6.0, 8.0]
     assert candidates([slow], PreprocessOptions(decimate=2)) == [2.0, 3.0, 4.0]
-    with pytest.raises(ValueError, match=r"no candidate cut-off .* is below a quarter of the sampling rate"):
-        choose_cutoff([recording(0.0, rate=6.0)], regressor, PreprocessOptions(), band=2.0)
+    # the slowest recording and a decimation are named (stamps in ms, decimate=1e9 were not)
+    fast, slow = (
+        replace(recording(0.0), source="fast.csv"),
+        replace(recording(0.0, rate=6.0), source="slow.csv"),
+    )
+    with pytest.raises(ValueError, match=r"is below a quarter of the 6 Hz sampling rate of slow\.csv; give"):
+        choose_cutoff([fast, slow], regressor, PreprocessOptions(), band=2.0)
+    with pytest.raises(
+        ValueError,
+        match=r"the 2e-07 Hz sampling rate of fast\.csv keeping every preprocess\.decimate=1000000000-th",
+    ):
+        choose_cutoff([fast], regressor, PreprocessOptions(decimate=10**9), band=2.0)
 
 
 def test_a_candidate_the_recording_is_too_short_for_is_left_out_and_said():

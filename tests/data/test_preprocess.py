@@ -103,6 +103,21 @@ def test_bad_options_are_explained(options, message):
         preprocess(jittered(seed=3, noise=0.0, seconds=5.0), options)
 
 
+def test_a_rate_whose_grid_does_not_fit_in_memory_is_refused_before_resampling(monkeypatch):
+    """``rate=1e9`` used to reach numpy ("Unable to allocate 89.4 GiB") without naming the option."""
+    import idkit.memory
+
+    monkeypatch.setattr(idkit.memory, "available_memory", lambda: 1_000_000)  # a machine with 1 MB free
+    recording = jittered(seed=3, noise=0.0, seconds=5.0)  # 3 joints, 200 Hz: ~1000 points at its own rate
+    assert preprocess(recording, PreprocessOptions()).n_samples > 0  # ~16 kB of grids: fits
+    # 5 s at 1e5 Hz: 5e5 points × (5 arrays × 3 joints + the grid) × 8 B = 64 MB
+    with pytest.raises(
+        ValueError,
+        match=r"preprocess\.rate=100000 Hz resamples 4.98 s of 3 joints to 4.98e\+05 points.*63.7 MB",
+    ):
+        preprocess(recording, PreprocessOptions(rate=1e5))
+
+
 @pytest.mark.kuka
 def test_kuka_accelerations_recomputed_from_positions(kuka_dir):
     """The files' accelerations were low-passed near 2 Hz; recomputed from positions with a 2 Hz

@@ -38,11 +38,28 @@ def test_controller_times_are_the_rate_including_both_ends():
         (25.1294, 1000.0, r"t_end=25.1294 s is not a whole number of 0.001 s steps .* 25.129 or 25.13 s"),
         (1.0, 0.0, "rate must be a positive number"),
         (1.0, True, "rate must be a positive number"),
+        (0.0, 1000.0, r"^excitation\.t_end must be a finite number of seconds > 0, got 0\.0$"),
+        (-5.0, 1000.0, r"^excitation\.t_end must be a finite number of seconds > 0, got -5\.0$"),
     ],
 )
 def test_controller_times_refuse_a_grid_that_would_not_end_at_t_end(t_end, rate, match):
     with pytest.raises(ValueError, match=match):
         controller_times(t_end, rate)
+
+
+def test_controller_times_that_do_not_fit_in_memory_are_refused_before_allocating(monkeypatch):
+    """``excitation.t_end=1e9`` at 1 kHz used to end in torch's allocation error, whose hint named the
+    estimator's sizes."""
+    import idkit.memory
+
+    monkeypatch.setattr(idkit.memory, "available_memory", lambda: 1_000_000)  # a machine with 1 MB free
+    assert controller_times(2.0, 1000.0, joints=3).numel() == 2001  # 2001 × (6 × 3 + 1) × 8 B = 304 kB
+    with pytest.raises(
+        ValueError,
+        match=r"^excitation\.t_end × excitation\.rate = 20 s × 1000 Hz = 2e\+04 samples of 3 joint\(s\), "
+        r"which needs about 3\.04 MB of memory; this machine has 1 MB available; lower excitation\.t_end",
+    ):
+        controller_times(20.0, 1000.0, joints=3)
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz"])

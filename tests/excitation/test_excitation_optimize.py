@@ -158,6 +158,12 @@ class NoLimits(Robot):
         ({"method": "bfgs"}, "unknown method 'bfgs'; use one of pso, adam, pso\\+adam"),
         ({"criterion": "aopt"}, "unknown excitation criterion"),
         ({"particles": 0}, "particles must be an integer >= 1"),
+        ({"t_end": 0.0}, r"^optimize_excitation: t_end must be a finite number > 0, got 0\.0$"),
+        (
+            {"learning_rate": 0.0},
+            r"^optimize_excitation: learning_rate must be a finite number > 0, got 0\.0$",
+        ),
+        ({"learning_rate": math.inf}, r"learning_rate must be a finite number > 0, got inf$"),
         ({"excitation": "nope"}, "unknown excitation 'nope'"),
         (
             {

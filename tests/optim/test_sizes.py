@@ -72,3 +72,48 @@ def test_string_options_are_literals_refused_with_the_choices(name, value):
     with pytest.raises(OptionError, match=rf"option '{name}' must be .*'.*' or '.*got '{value}'") as error:
         registry.create("estimator", "pso", **{name: value})
     assert "\n" not in str(error.value)
+
+
+def test_the_cap_counts_what_a_step_costs_besides_its_evaluations():
+    """iterations=1e8 of one run of 4 particles is 4e8 evaluations, under the cap, but each swarm
+    iteration also takes as long as ~20 evaluations (bench/step_cost.py): it ran for minutes unasked."""
+    with pytest.raises(
+        ValueError,
+        match=r"^pso: runs × particles × iterations = 1 × 4 × 100000000 = 4\.0e\+08 cost evaluations per "
+        r"cost, and iterations=100000000 steps that each take as long as about 20 evaluations: 2\.4e\+09 "
+        r"in all, above idkit's cap of 1e\+09",
+    ):
+        registry.create("estimator", "pso", runs=1, particles=4, iterations=10**8)
+    registry.create("estimator", "pso", runs=1, particles=4, iterations=4 * 10**7)  # 9.6e8: under the cap
+    budget = {"runs": 1, "particles": 4, "iterations": 4 * 10**7}
+    assert sizes.check_evaluations("pso", budget, "iterations", 20) == 4 * 10**7 * (4 + 20)
+    with pytest.raises(ValueError, match=r"^adam: starts × steps = 1 × 1000000 .* about 1000 evaluations"):
+        registry.create("estimator", "adam", starts=1, steps=10**6)
+    registry.create("estimator", "adam", starts=1, steps=9 * 10**5)  # 9.0e8: under the cap
+
+
+def test_a_long_search_says_so_before_it_starts(problem, monkeypatch):
+    """Evaluations × residuals (samples × joints) × ns per residual above LONG_SEARCH_SECONDS: one
+    warning line before the fit. The threshold is lowered here, so that a small fit is a 'long' one."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sizes.LongSearchWarning)
+        ParticleSwarm(runs=2, particles=3, iterations=10).fit(problem)  # 60 evaluations: not long
+    assert problem.samples.tau.numel() == 30
+    monkeypatch.setattr(sizes, "LONG_SEARCH_SECONDS", 1e-6)  # 1 µs
+    with pytest.warns(
+        sizes.LongSearchWarning,
+        match=r"^pso: a long search: 1 cost\(s\) × 6\.0e\+01 cost evaluations on 30 residuals \(samples × "
+        r"joints\) each, 1\.8e\+03 residual evaluations: about 6e-08 minutes of one core or more \(at 2 ns",
+    ):  # 1800 × 2 ns = 3.6 µs
+        ParticleSwarm(runs=2, particles=3, iterations=10).fit(problem)
+    with pytest.warns(
+        sizes.LongSearchWarning, match=r"^adam: a long search: 1 cost\(s\) × 2\.0e\+01 .*at 50 ns"
+    ):
+        AdamMultiStart(starts=2, steps=10).fit(problem)
+    trials = [Problem(problem.robot, problem.samples, problem.cost, seed=s) for s in (1, 2)]
+    with pytest.warns(
+        sizes.LongSearchWarning, match=r"^pso: a long search: 2 trials × 1 cost\(s\) × 6\.0e\+01"
+    ):
+        ParticleSwarm(runs=2, particles=3, iterations=10).fit_trials(trials)

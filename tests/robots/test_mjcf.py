@@ -158,8 +158,12 @@ def test_armature_and_drive_options_pass_through_and_equal_mj_inverse():
     expected = mj_torques(model, q, qd, qdd, robot.joint_names)
     torques = robot.inverse_dynamics(robot.nominal_params(), q, qd, qdd).numpy()
     np.testing.assert_allclose(torques, expected, rtol=0, atol=1e-8)
-    without = MJCFRobot(text.replace('armature="0.1"', 'armature="0"').replace('armature="0.25"', 'armature="0"'))
-    assert np.abs(expected - without.inverse_dynamics(without.nominal_params(), q, qd, qdd).numpy()).max() > 1e-3
+    without = MJCFRobot(
+        text.replace('armature="0.1"', 'armature="0"').replace('armature="0.25"', 'armature="0"')
+    )
+    assert (
+        np.abs(expected - without.inverse_dynamics(without.nominal_params(), q, qd, qdd).numpy()).max() > 1e-3
+    )
     np.testing.assert_allclose(robot.joint_torques(torch.ones(1, 4)).numpy(), [[2.0, 3.0, 4.0, 5.0]])
 
 

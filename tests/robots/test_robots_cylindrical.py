@@ -61,9 +61,7 @@ def test_regressor_times_base_params_equals_dynamics(batch, n, seed):
 
 
 @settings(max_examples=30, deadline=None)
-@given(
-    m2=st.floats(0.1, 20), m3=st.floats(0.1, 20), s3z=st.floats(-2, 2), inertia=st.floats(0, 20)
-)
+@given(m2=st.floats(0.1, 20), m3=st.floats(0.1, 20), s3z=st.floats(-2, 2), inertia=st.floats(0, 20))
 def test_base_params_round_trip(m2, m3, s3z, inertia):
     robot = CylindricalRobot()
     params = torch.tensor([m2, m3, s3z, inertia], dtype=torch.float64)

@@ -447,6 +447,38 @@ def test_validating_on_the_training_file_is_refused(files, tmp_path, monkeypatch
         single.run("cylindrical", "ls", None, data=train, validate=[train])
 
 
+def test_a_file_given_twice_is_refused(files, tmp_path, monkeypatch, capsys):
+    """data=[train.csv, train.csv] used to stack the file twice, each sample counting double in the
+    fit, with exit 0; a copy of it (same bytes) is the same recording, and so is a validate= file
+    given twice."""
+    copy = tmp_path / "copy.csv"
+    copy.write_bytes(files["train"].read_bytes())
+    train, test = files["train"], files["test"]
+    cases = [
+        (
+            [f"[{train},{files['train2']},{train}]"],
+            f"data= gives {train} twice (same file)",
+            "data",
+        ),
+        ([f"[{train},{copy}]"], f"data= gives {copy} twice (same content as {train})", "data"),
+        (
+            [str(train), f"validate=[{test},{test}]"],
+            f"validate= gives {test} twice (same file)",
+            "",
+        ),
+    ]
+    for k, ((data, *more), said, role) in enumerate(cases):
+        args = [*ls_args(files, data), *more]
+        code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / str(k))
+        effect = "would be stacked twice and count double in the fit" if role else "would be scored twice"
+        assert code == 1 and out == ""
+        assert err.splitlines() == [f"idkit: {said}: its samples {effect}; give each recording once"]
+        assert not (tmp_path / str(k) / "result.json").exists()
+    samples = single.load_data(URDFRobot(str(ASSET)), data=train)[0]
+    with pytest.raises(ValueError, match=r"^data= gives <Samples> twice \(the same samples\)"):
+        single.run("cylindrical", "ls", None, data=[samples, samples])
+
+
 @pytest.mark.integration
 def test_the_judged_bad_recordings_as_a_subprocess(files, tmp_path):
     """A duplicated column: one line, exit 1. A 2-second gap: one warning line naming it, exit 0."""
@@ -531,6 +563,32 @@ def test_a_bag_without_a_robot_joint_is_one_line_naming_it(files, tmp_path, monk
         f"idkit: {bag}: no topic '/tf' (recording.topic); the log's topics: /joint_states "
         "(sensor_msgs/msg/JointState), /status (std_msgs/msg/String)"
     ]
+
+
+def test_a_torque_delay_on_samples_used_as_they_are_is_refused(files, tmp_path, monkeypatch, capsys):
+    """delay=auto on a samples file (its torques are not shifted: there is no recording to estimate a
+    delay on) used to end with exit 0 as if no delay had been asked for; so did any delay given for
+    ``Samples`` in memory. A samples file in a data= list is refused before a cut-off is chosen."""
+    robot = URDFRobot(str(ASSET), friction=True, offset=True)
+    t, q, qd, qdd = motion(6.0, 0.2, 5)
+    tau = robot.inverse_dynamics(truth(robot), *map(torch.from_numpy, (q, qd, qdd))).numpy()
+    samples = tmp_path / "samples.npz"
+    np.savez(samples, q=q, qd=qd, qdd=qdd, tau=tau)
+    cases = (("auto", samples), ("auto", f"[{files['train']},{samples}]"), ("0.02", samples))
+    for k, (delay, data) in enumerate(cases):
+        args = [*ls_args(files, data), f"recording.delay={delay}"]
+        code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / str(k))
+        assert code == 1 and out == "", err
+        assert err.splitlines() == [
+            f"idkit: {samples}: recording.delay={delay} shifts a raw recording's torques, but this file "
+            "holds samples used as they are (preprocess=on reads a samples file with timestamps as a "
+            "recording)"
+        ]
+        assert not (tmp_path / str(k) / "result.json").exists()
+    in_memory = single.load_data(robot, data=samples)[0]
+    with pytest.raises(ValueError, match=r"^<Samples>: recording\.delay=0\.01 shifts a raw recording's"):
+        single.run(robot, "ls", None, data=in_memory, recording={"delay": 0.01})
+    assert single.run(robot, "ls", None, data=in_memory, recording={"delay": 0}).estimate is not None
 
 
 def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -179,6 +180,18 @@ def test_a_urdf_without_acceleration_limits_gets_them_from_its_effort_limits():
             "t_end to be a whole number of periods, but t_end=10 s and period=3 s",
         ),
         ({"rate": 333.33}, r"excitation.t_end=10 s is not a whole number of .* steps at rate 333.33 Hz"),
+        # t_end=0 and a period of 0 used to divide by zero (a traceback); a negative t_end was offered
+        # "choose t_end = 0.001 or -5 s"
+        ({"t_end": 0.0}, r"^excitation\.t_end must be a finite number of seconds > 0, got 0\.0$"),
+        ({"t_end": -5.0}, r"^excitation\.t_end must be a finite number of seconds > 0, got -5\.0$"),
+        ({"t_end": math.inf}, r"^excitation\.t_end must be a finite number of seconds > 0, got inf$"),
+        ({"t_end": 0.0, "rest": False}, r"^excitation\.t_end must be a finite number of seconds > 0"),
+        (
+            {"t_end": 0.0, "rest": False, "rate": None},
+            r"^optimize_excitation: t_end must be a finite number > 0",
+        ),
+        ({"options": {"period": 0}}, r"^excitation\.options\.period must be a finite number of seconds > 0"),
+        ({"learning_rate": -0.01}, r"^optimize_excitation: learning_rate must be a finite number > 0"),
     ],
 )
 def test_motions_that_cannot_rest_or_be_sampled_are_refused(options, match):
