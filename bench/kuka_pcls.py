@@ -20,8 +20,9 @@ from pathlib import Path
 import torch
 
 from idkit import registry
+from idkit.conic.program import nearest_consistent
 from idkit.data.load import load_data_file
-from idkit.estimators.physical import PhysicallyConsistentLS, nearest_consistent
+from idkit.estimators.physical import PhysicallyConsistentLS
 from idkit.problem import Problem, Samples
 from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot

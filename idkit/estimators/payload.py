@@ -12,7 +12,7 @@ carries ``F`` and ``T`` the frame change from ``F`` to that body's frame
 (:func:`idkit.robots.inertia.frame_change`; the identity when ``F`` is the body's own link). This is
 ``pcls`` on one body with the rest fixed: the same QR-compressed data term in χ² units, the same
 pseudo-inertia LMI ``J(phi) ⪰ 0`` (here the payload's own, so that it is a real body), ``m ≥
-min_mass``, solved by the same cvxpy/Clarabel machinery (:func:`~idkit.estimators.physical.solve_program`).
+min_mass``, solved by the same cvxpy/Clarabel machinery (:func:`~idkit.conic.program.solve_program`).
 When the unconstrained least-squares solution already satisfies the constraints it is the program's
 minimiser and is taken as it is (``status`` says so): no solver tolerance on the common case.
 
@@ -80,9 +80,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.estimate import Estimate, to_python
-from idkit.estimators.linear.observation import IdentificationError, _null_directions
-from idkit.estimators.physical import (
+from idkit.conic.program import (
     NOISE_FLOOR,
     ConsistentSettings,
     Solver,
@@ -91,6 +89,8 @@ from idkit.estimators.physical import (
     pseudo_inertia_expression,
     solve_program,
 )
+from idkit.estimate import Estimate, to_python
+from idkit.estimators.linear.observation import IdentificationError, _null_directions
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
 from idkit.robots.inertia import centroidal, frame_change, pseudo_inertia
@@ -749,8 +749,20 @@ def _solve(system: System, settings: PayloadSettings) -> Solution:
         infeasible = f"no payload mass >= min_mass={settings.min_mass:g} kg with a PSD pseudo-inertia"
         started = time.perf_counter()
         program = cp.Problem(cp.Minimize(objective), constraints)
-        used, status = solve_program(program, settings.conic_solvers, "payload", infeasible)
-        x, elapsed = unit * z.value, time.perf_counter() - started
+        failures: list[str] = []
+        for used in settings.conic_solvers:  # the first solution inside the cone (the fit refuses others)
+            found = solve_program(program, (used,), "payload", infeasible, failures=failures)
+            if found is None:
+                continue
+            status = found
+            x = unit * np.asarray(z.value)
+            _, outside = cone_violations(["payload"], pseudo_inertia(torch.as_tensor(x[:10])[None]).numpy())
+            if not outside:
+                break
+            failures.append(f"{used}: status {found!r} but {outside[0]} outside the cone")
+        else:
+            raise IdentificationError(f"payload: the conic solver failed ({'; '.join(failures)})")
+        elapsed = time.perf_counter() - started
     covariance_z = sigma2 * (Vh[kept].T / S[kept] ** 2) @ Vh[kept]
     touched = (np.abs(Vh[~kept]) > 1e-8).any(0)
     covariance = covariance_z * np.outer(unit, unit)

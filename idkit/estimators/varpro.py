@@ -232,7 +232,7 @@ class VariableProjection(Estimator):
         self.polish = polish
         self.search_samples = search_samples
         self.refine = refine
-        from idkit.estimators.physical import ConsistentSettings  # cvxpy stays unimported until a fit
+        from idkit.conic.program import ConsistentSettings  # cvxpy stays unimported until a fit
 
         ConsistentSettings.checked("varpro", prior_weight, auto=True)  # refused now, not after the search
         self.prior_weight = prior_weight

@@ -98,7 +98,8 @@ def check_model(tree: KinematicTree) -> None:
         _check_link(link, where)
     for message in nonphysical_links(tree):
         warnings.warn(
-            f"{message}: not a rigid body; fitted all the same, but pcls refuses this model",
+            f"{message}: not a rigid body; fitted all the same (pcls takes the nearest physical body as "
+            "its prior)",
             ModelWarning,
             stacklevel=3,
         )

@@ -25,7 +25,7 @@ limits, transmissions, plugins stay as they are); only these change:
 
 A mass ``≤ 0`` cannot be written (the centre of mass is undefined) and raises; a pseudo-inertia that
 is not positive semidefinite is written with a warning (many simulators reject it): project the
-estimate first with :func:`idkit.estimators.physical.nearest_consistent`.
+estimate first with :func:`idkit.conic.program.nearest_consistent`.
 """
 
 from __future__ import annotations
@@ -95,7 +95,7 @@ def identified_urdf(
         if not values[10 * i] > 0:
             raise ValueError(
                 f"urdf export: link {body.link!r} has mass {values[10 * i]:.6g} <= 0; a URDF needs a "
-                "positive mass (project with idkit.estimators.physical.nearest_consistent)"
+                "positive mass (project with idkit.conic.program.nearest_consistent)"
             )
     inertials = torch.as_tensor(values[: 10 * len(robot.link_names)]).reshape(-1, 10)
     eigenvalues = min_pseudo_inertia_eigenvalues(robot, torch.as_tensor(values))
@@ -108,7 +108,7 @@ def identified_urdf(
     if bad:
         warnings.warn(
             f"urdf export: pseudo-inertia not positive semidefinite for {', '.join(bad)}; simulators may "
-            "reject these inertials (project with idkit.estimators.physical.nearest_consistent)",
+            "reject these inertials (project with idkit.conic.program.nearest_consistent)",
             stacklevel=2,
         )
     for i, body in enumerate(robot.tree.bodies):

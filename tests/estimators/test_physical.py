@@ -10,8 +10,9 @@ import torch
 from urdf_cases import TREE_URDF
 
 from idkit import registry
+from idkit.conic.program import nearest_consistent
 from idkit.estimators.linear.observation import IdentificationError
-from idkit.estimators.physical import PhysicallyConsistentLS, nearest_consistent
+from idkit.estimators.physical import PhysicallyConsistentLS
 from idkit.problem import Problem, Samples
 from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
@@ -157,7 +158,7 @@ def test_solver_failure_is_one_line(monkeypatch):
     with pytest.raises(
         IdentificationError,
         match=r"^nearest_consistent: the conic solver failed "
-        r"\(CLARABEL: numerical trouble; SCS: numerical trouble\)$",
+        r"\(CLARABEL: numerical trouble; CLARABEL_RELAXED: numerical trouble; SCS: numerical trouble\)$",
     ):
         nearest_consistent(robot, true_params(robot))
 
@@ -176,8 +177,8 @@ def test_an_inaccurate_solution_outside_the_cone_is_refused(monkeypatch):
     robot = tree_robot()
     with pytest.raises(
         IdentificationError,
-        match=r"^nearest_consistent: CLARABEL ended with status 'optimal_inaccurate' outside the "
-        r"constraints: pseudo-inertia not positive semidefinite for a \(.*; try the other solver",
+        match=r"^nearest_consistent: the conic solver failed \(CLARABEL: status 'optimal_inaccurate' but a "
+        r"\(-1.89\) outside the cone; CLARABEL_RELAXED: .*; SCS: .* outside the cone\)$",
     ):
         nearest_consistent(robot, true_params(robot))
 
@@ -251,7 +252,8 @@ def test_prior_weight_auto_on_too_few_samples_is_zero_and_says_why():
 
 
 def test_prior_weight_auto_names_a_weight_whose_solve_failed(monkeypatch):
-    """A candidate the solver fails on drops out of the choice (score inf), and the reason says so."""
+    """A candidate the solver fails on drops out of the choice (score inf): the reason says so, and a
+    warning (not a note: the choice was made without it) names the weight and the solver's words."""
     from idkit.estimators import physical
 
     solve = physical.ConsistentProgram.solve
@@ -263,9 +265,12 @@ def test_prior_weight_auto_names_a_weight_whose_solve_failed(monkeypatch):
 
     monkeypatch.setattr(physical.ConsistentProgram, "solve", failing)
     robot = tree_robot()
-    fit = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.05, seed=3)))
+    with pytest.warns(physical.PriorWeightWarning) as said:
+        fit = PhysicallyConsistentLS().fit(Problem(robot, simulated(robot, true_params(robot), 0.05, seed=3)))
     cv = fit.details["prior_weight_cv"]
     assert cv["scores"][cv["candidates"].index(3000)] == float("inf") and cv["chosen"] != 3000
-    assert cv["reason"].endswith(
-        "; 3000 left out (the solve failed: pcls: the conic solver failed (CLARABEL: status 'numerical'))"
-    )
+    assert cv["reason"].endswith("; 3000 left out (the solve failed)")
+    assert [str(w.message) for w in said if w.category is physical.PriorWeightWarning] == [
+        "pcls prior_weight=auto: the solve failed for weight 3000, left out of the choice (pcls: the conic "
+        "solver failed (CLARABEL: status 'numerical')); set estimator.prior_weight to fix one"
+    ]

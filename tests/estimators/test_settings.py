@@ -7,9 +7,9 @@ import dataclasses
 import pytest
 
 from idkit import registry
+from idkit.conic.program import AUTO_SOLVERS, ConsistentSettings
 from idkit.estimators.linear.least_squares import LinearSettings
 from idkit.estimators.linear.robust_ls import RLSSettings
-from idkit.estimators.physical import AUTO_SOLVERS, ConsistentSettings
 from idkit.options import OptionError
 
 
@@ -86,6 +86,8 @@ def test_settings_are_resolved_once_and_frozen_while_the_options_stay_as_given()
     assert isinstance(rls.settings, LinearSettings)
     pcls = registry.create("estimator", "pcls")
     assert pcls.settings == ConsistentSettings("auto", None, "auto", AUTO_SOLVERS)
+    pcls.solver = "scs"  # resolved when asked (at every fit): a changed option takes effect
+    assert pcls.settings.conic_solvers == ("SCS",)
     assert registry.create("estimator", "pcls", solver="scs").settings.conic_solvers == ("SCS",)
     with pytest.raises(dataclasses.FrozenInstanceError):
         pcls.settings.solver = "scs"

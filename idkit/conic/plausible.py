@@ -1,0 +1,127 @@
+"""Plausible, not only consistent: bounds that keep each identified link a body like its CAD one.
+
+A positive semidefinite pseudo-inertia says a body *can exist*; it does not say it is this robot's
+link. On real logs an unconstrained consistent fit can move mass between links the motion cannot
+tell apart (an upper arm at four times its CAD mass, a forearm at three): the held-out torque error
+does not see it, a controller or a simulator does. The options here, all linear in the standard
+parameters (so they join the same conic program, :mod:`idkit.conic.program`):
+
+* ``mass_ratio = (lo, hi)``: every link mass within ``[lo, hi]`` times its CAD mass;
+* ``total_mass``: the moving links' masses sum to a known value (kg), e.g. from the data sheet;
+* ``geometry``: where the model has collision (or else visual) geometry for a link, its mass lies
+  inside the ellipsoid bounding that geometry — the density-realisability condition of Wensing, Kim
+  & Slotine (RA-L 2017), ``tr(J Q) >= 0``, which also puts the centre of mass inside it
+  (:mod:`idkit.robots.geometry` builds the ellipsoids).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from idkit.interfaces import Robot
+from idkit.robots.inertia import link_count
+
+
+@dataclass(frozen=True)
+class Plausibility:
+    """Plausibility bounds of the consistent program (module doc); all off by default here, the
+    estimators choose their own defaults.
+
+    Attributes:
+        mass_ratio: ``(lo, hi)`` with ``0 <= lo <= 1 <= hi``: link masses within these multiples of CAD.
+        total_mass: the moving links' total mass (kg), or ``None``.
+    """
+
+    mass_ratio: tuple[float, float] | None = None
+    total_mass: float | None = None
+
+    @classmethod
+    def checked(cls, who: str, mass_ratio: Any = None, total_mass: Any = None) -> Plausibility:
+        """The bounds, or ``ValueError`` naming ``who`` and the option."""
+        ratio = None
+        if mass_ratio is not None:
+            try:
+                lo, hi = (float(x) for x in mass_ratio)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"{who}: mass_ratio must be [lo, hi] (multiples of each link's CAD mass), "
+                    f"got {mass_ratio!r}"
+                ) from None
+            if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= 1 <= hi):
+                raise ValueError(f"{who}: mass_ratio [lo, hi] needs 0 <= lo <= 1 <= hi, got [{lo:g}, {hi:g}]")
+            ratio = (lo, hi)
+        total = None
+        if total_mass is not None:
+            if isinstance(total_mass, bool) or not isinstance(total_mass, (int, float)):
+                raise ValueError(f"{who}: total_mass must be a number of kg or null, got {total_mass!r}")
+            if not (math.isfinite(total_mass) and total_mass > 0):
+                raise ValueError(f"{who}: total_mass must be > 0 kg, got {total_mass!r}")
+            total = float(total_mass)
+        return cls(ratio, total)
+
+    @property
+    def active(self) -> bool:
+        return self.mass_ratio is not None or self.total_mass is not None
+
+    def describe(self) -> str:
+        """One phrase for reports: what was bounded."""
+        parts = []
+        if self.mass_ratio is not None:
+            parts.append(f"link masses within [{self.mass_ratio[0]:g}, {self.mass_ratio[1]:g}] x CAD")
+        if self.total_mass is not None:
+            parts.append(f"total mass {self.total_mass:g} kg")
+        return "; ".join(parts) or "none"
+
+
+def plausibility_constraints(
+    robot: Robot, bounds: Plausibility, z: Any, unit: np.ndarray, who: str
+) -> list[Any]:
+    """cvxpy constraints on the scaled unknowns ``z`` (``p = unit * z``) for ``bounds``.
+
+    Raises:
+        ValueError: bounds that cannot hold together (a total mass outside what the ratios allow).
+    """
+    nb = link_count(robot)
+    masses = z[0 : 10 * nb : 10]  # in units of each link's CAD mass
+    cad = unit[0 : 10 * nb : 10]
+    out = []
+    if bounds.mass_ratio is not None:
+        lo, hi = bounds.mass_ratio
+        out += [masses >= lo, masses <= hi]
+    if bounds.total_mass is not None:
+        if bounds.mass_ratio is not None:
+            lo, hi = bounds.mass_ratio
+            if not lo * cad.sum() <= bounds.total_mass <= hi * cad.sum():
+                raise ValueError(
+                    f"{who}: total_mass={bounds.total_mass:g} kg is outside what mass_ratio allows "
+                    f"([{lo * cad.sum():g}, {hi * cad.sum():g}] kg for the CAD total {cad.sum():g} kg)"
+                )
+        out.append(cad @ masses == bounds.total_mass)
+    return out
+
+
+def plausibility_report(robot: Robot, bounds: Plausibility, params: Any) -> dict[str, Any]:
+    """For ``details["plausibility"]``: the bounds, and each link's mass beside CAD with the links that
+    ended at a bound (within 1e-6 relative) — where the data pulled against plausibility."""
+    nb = link_count(robot)
+    fitted = np.asarray(params[: 10 * nb : 10].tolist(), dtype=np.float64)
+    cad = robot.nominal_params().double().numpy()[0 : 10 * nb : 10]
+    ratio = fitted / cad
+    at_bound: list[str] = []
+    if bounds.mass_ratio is not None:
+        lo, hi = bounds.mass_ratio
+        at_bound = [
+            name
+            for name, r in zip(robot.link_names, ratio, strict=True)
+            if abs(r - lo) <= 1e-6 * max(lo, 1e-12) or abs(r - hi) <= 1e-6 * hi
+        ]
+    return {
+        "bounds": bounds.describe(),
+        "mass": dict(zip(robot.link_names, fitted.tolist(), strict=True)),
+        "cad_mass": dict(zip(robot.link_names, cad.tolist(), strict=True)),
+        "at_bound": at_bound,
+    }
