@@ -69,3 +69,10 @@ def test_the_swarm_engine_imports_no_estimator(path):
     """``idkit.optim`` is array-level: estimators, problems and studies build on it, not the reverse."""
     above = ("idkit.estimators", "idkit.problem", "idkit.studies", "idkit.reports", "idkit.robots")
     assert not {name for name in _imports(path) if name.startswith(above)}
+
+
+@pytest.mark.parametrize("path", _modules("conic"))
+def test_the_conic_toolbox_imports_no_estimator_study_or_report(path):
+    """``idkit.conic`` is what ``pcls``, ``payload`` and ``varpro`` share: it sits below all of them."""
+    above = ("idkit.estimators", "idkit.studies", "idkit.reports", "idkit.cli")
+    assert not {name for name in _imports(path) if name.startswith(above)}
