@@ -27,6 +27,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from idkit.cli import command_line, errors, output, provenance
+from idkit.cli.defaults import apply_real_robot_defaults
 from idkit.cli.source import RegistryConfigSource, RegistrySearchPath
 from idkit.cli.tasks import arguments, get_task
 from idkit.options import check_setting
@@ -106,8 +107,9 @@ def task(cfg: DictConfig) -> Any:
     single = hydra_cfg.mode == RunMode.RUN
     try:
         provenance.claim(run_dir, "hydra.run.dir" if single else "hydra.sweep.dir or hydra.sweep.subdir")
-        provenance.record(run_dir, cfg, HydraConfig.instance().cfg)
         with output.one_line_warnings():  # also in a launcher's worker process
+            apply_real_robot_defaults(cfg, hydra_cfg.overrides.task)
+            provenance.record(run_dir, cfg, HydraConfig.instance().cfg)
             return _run(cfg, run_dir)
     except Exception as exc:
         message = errors.one_line(exc)  # a refused input, or more memory than there is

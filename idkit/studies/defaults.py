@@ -1,0 +1,71 @@
+"""What an arm's owner gets by default: the options a measured recording of a model robot calls for.
+
+The config's defaults (``estimator=pso cost=f13``, no friction) are the paper's: its simulated
+cylindrical robot has neither friction nor offsets, and PSO over a relative cost is what the paper
+studies. On a real arm they are wrong — worse than predicting zero torque, with negative masses —
+so when a ``urdf`` or ``mjcf`` robot is fitted to measured ``data=``, each option the user did not
+set takes the value a robot owner needs (:data:`REAL_ROBOT`):
+
+* ``estimator=pcls``: every link a body that can exist, pulled towards the model's inertials by a
+  weight chosen from the data (the most accurate held-out fit idkit has on real arms, and one a
+  simulator can load);
+* ``robot.friction=true``, ``robot.offset=true``: Coulomb and viscous friction and a torque offset
+  per joint — every drive has them, and without them the rigid-body parameters absorb them;
+* no ``cost``: pcls minimises its own criterion, and the paper's relative cost would only add a
+  figure and a warning about floored near-zero torques.
+
+An option the user gave is kept, and the command says in one ``note:`` line what it chose and how
+to change it (:class:`RealRobotNote`). ``+experiment=paper`` and simulated scenarios are untouched.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping
+from typing import Any
+
+from idkit.notes import Note
+
+#: Robots described by a model file (the ones a real arm's owner brings).
+MODEL_ROBOTS = ("urdf", "mjcf")
+#: The option (``group`` or ``group.key``) → its value for a measured recording of a model robot.
+REAL_ROBOT: dict[str, Any] = {
+    "estimator": "pcls",
+    "cost": None,
+    "robot.friction": True,
+    "robot.offset": True,
+}
+
+
+class RealRobotNote(Note):
+    """The real-robot defaults were applied: which options, and how to change them."""
+
+
+def applies(task: str, robot: Any, data: Any) -> bool:
+    """Whether the real-robot defaults apply: one fit (``task=single``) of a model robot
+    (``robot`` a registry name or a config node naming one) to measured ``data``."""
+    name = robot.get("_name_") if isinstance(robot, Mapping) else robot
+    return task == "single" and name in MODEL_ROBOTS and data is not None
+
+
+def chosen(given: Collection[str]) -> dict[str, Any]:
+    """The real-robot options the user left to idkit: ``REAL_ROBOT`` without those in ``given``
+    (``"estimator"``, ``"robot.friction"``, ...; a group given also covers its keys, and a given
+    estimator keeps its cost as the config has it: a cost searcher needs one)."""
+    out = {}
+    for option, value in REAL_ROBOT.items():
+        group = option.split(".")[0]
+        if option in given or (option == "cost" and "estimator" in given):
+            continue
+        if option != group and group in given and group != "robot":
+            continue
+        out[option] = value
+    return out
+
+
+def describe(options: Mapping[str, Any]) -> str:
+    """The note's text for the options applied."""
+    shown = " ".join(f"{key}={'null' if v is None else str(v).lower()}" for key, v in options.items())
+    return (
+        f"measured data on a model robot: {shown} (a physically consistent fit with friction and torque "
+        "offsets); set any of them to change it, e.g. estimator=ls robot.friction=false"
+    )

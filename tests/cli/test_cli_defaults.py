@@ -1,0 +1,123 @@
+"""The real-robot defaults: measured data on a model robot gets pcls with friction and offsets,
+each option the user typed is kept, the paper's runs are untouched, and the note says what was done."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from importlib.resources import files
+
+import pytest
+from hydra import compose, initialize_config_module
+from hydra.core.global_hydra import GlobalHydra
+
+from idkit.cli.app import setup
+from idkit.cli.defaults import apply_real_robot_defaults
+from idkit.studies.defaults import RealRobotNote, applies, chosen
+
+URDF = str(files("idkit") / "robots/assets/cylindrical.urdf")
+
+
+def composed(*overrides: str):
+    setup()
+    GlobalHydra.instance().clear()
+    with initialize_config_module(config_module="idkit.conf", version_base="1.3"):
+        cfg = compose("config", overrides=list(overrides))
+    GlobalHydra.instance().clear()
+    return cfg
+
+
+def test_only_a_fit_of_a_model_robot_to_measured_data_gets_them():
+    assert applies("single", {"_name_": "urdf"}, "train.csv")
+    assert applies("single", "mjcf", ["a.csv", "b.csv"])
+    assert not applies("single", {"_name_": "cylindrical"}, "train.csv")  # the paper's robot
+    assert not applies("single", {"_name_": "urdf"}, None)  # a simulated scenario
+    assert not applies("kuka", {"_name_": "urdf"}, "train.csv")  # a study with its own estimators
+
+
+def test_what_the_user_typed_is_kept():
+    assert chosen({"robot", "data"}) == {
+        "estimator": "pcls",
+        "cost": None,
+        "robot.friction": True,
+        "robot.offset": True,
+    }
+    # an estimator given keeps the config's cost (a swarm needs one); a friction given is kept
+    assert chosen({"robot", "estimator", "robot.friction"}) == {"robot.offset": True}
+    assert chosen({"cost", "estimator.prior_weight"}) == {
+        "estimator": "pcls",
+        "robot.friction": True,
+        "robot.offset": True,
+    }
+
+
+def test_the_composed_config_is_changed_in_place_with_one_note():
+    overrides = ["robot=urdf", f"robot.urdf={URDF}", "data=train.csv", "robot.offset=false"]
+    cfg = composed(*overrides)
+    assert cfg.estimator._name_ == "pso" and cfg.cost._name_ == "f13"  # the config's own defaults
+    with pytest.warns(RealRobotNote) as said:
+        apply_real_robot_defaults(cfg, overrides)
+    assert cfg.estimator._name_ == "pcls" and cfg.estimator.prior_weight == "auto"
+    assert cfg.cost is None and cfg.robot.friction is True and cfg.robot.offset is False
+    assert [str(w.message) for w in said] == [
+        "measured data on a model robot: estimator=pcls cost=null robot.friction=true (a physically "
+        "consistent fit with friction and torque offsets); set any of them to change it, e.g. "
+        "estimator=ls robot.friction=false"
+    ]
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ["+scenario=outliers"],  # the paper's robot and scenario
+        ["robot=urdf", f"robot.urdf={URDF}"],  # a model robot on simulated data
+        [
+            "robot=urdf",
+            f"robot.urdf={URDF}",
+            "data=a.csv",
+            "estimator=pso",
+            "robot.friction=false",
+            "robot.offset=false",
+        ],  # everything typed
+    ],
+)
+def test_the_paper_and_simulations_and_a_fully_typed_command_are_untouched(overrides, recwarn):
+    cfg = composed(*overrides)
+    before = repr(cfg)
+    apply_real_robot_defaults(cfg, overrides)
+    assert repr(cfg) == before and not [w for w in recwarn if w.category is RealRobotNote]
+
+
+@pytest.mark.integration
+def test_the_short_command_fits_pcls_with_friction_and_records_it(tmp_path):
+    """The command a newcomer types: the recording of test_single_recordings' kind, no estimator."""
+    from tests.studies.test_single_recordings import raw_csv
+
+    train = raw_csv(tmp_path / "train.csv", 12.0, 0.2, 1)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from idkit.cli import main; main()",
+            "robot=urdf",
+            f"robot.urdf={URDF}",
+            f"data={train}",
+            f"hydra.run.dir={tmp_path / 'run'}",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert out.returncode == 0, out.stderr
+    assert "note: measured data on a model robot: estimator=pcls" in out.stderr
+    result = json.loads((tmp_path / "run" / "result.json").read_text())
+    estimate = result["payload"]["estimate"]
+    assert (
+        estimate["estimator"] == "PCLS"
+        and "d2.fc" in estimate["params"]
+        and "d2.offset" in estimate["params"]
+    )
+    assert result["config"]["estimator"]["_name_"] == "pcls" and result["config"]["cost"] is None
+    assert "pcls" in (tmp_path / "run" / ".hydra" / "config.yaml").read_text()
