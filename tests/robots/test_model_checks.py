@@ -121,7 +121,12 @@ def test_lower_equal_upper_means_no_limit():
     assert robot.tree.bodies[1].limits is None
 
 
-def test_non_physical_inertia_is_warned_fitted_by_ls_and_refused_by_pcls():
+def test_non_physical_inertia_is_warned_and_fitted_by_ls_and_by_pcls_with_a_physical_prior():
+    """Shipped URDFs with impossible inertias are common: pcls does not refuse them but takes the
+    nearest physical body as the prior, and says so in a warning naming the link."""
+    from idkit.conic.prior import ReferenceWarning
+    from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
+
     with pytest.warns(
         ModelWarning, match=r"link 'l2' \(<URDF text>\): .* triangle inequality \(0.01 \+ 0.01 < 0.04\)"
     ):
@@ -129,10 +134,11 @@ def test_non_physical_inertia_is_warned_fitted_by_ls_and_refused_by_pcls():
     problem = Problem(robot, simulate(robot, "clean", n_samples=60))
     estimate = registry.create("estimator", "ls").fit(problem)
     assert all(np.isfinite(list(estimate.params.values())))
-    with pytest.raises(
-        ValueError, match=r"^urdf: link 'l2' \(<URDF text>\): principal moments .* needs a physical"
-    ):
-        registry.create("estimator", "pcls").fit(problem)
+    with pytest.warns(ReferenceWarning, match=r"^pcls: the CAD inertia of l2 is no rigid body's"):
+        fit = registry.create("estimator", "pcls", prior_weight=10.0).fit(problem)
+    params = torch.tensor([fit.params[name] for name in robot.param_names], dtype=torch.float64)
+    assert (min_pseudo_inertia_eigenvalues(robot, params) >= 0).all()
+    assert fit.details["cad_reference"]["replaced"] == ["l2"]
 
 
 @pytest.mark.parametrize("source", ["cylindrical", "tree", "kuka"])
