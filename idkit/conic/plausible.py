@@ -104,13 +104,22 @@ def plausibility_constraints(
     return out
 
 
+#: A link mass outside these multiples of its CAD mass is flagged as implausible in every report,
+#: and is the default bound of ``plausible=true``: a link weighs what its CAD says to within a factor
+#: of two, or the CAD (or the fit) is wrong.
+PLAUSIBLE_MASS_RATIO = (0.5, 2.0)
+
+
 def plausibility_report(robot: Robot, bounds: Plausibility, params: Any) -> dict[str, Any]:
-    """For ``details["plausibility"]``: the bounds, and each link's mass beside CAD with the links that
-    ended at a bound (within 1e-6 relative) — where the data pulled against plausibility."""
+    """For ``details["plausibility"]``: what was enforced, each link's mass beside CAD, the links
+    outside :data:`PLAUSIBLE_MASS_RATIO` (``implausible``) and those that ended at an enforced
+    bound (within 1e-6 relative: where the data pulled against plausibility)."""
     nb = link_count(robot)
     fitted = np.asarray(params[: 10 * nb : 10].tolist(), dtype=np.float64)
     cad = robot.nominal_params().double().numpy()[0 : 10 * nb : 10]
     ratio = fitted / cad
+    lo, hi = PLAUSIBLE_MASS_RATIO
+    implausible = [name for name, r in zip(robot.link_names, ratio, strict=True) if not lo <= r <= hi]
     at_bound: list[str] = []
     if bounds.mass_ratio is not None:
         lo, hi = bounds.mass_ratio
@@ -120,8 +129,10 @@ def plausibility_report(robot: Robot, bounds: Plausibility, params: Any) -> dict
             if abs(r - lo) <= 1e-6 * max(lo, 1e-12) or abs(r - hi) <= 1e-6 * hi
         ]
     return {
-        "bounds": bounds.describe(),
+        "enforced": bounds.describe(),
         "mass": dict(zip(robot.link_names, fitted.tolist(), strict=True)),
         "cad_mass": dict(zip(robot.link_names, cad.tolist(), strict=True)),
+        "implausible": implausible,
+        "flagged_outside": list(PLAUSIBLE_MASS_RATIO),
         "at_bound": at_bound,
     }

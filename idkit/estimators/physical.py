@@ -18,7 +18,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from idkit.conic.plausible import Plausibility, plausibility_report
+from idkit.conic.plausible import PLAUSIBLE_MASS_RATIO, Plausibility, plausibility_report
 from idkit.conic.prior import cad_reference
 from idkit.conic.program import (
     NOISE_FLOOR,
@@ -193,17 +193,21 @@ class PhysicallyConsistentLS(Estimator):
             candidate of :data:`PRIOR_CANDIDATES` that predicts held-out contiguous blocks of the
             training data best (:func:`cross_validated_weight`).
         min_mass: lower bound on every link mass (kg); ``None`` = 1 % of the smallest CAD mass.
-        mass_ratio: ``[lo, hi]``: every link mass within these multiples of its CAD mass; ``None``: no
-            bound (:mod:`idkit.conic.plausible`).
-        total_mass: the moving links' total mass in kg (from a data sheet), or ``None``.
+        plausible: keep every link plausible, not only consistent (:mod:`idkit.conic.plausible`):
+            its mass within ``mass_ratio`` times CAD. Off by default: it trades held-out accuracy for
+            physical realism, and the report shows both (every fit flags links outside
+            :data:`~idkit.conic.plausible.PLAUSIBLE_MASS_RATIO`).
+        mass_ratio: ``[lo, hi]``, the bound ``plausible`` enforces.
+        total_mass: the moving links' total mass in kg (from a data sheet), or ``None``; enforced
+            whenever given.
         solver: ``"auto"`` (Clarabel, Clarabel relaxed, then SCS), ``"clarabel"`` or ``"scs"``.
 
     ``details``: ``min_eigenvalue`` per link, ``divergence`` per link, solver, status, times,
     ``rel_error_train`` (‖E‖/‖T‖ on the training samples), ``prior_weight`` (the one used) and, for
     ``"auto"``, ``prior_weight_cv`` (candidates, pooled and per-fold scores, the reason, its time),
-    ``plausibility`` (the bounds and the links at them), ``cad_reference`` (CAD bodies the prior
-    thickened or replaced), and the base-parameter uncertainty of
-    :func:`idkit.estimators.linear.uncertainty.base_uncertainty`.
+    ``plausibility`` (masses beside CAD, the implausible links, what was enforced, the links at a
+    bound), ``cad_reference`` (CAD bodies the prior thickened or replaced), and the base-parameter
+    uncertainty of :func:`idkit.estimators.linear.uncertainty.base_uncertainty`.
     """
 
     #: The conformance suite's problem: pcls needs a ``urdf`` robot (the cylindrical one from its URDF).
@@ -216,12 +220,14 @@ class PhysicallyConsistentLS(Estimator):
         self,
         prior_weight: float | Literal["auto"] = "auto",
         min_mass: float | None = None,
-        mass_ratio: Sequence[float] | None = None,
+        plausible: bool = False,
+        mass_ratio: Sequence[float] = PLAUSIBLE_MASS_RATIO,
         total_mass: float | None = None,
         solver: Solver = "auto",
     ) -> None:
         self.prior_weight = prior_weight
         self.min_mass = min_mass
+        self.plausible = plausible
         self.mass_ratio = mass_ratio
         self.total_mass = total_mass
         self.solver = solver
@@ -230,7 +236,10 @@ class PhysicallyConsistentLS(Estimator):
     @property
     def settings(self) -> ConsistentSettings:
         """The options as they are now: resolved at every fit, so a changed attribute takes effect."""
-        bounds = Plausibility.checked("pcls", self.mass_ratio, self.total_mass)
+        if not isinstance(self.plausible, bool):
+            raise ValueError(f"pcls: plausible must be true or false, got {self.plausible!r}")
+        ratio = Plausibility.checked("pcls", mass_ratio=self.mass_ratio).mass_ratio
+        bounds = Plausibility.checked("pcls", ratio if self.plausible else None, self.total_mass)
         return ConsistentSettings.checked(
             "pcls", self.prior_weight, self.min_mass, self.solver, auto=True, plausibility=bounds
         )
@@ -310,8 +319,7 @@ class PhysicallyConsistentLS(Estimator):
         }
         if solution.repaired:
             details["repaired"] = list(solution.repaired)
-        if settings.plausibility.active:
-            details["plausibility"] = plausibility_report(robot, settings.plausibility, params)
+        details["plausibility"] = plausibility_report(robot, settings.plausibility, params)
         if chosen is not None:
             details["prior_weight_cv"] = {**chosen.to_details(), "time_s": cv_time}
         return Estimate(

@@ -58,7 +58,40 @@ def text(result: RunResult) -> str:
     lines += _uncertainty_lines(est.details.get("uncertainty"), est.base_params or {})
     lines += payload_report.lines(est.details)
     lines += _validation_lines(result)
+    lines += _plausibility_lines(result)
     return "\n".join(lines)
+
+
+def _plausibility_lines(result: RunResult) -> list[str]:
+    """Each link's mass beside CAD when a link is implausible or a bound was enforced, and what
+    keeping every link plausible costs on the held-out files (when it was computed)."""
+    found = result.estimate.details.get("plausibility")
+    if not found or not (found.get("implausible") or found.get("enforced", "none") != "none"):
+        return []
+    lo, hi = found.get("flagged_outside", (0.5, 2.0))
+    lines = [
+        "",
+        f"link masses (kg) beside CAD; '!' outside [{lo:g}, {hi:g}] x CAD; enforced: {found['enforced']}",
+    ]
+    for link, mass in found["mass"].items():
+        cad = found["cad_mass"][link]
+        flag = " !" if link in found.get("implausible", ()) else ""
+        bound = " (at its bound)" if link in found.get("at_bound", ()) else ""
+        lines.append(f"{link:<24}{mass:12.4g}{cad:12.4g}{mass / cad:9.2f} x{flag}{bound}")
+    other = result.plausible
+    if other is not None:
+        now = " / ".join(f"{100 * h.scores.rel_all:.2f} %" for h in result.validation)
+        then = " / ".join(f"{100 * s.rel_all:.2f} %" for s in other.scores)
+        lines.append(
+            f"implausible: {', '.join(other.implausible)}; with estimator.plausible=true every link mass "
+            f"stays within [{lo:g}, {hi:g}] x CAD and the held-out ‖E‖/‖T‖ is {then} (this fit: {now})"
+        )
+    elif found.get("implausible"):
+        lines.append(
+            f"implausible: {', '.join(found['implausible'])}; estimator.plausible=true keeps every link mass "
+            f"within [{lo:g}, {hi:g}] x CAD (give validate= files to see what it costs)"
+        )
+    return lines
 
 
 def _uncertainty_lines(uncertainty: Mapping[str, Any] | None, base: Mapping[str, float]) -> list[str]:

@@ -28,10 +28,12 @@ import numpy as np
 
 from idkit.estimate import Estimate
 from idkit.interfaces import CostSearcher
+from idkit.notes import Note
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
 from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
+from idkit.studies.plausibility import PlausibleAlternative, plausible_alternative
 from idkit.studies.recordings import (
     DataFile,
     as_paths,
@@ -70,6 +72,8 @@ class RunResult:
             off, or not writable, e.g. a link mass <= 0).
         mjcf: the ``identified.xml`` (MJCF) text of an ``mjcf`` robot's fit, or of a ``urdf`` robot's
             with ``identified_mjcf=True`` (``None``: not asked, or not writable: non-physical inertia).
+        plausible: the same estimator with ``plausible=true``, scored on the same files, when the
+            fit left links implausible (:mod:`idkit.studies.plausibility`).
     """
 
     estimate: Estimate
@@ -79,6 +83,7 @@ class RunResult:
     validation: list[HeldOut] = field(default_factory=list)
     urdf: str | None = None
     mjcf: str | None = None
+    plausible: PlausibleAlternative | None = None
 
     @property
     def seed(self) -> int:
@@ -112,6 +117,11 @@ class RunResult:
             "parameter_error": self.parameter_error,
             "cost": {"name": self.cost_name, "value": self.estimate.cost},
             "validation": {held.file: held.scores.to_dict() for held in self.validation},
+            **(
+                {"plausible_alternative": self.plausible.to_dict([h.file for h in self.validation])}
+                if self.plausible is not None
+                else {}
+            ),
         }
 
     # Conveniences for Python users; the formatting lives in idkit.reports.single.
@@ -386,6 +396,9 @@ def run(
         },
     )
     scores = validate_files(robot_obj, fitted.params, held_out)
+    with warnings.catch_warnings():  # the alternative's own choices (its prior weight) are not the run's
+        warnings.simplefilter("ignore", Note)
+        alternative = plausible_alternative(estimator_obj, fitted, problem, held_out)
     return RunResult(
         replace(fitted, estimator=label),
         truth,
@@ -396,4 +409,5 @@ def run(
         if identified_urdf
         else None,
         _identified_mjcf(robot_obj, fitted.params, identified_mjcf),
+        alternative,
     )
