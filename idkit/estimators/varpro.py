@@ -199,9 +199,10 @@ class VariableProjection(Estimator):
         refine: ``"none"``: least squares for the linear parameters at the final shape;
             ``"pcls"``: physically consistent least squares there (pseudo-inertia LMIs, armature and
             friction ≥ 0), on the robot rebuilt with the found shape as its reference.
-        prior_weight: ``pcls``'s prior weight when ``refine="pcls"``: ``0`` (no pull towards the
-            a-priori model) unless given; ``"auto"`` cross-validates it as ``pcls``'s default does,
-            one conic program per fold and candidate weight.
+        prior_weight: ``pcls``'s prior weight when ``refine="pcls"``: ``"auto"`` (the default, as
+            ``pcls``'s) cross-validates the pull towards the URDF's inertials; a number fixes it.
+        plausible: with ``refine="pcls"``, keep every link mass within ``pcls``'s plausible range of
+            its CAD mass (``pcls``'s ``plausible``).
         threads: torch intra-op threads; ``None`` = ``idkit.runtime``'s size rule.
 
     ``details``: ``shape`` (``φ2``, ``φ3`` per joint), ``criterion_value`` (‖τ − Wα‖), ``history``
@@ -224,7 +225,8 @@ class VariableProjection(Estimator):
         polish: int = 50,
         search_samples: int = 250,
         refine: Literal["none", "pcls"] = "none",
-        prior_weight: float | Literal["auto"] = 0.0,
+        prior_weight: float | Literal["auto"] = "auto",
+        plausible: bool = False,
         threads: int | None = None,
     ) -> None:
         self.particles = particles
@@ -236,6 +238,7 @@ class VariableProjection(Estimator):
 
         ConsistentSettings.checked("varpro", prior_weight, auto=True)  # refused now, not after the search
         self.prior_weight = prior_weight
+        self.plausible = plausible
         self.threads = threads
 
     @property
@@ -341,9 +344,19 @@ class VariableProjection(Estimator):
         with warnings.catch_warnings():  # the merged-armature statement was made by the robot already
             warnings.simplefilter("ignore", UserWarning)
             shaped = robot.with_options(sigmoid_steepness=steepness.tolist(), sigmoid_shift=shift.tolist())
-        fitted = PhysicallyConsistentLS(prior_weight=self.prior_weight).fit(replace(problem, robot=shaped))
+        refine = PhysicallyConsistentLS(prior_weight=self.prior_weight, plausible=self.plausible)
+        fitted = refine.fit(replace(problem, robot=shaped))
         params = torch.tensor([fitted.params[name] for name in robot.param_names], dtype=torch.float64)
-        keep = ("min_eigenvalue", "divergence", "solver", "status", "solve_time_s", "uncertainty")
+        keep = (
+            "min_eigenvalue",
+            "divergence",
+            "solver",
+            "status",
+            "solve_time_s",
+            "uncertainty",
+            "prior_weight",
+            "plausibility",
+        )
         return params.to(problem.tensors().tau), {k: fitted.details[k] for k in keep}
 
 
