@@ -57,8 +57,10 @@ def plausible_alternative(
     implausible = tuple(fitted.details.get("plausibility", {}).get("implausible", ()))
     if not held_out or not implausible or getattr(estimator, "plausible", True) is not False:
         return None
-    other = copy.copy(estimator)
-    other.plausible = True  # type: ignore[attr-defined]  (options are resolved at every fit)
+    other = copy.copy(estimator)  # options are resolved at every fit
+    other.plausible = True  # type: ignore[attr-defined]
+    if "prior_weight" in fitted.details:  # the same pull towards CAD: the comparison is the bounds alone
+        other.prior_weight = fitted.details["prior_weight"]  # type: ignore[attr-defined]
     estimate = other.fit(problem)
     return PlausibleAlternative(
         estimate, validate_files(problem.robot, estimate.params, held_out), implausible
