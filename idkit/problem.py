@@ -214,6 +214,17 @@ class Problem:
     def _tensors(self) -> Samples:
         return self.samples.to(device=self.device, dtype=self.torch_dtype)
 
+    def base_regressor(self) -> Tensor:
+        """The robot's base regressor of the samples, ``[N n, B]`` (rows sample-major), computed once:
+        least-squares estimators, ``pcls`` and a refit with other bounds all start from it, and it
+        is the costliest step of a linear fit on a long recording."""
+        return self._base_regressor
+
+    @cached_property
+    def _base_regressor(self) -> Tensor:
+        s = self.tensors()
+        return self.robot.regressor(s.q, s.qd, s.qdd).reshape(-1, len(self.robot.base_param_names))
+
     def error(self, params: Tensor) -> Tensor:
         """Torque error ``E[..., n, N] = measured - predicted`` (eqs. 5-6) for ``params[..., P]``."""
         s = self.tensors()

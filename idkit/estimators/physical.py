@@ -260,7 +260,7 @@ class PhysicallyConsistentLS(Estimator):
         reference = cad_reference(robot)
         reference.announce("pcls")
         s = problem.tensors()
-        W = robot.regressor(s.q, s.qd, s.qdd).reshape(-1, len(robot.base_param_names))
+        W = problem.base_regressor()
         tau = s.tau.reshape(-1)
         R, b, rest = compress(W, tau)
         norm2 = float(tau.double().square().sum())
