@@ -274,10 +274,11 @@ class PhysicallyConsistentLS(Estimator):
                 built[prior] = ConsistentProgram(robot, settings, R.shape[0], prior, reference=reference)
             return built[prior]
 
-        first = programs(False).solve(R, b, scale2, 0.0, once=settings.prior_weight == 0)
+        once = settings.prior_weight != "auto"  # only cross-validation solves a program many times
+        first = programs(False).solve(R, b, scale2, 0.0, once=once)
         ls_scale2, scale2 = scale2, misfit_scale(scale2, first.data_term * scale2 + rest, W.shape)
         if scale2 != ls_scale2:  # the tie-break's weight is relative to the data's: solve again
-            first = programs(False).solve(R, b, scale2, 0.0, once=settings.prior_weight == 0)
+            first = programs(False).solve(R, b, scale2, 0.0, once=once)
         chosen = None
         if settings.prior_weight == "auto":
             started = time.perf_counter()
