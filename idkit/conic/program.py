@@ -45,6 +45,7 @@ parameters that fit equally well it picks those closest to CAD.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import warnings
@@ -369,10 +370,11 @@ def solve_program(
     failures = [] if failures is None else failures
     for config in configs:
         name, options = SOLVER_CONFIGS[config]
+        solver = _interruptible_scs() if name == "SCS" else name
         try:
             with warnings.catch_warnings():  # "may be inaccurate": the status says it, and is reported
                 warnings.simplefilter("ignore", UserWarning)
-                program.solve(solver=name, ignore_dpp=once, **options)
+                program.solve(solver=solver, ignore_dpp=once, **options)
         except cp.error.SolverError as exc:
             failures.append(f"{config}: {str(exc).splitlines()[0]}")
             continue
@@ -386,6 +388,28 @@ def solve_program(
     if own:
         raise IdentificationError(f"{who}: the conic solver failed ({'; '.join(failures)})")
     return None
+
+
+@functools.cache
+def _interruptible_scs() -> Any:
+    """cvxpy's SCS interface, but Ctrl-C stops the run: SCS catches SIGINT itself and returns
+    "interrupted", which cvxpy reports as a solver failure, so the next fold or weight would start."""
+    from cvxpy.reductions.solvers.conic_solvers.scs_conif import SCS
+
+    class InterruptibleSCS(SCS):  # type: ignore[misc]
+        def name(self) -> str:
+            return "SCS_INTERRUPTIBLE"
+
+        def invert(self, solution: dict[str, Any], inverse_data: Any) -> Any:
+            if solution["info"].get("status_val") == SCS_INTERRUPTED:
+                raise KeyboardInterrupt
+            return super().invert(solution, inverse_data)
+
+    return InterruptibleSCS()
+
+
+#: SCS's status value when it stopped on SIGINT.
+SCS_INTERRUPTED = -5
 
 
 def compress(W: Tensor, tau: Tensor | None = None) -> tuple[np.ndarray, np.ndarray, float]:

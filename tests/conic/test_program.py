@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import warnings
 from importlib.resources import files
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -104,3 +105,47 @@ def test_a_solution_a_hair_outside_the_cone_is_moved_onto_it_and_a_far_one_refus
     rod[0, 0] = -0.01
     _, _, worst = _into_cone(np.concatenate([_standard_from_pseudo(rod), ball]), 2, names)
     assert worst == "rod (-0.01)"
+
+
+def test_scs_stopped_by_ctrl_c_stops_the_run_instead_of_failing_one_candidate():
+    """SCS catches SIGINT and returns "interrupted", which cvxpy calls a solver failure: the
+    cross-validation would go on to the next fold. idkit's SCS interface turns it back into Ctrl-C."""
+    from idkit.conic.program import SCS_INTERRUPTED, _interruptible_scs
+
+    with pytest.raises(KeyboardInterrupt):
+        _interruptible_scs().invert({"info": {"status_val": SCS_INTERRUPTED}}, None)
+
+
+@pytest.mark.integration
+def test_ctrl_c_during_an_scs_cross_validation_stops_within_a_second(tmp_path):
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent(
+        f"""
+        import os, signal, sys, threading, time
+        sys.path.insert(0, {str(Path(__file__).parent)!r})
+        from test_program import CYLINDRICAL, smooth_samples
+        from idkit.estimators.physical import PhysicallyConsistentLS
+        from idkit.problem import Problem
+        from idkit.robots.urdf import URDFRobot
+        robot = URDFRobot(CYLINDRICAL, friction=True, offset=True)
+        problem = Problem(robot, smooth_samples(robot, 1))
+        sent = []
+        def interrupt():
+            time.sleep(4.0)
+            sent.append(time.perf_counter())
+            os.kill(os.getpid(), signal.SIGINT)
+        threading.Thread(target=interrupt, daemon=True).start()
+        try:
+            PhysicallyConsistentLS(solver="scs").fit(problem)
+            print("finished")
+        except KeyboardInterrupt:
+            print(f"stopped {{time.perf_counter() - sent[0]:.3f}}")
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    last = out.stdout.strip().splitlines()[-1] if out.stdout.strip() else ""
+    assert last.startswith("stopped"), repr(out.stdout) + out.stderr[-2000:]
+    assert float(last.split()[1]) < 1.0
