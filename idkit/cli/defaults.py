@@ -19,7 +19,7 @@ from idkit.studies.defaults import RealRobotNote, applies, chosen, describe
 
 def apply_real_robot_defaults(cfg: DictConfig, overrides: Sequence[str]) -> None:
     """Set the real-robot options the user left open in ``cfg`` (in place) and say so in a note."""
-    if not applies(str(cfg.get("task")), cfg.get("robot"), cfg.get("data")):
+    if not applies(str(cfg.get("task")), cfg.get("robot"), cfg.get("data"), cfg.get("estimator")):
         return
     given = {override.key_or_group for override in OverridesParser.create().parse_overrides(list(overrides))}
     options = chosen(given)

@@ -40,11 +40,20 @@ class RealRobotNote(Note):
     """The real-robot defaults were applied: which options, and how to change them."""
 
 
-def applies(task: str, robot: Any, data: Any) -> bool:
-    """Whether the real-robot defaults apply: one fit (``task=single``) of a model robot
-    (``robot`` a registry name or a config node naming one) to measured ``data``."""
+#: Estimators that hold the arm's model fixed (a payload on it): its friction and offsets are the
+#: model file's, not new unknowns.
+FIXED_ARM_ESTIMATORS = ("payload",)
+
+
+def applies(task: str, robot: Any, data: Any, estimator: Any = None) -> bool:
+    """Whether the real-robot defaults apply: one fit (``task=single``) of a model robot (``robot`` a
+    registry name or a config node naming one) to measured ``data``, by an estimator that identifies
+    the arm (not one of :data:`FIXED_ARM_ESTIMATORS`)."""
     name = robot.get("_name_") if isinstance(robot, Mapping) else robot
-    return task == "single" and name in MODEL_ROBOTS and data is not None
+    method = estimator.get("_name_") if isinstance(estimator, Mapping) else estimator
+    return (
+        task == "single" and name in MODEL_ROBOTS and data is not None and method not in FIXED_ARM_ESTIMATORS
+    )
 
 
 def chosen(given: Collection[str]) -> dict[str, Any]:

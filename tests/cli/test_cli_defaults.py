@@ -34,6 +34,8 @@ def test_only_a_fit_of_a_model_robot_to_measured_data_gets_them():
     assert not applies("single", {"_name_": "cylindrical"}, "train.csv")  # the paper's robot
     assert not applies("single", {"_name_": "urdf"}, None)  # a simulated scenario
     assert not applies("kuka", {"_name_": "urdf"}, "train.csv")  # a study with its own estimators
+    # a payload on the arm holds the arm's model (its friction and offsets) fixed
+    assert not applies("single", {"_name_": "urdf"}, "train.csv", {"_name_": "payload"})
 
 
 def test_what_the_user_typed_is_kept():
