@@ -18,11 +18,12 @@ its ``identified.urdf`` text (``identified_urdf=False`` to skip), a fit of an ``
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -46,6 +47,9 @@ from idkit.studies.recordings import (
 )
 from idkit.studies.result import Provenance
 from idkit.studies.validation import Validation, validate_files
+
+if TYPE_CHECKING:
+    from idkit.model import IdentifiedModel
 
 
 @dataclass(frozen=True)
@@ -74,6 +78,7 @@ class RunResult:
             with ``identified_mjcf=True`` (``None``: not asked, or not writable: non-physical inertia).
         plausible: the same estimator with ``plausible=true``, scored on the same files, when the
             fit left links implausible (:mod:`idkit.studies.plausibility`).
+        robot: the robot object the estimator fitted (``model`` puts the estimate back on it).
     """
 
     estimate: Estimate
@@ -84,6 +89,21 @@ class RunResult:
     urdf: str | None = None
     mjcf: str | None = None
     plausible: PlausibleAlternative | None = None
+    robot: Any = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def model(self) -> IdentifiedModel:
+        """The identified model (``predict``, ``params`` with σ, ``save``), with this run's held-out
+        scores as its ``validation`` and this result as its ``result``.
+
+        Raises:
+            ValueError: the result was made without its robot object (e.g. read back from a file).
+        """
+        from idkit.model import IdentifiedModel
+
+        if self.robot is None:
+            raise ValueError("this RunResult holds no robot object, so it has no model")
+        return IdentifiedModel(self.robot, self.estimate, validation=self.validation, result=self)
 
     @property
     def seed(self) -> int:
@@ -410,4 +430,5 @@ def run(
         else None,
         _identified_mjcf(robot_obj, fitted.params, identified_mjcf),
         alternative,
+        robot_obj,
     )
