@@ -126,9 +126,9 @@ class IdentifiedModel:
         the CAD values or a simulation's truth; it has no standard deviations."""
         if not isinstance(params, Mapping):
             values = np.asarray(params.tolist() if hasattr(params, "tolist") else params, dtype=np.float64)
-            if values.shape != (robot.n_params,):
+            if values.shape != (len(robot.param_names),):
                 raise ValueError(
-                    f"IdentifiedModel.from_params: params must be [{robot.n_params}] "
+                    f"IdentifiedModel.from_params: params must be [{len(robot.param_names)}] "
                     f"({_few(list(robot.param_names))}), got shape {values.shape}"
                 )
             params = dict(zip(robot.param_names, values.tolist(), strict=True))
@@ -137,8 +137,8 @@ class IdentifiedModel:
     def __repr__(self) -> str:
         held = f", {len(self.validation)} held-out file(s)" if self.validation else ""
         return (
-            f"IdentifiedModel({type(self.robot).__name__}, {self.robot.n_joints} joints, "
-            f"{self.robot.n_params} parameters, estimator {self.estimate.estimator!r}{held})"
+            f"IdentifiedModel({type(self.robot).__name__}, {len(self.robot.joint_names)} joints, "
+            f"{len(self.robot.param_names)} parameters, estimator {self.estimate.estimator!r}{held})"
         )
 
     @property
@@ -172,7 +172,7 @@ class IdentifiedModel:
         import torch
 
         states, as_numpy = _as_tensors(q, qd, qdd)
-        n = self.robot.n_joints
+        n = len(self.robot.joint_names)
         shapes = [tuple(x.shape) for x in states]
         if len(set(shapes)) != 1 or not shapes[0] or shapes[0][-1] != n:
             got = ", ".join(f"{name} {shape}" for name, shape in zip(("q", "qd", "qdd"), shapes, strict=True))

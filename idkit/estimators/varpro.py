@@ -36,6 +36,7 @@ from idkit.estimate import Estimate, to_python
 from idkit.estimators.linear.observation import IdentificationError
 from idkit.estimators.linear.uncertainty import Spectrum, base_uncertainties
 from idkit.interfaces import Estimator, Robot
+from idkit.model import IdentifiedModel
 from idkit.optim import swarm
 from idkit.problem import Problem
 from idkit.robots.drives import sigmoid_friction
@@ -293,9 +294,10 @@ class VariableProjection(Estimator):
         steepness, shift = theta[:n], theta[n:]
         with torch_threads(threads), torch.no_grad():
             if self.refine == "pcls":
-                params, details = self._pcls(robot, problem, steepness, shift)
+                refined, details = self._pcls(robot, problem, steepness, shift)
+                params = refined.vector.to(s.tau)
                 alpha = robot.base_params(params)
-                predicted = robot.inverse_dynamics(params, s.q, s.qd, s.qdd)
+                predicted = refined.predict(s.q, s.qd, s.qdd)
             else:
                 solved = _solve(data, theta)
                 params = _standard(robot, data, theta, solved.alpha)
@@ -335,8 +337,9 @@ class VariableProjection(Estimator):
 
     def _pcls(
         self, robot: Robot, problem: Problem, steepness: Tensor, shift: Tensor
-    ) -> tuple[Tensor, dict[str, Any]]:
-        """pcls on the robot whose reference sigmoid shape is the one found."""
+    ) -> tuple[IdentifiedModel, dict[str, Any]]:
+        """pcls on the robot whose reference sigmoid shape is the one found: the model on ``robot``
+        (whose parameters include the shape) and the details kept of the fit."""
         from dataclasses import replace
 
         from idkit.estimators.physical import PhysicallyConsistentLS
@@ -346,7 +349,6 @@ class VariableProjection(Estimator):
             shaped = robot.with_options(sigmoid_steepness=steepness.tolist(), sigmoid_shift=shift.tolist())
         refine = PhysicallyConsistentLS(prior_weight=self.prior_weight, plausible=self.plausible)
         fitted = refine.fit(replace(problem, robot=shaped))
-        params = torch.tensor([fitted.params[name] for name in robot.param_names], dtype=torch.float64)
         keep = (
             "min_eigenvalue",
             "divergence",
@@ -357,7 +359,7 @@ class VariableProjection(Estimator):
             "prior_weight",
             "plausibility",
         )
-        return params.to(problem.tensors().tau), {k: fitted.details[k] for k in keep}
+        return IdentifiedModel(robot, fitted), {k: fitted.details[k] for k in keep}
 
 
 def _polish(

@@ -23,6 +23,7 @@ from torch import Tensor
 
 from idkit.estimate import Estimate, HistoryError, history_table
 from idkit.interfaces import Cost, Estimator, Robot
+from idkit.model import IdentifiedModel
 from idkit.problem import Problem, Samples
 from idkit.testing._common import call, check_hyperparameters, conformance_check, expect_close, fail
 
@@ -67,7 +68,7 @@ def make_problem(
     t = 10.0 * torch.arange(1, n_samples + 1, dtype=torch.float64) / n_samples
     q, qd, qdd = robot.excitation(t)
     with torch.no_grad():
-        tau = robot.inverse_dynamics(truth.to(torch.float64), q, qd, qdd)
+        tau = IdentifiedModel.from_params(robot, truth, "truth").predict(q, qd, qdd)
     gen = torch.Generator().manual_seed(20260301)
     tau = tau * (1 + noise * (2 * torch.rand(tau.shape, generator=gen, dtype=torch.float64) - 1))
     return Problem(robot, Samples(q, qd, qdd, tau), cost=criterion, seed=seed, dtype=dtype)
