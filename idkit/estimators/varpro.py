@@ -235,12 +235,25 @@ class VariableProjection(Estimator):
         self.polish = polish
         self.search_samples = search_samples
         self.refine = refine
-        from idkit.conic.program import ConsistentSettings  # cvxpy stays unimported until a fit
-
-        ConsistentSettings.checked("varpro", prior_weight, auto=True)  # refused now, not after the search
         self.prior_weight = prior_weight
         self.plausible = plausible
         self.threads = threads
+        self.resolve()  # a bad option is refused now, not after the search; every fit resolves again
+
+    def resolve(self) -> None:
+        """Check the options (``ValueError`` naming the one at fault); a fit reads them as they are."""
+        from idkit.conic.program import ConsistentSettings  # cvxpy stays unimported until a fit
+
+        if self.particles < 1 or self.iterations < 1 or self.polish < 0 or self.search_samples < 1:
+            raise ValueError(
+                f"varpro: need particles >= 1, iterations >= 1, polish >= 0 and search_samples >= 1, got "
+                f"{self.particles}, {self.iterations}, {self.polish}, {self.search_samples}"
+            )
+        if self.refine not in ("none", "pcls"):
+            raise ValueError(f"varpro: refine must be 'none' or 'pcls', got {self.refine!r}")
+        if self.threads is not None and (isinstance(self.threads, bool) or self.threads < 1):
+            raise ValueError(f"varpro: threads must be None or an integer >= 1, got {self.threads!r}")
+        ConsistentSettings.checked("varpro", self.prior_weight, auto=True)
 
     @property
     def name(self) -> str:
@@ -248,17 +261,13 @@ class VariableProjection(Estimator):
 
     def fit(self, problem: Problem) -> Estimate:
         start = time.perf_counter()
+        self.resolve()
         problem.check_identifiable()
         robot = problem.robot
         if getattr(robot, "friction", None) != "sigmoid":
             raise IdentificationError(
                 f"varpro: robot {type(robot).__name__} has no nonlinear friction shapes; use a 'urdf' robot "
                 "with friction=sigmoid (a model linear in its parameters needs estimator=ls)"
-            )
-        if self.particles < 1 or self.iterations < 1 or self.polish < 0 or self.search_samples < 1:
-            raise ValueError(
-                f"varpro: need particles >= 1, iterations >= 1, polish >= 0 and search_samples >= 1, got "
-                f"{self.particles}, {self.iterations}, {self.polish}, {self.search_samples}"
             )
         s = problem.tensors()
         n = robot.n_joints

@@ -286,6 +286,12 @@ def run(
             "with the FloBaRoID recordings"
         )
     variants = [_model(spec) for spec in models]
+    est_objs = [build("estimator", spec) for spec in estimators]  # refused before the data load
+    searches = [isinstance(obj, CostSearcher) for obj in est_objs]
+    labels = unique_labels(
+        [(spec, search_cost, s) for spec, s in zip(estimators, searches, strict=True)], where="kuka"
+    )
+    cost = build("cost", search_cost)
     names = (train, *test)
     rigid = URDFRobot(str(urdf))
     # an automatic cut-off is chosen with the richest model variant's regressor
@@ -298,12 +304,6 @@ def run(
     recordings = dict(zip(names, loaded, strict=True))
     as_recorded = load_files(rigid, [data_dir / f"{name}.npz" for name in names], {"apply": "off"})
     checks = {name: data_check(f.samples, f.times) for name, f in zip(names, as_recorded, strict=True)}
-    est_objs = [build("estimator", spec) for spec in estimators]
-    searches = [isinstance(obj, CostSearcher) for obj in est_objs]
-    labels = unique_labels(
-        [(spec, search_cost, s) for spec, s in zip(estimators, searches, strict=True)], where="kuka"
-    )
-    cost = build("cost", search_cost)
     data = {"dir": str(data_dir), "train": train, "test": list(test), "stride": stride}
     if any(f.preprocessed for f in loaded):
         data["preprocess"] = {k: v for k, v in training.preprocess.items() if k != "apply"}

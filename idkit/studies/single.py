@@ -373,6 +373,8 @@ def run(
     from idkit.problem import Problem
 
     robot_obj = build("robot", robot)
+    cost_obj = build("cost", cost)  # a bad option is refused before the data are loaded
+    estimator_obj = build("estimator", estimator)
     if validate is not None and data is not None:
         refuse_training_files(data, validate)
     samples, truth, source, resolved = _load(
@@ -387,8 +389,6 @@ def run(
         refuse_seen_samples(samples, held_out)
     if held_out:
         source = _describe_files(held_out, resolved, source)
-    cost_obj = build("cost", cost)
-    estimator_obj = build("estimator", estimator)
     read = None if data is None else reader_like_data(robot_obj, data, samples, resolved, recording)
     problem = Problem(
         robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype, read_like_data=read
