@@ -4,6 +4,7 @@ saving, and the one-line entry running the command's study."""
 
 from __future__ import annotations
 
+import inspect
 import sys
 import warnings
 from pathlib import Path
@@ -16,6 +17,7 @@ import idkit
 from idkit.data import simulate
 from idkit.model import IdentifiedModel
 from idkit.robots.urdf import URDFRobot
+from idkit.studies import single
 
 KUKA = Path(__file__).resolve().parents[2] / "shared" / "data" / "kuka-lwr4"
 BATCHES = ((), (7,), (2, 7))
@@ -195,18 +197,59 @@ def test_identify_returns_the_model_with_its_held_out_scores_and_run(arm):
     )
 
 
-def test_identify_has_the_commands_defaults(hydra_compose):
-    """``idkit robot=... data=...`` and ``idkit.identify(robot, data)`` choose the same estimator and cost:
-    both are ``idkit.studies.single.run``'s (the command's config must not drift from it)."""
-    import inspect
+@pytest.mark.parametrize(
+    "typed",
+    [(), ("estimator=ls",), ("robot.friction=false", "cost=f1"), ("estimator=pso", "robot.offset=false")],
+    ids=str,
+)
+def test_identify_chooses_what_the_command_chooses(hydra_compose, typed):
+    """``idkit robot=urdf robot.urdf=... data=... <typed>`` and ``idkit.identify`` with the same options
+    given run the same estimator, cost and joint terms (the real-robot defaults of idkit.studies.defaults
+    where not typed, the config's own otherwise)."""
+    from idkit.api import _real_robot_defaults
+    from idkit.cli.defaults import apply_real_robot_defaults
+    from idkit.studies.defaults import RealRobotNote
 
-    from idkit.studies import single
-
-    config = hydra_compose()
+    urdf = str(Path(idkit.__file__).parent / "robots" / "assets" / "cylindrical.urdf")
+    overrides = ["robot=urdf", f"robot.urdf={urdf}", "data=train.csv", *typed]
+    config = hydra_compose(*overrides)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RealRobotNote)
+        apply_real_robot_defaults(config, overrides)
+    robot: dict[str, object] = {"_name_": "urdf", "urdf": urdf}
+    options: dict[str, object] = {}
+    for item in typed:
+        key, value = item.split("=")
+        parsed = {"false": False, "true": True}.get(value, value)
+        if key.startswith("robot."):
+            robot[key.removeprefix("robot.")] = parsed
+        else:
+            options[key] = parsed
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RealRobotNote)
+        robot, options = _real_robot_defaults(robot, "train.csv", options)
     defaults = inspect.signature(single.run).parameters
-    run_defaults = inspect.signature(idkit.run).parameters
-    for key in ("estimator", "cost"):
-        assert config[key]["_name_"] == defaults[key].default == run_defaults[key].default
+    estimator = options.get("estimator", defaults["estimator"].default)
+    cost = options.get("cost", defaults["cost"].default)
+    assert estimator == config.estimator["_name_"]
+    assert cost == (None if config.get("cost") is None else config.cost["_name_"])
+    assert (robot.get("friction", False), robot.get("offset", False)) == (
+        config.robot.friction,
+        config.robot.offset,
+    )
+
+
+def test_a_ready_robot_gets_the_real_robot_estimator_and_keeps_its_terms():
+    from idkit.api import _real_robot_defaults
+    from idkit.studies.defaults import RealRobotNote
+
+    robot = URDFRobot("cylindrical")
+    with pytest.warns(RealRobotNote, match="estimator=pcls cost=null"):
+        kept, options = _real_robot_defaults(robot, "train.csv", {"seed": 3})
+    assert kept is robot and options == {"seed": 3, "estimator": "pcls", "cost": None}
+    assert _real_robot_defaults(robot, None, {}) == (robot, {})  # a simulation: the paper's defaults
+    cylindrical = idkit.registry.create("robot", "cylindrical")
+    assert _real_robot_defaults(cylindrical, "train.csv", {}) == (cylindrical, {})
 
 
 # --- the KUKA LWR4+ recordings -------------------------------------------------------------------
