@@ -29,7 +29,7 @@ def main() -> None:
     robot = CylindricalRobot()
     problem = Problem(robot, simulate(robot, "torque_noise", seed=0), paper.f13(), seed=0)
     objective = Objective(problem, [paper.f13()])
-    rules = ParticleSwarm(preset="paper").resolved.rules
+    rules = ParticleSwarm(preset="paper").resolve().rules
     lower, upper = objective.lower, objective.upper
 
     def steps(state: swarm.SwarmState, random: torch.Tensor, weights: torch.Tensor) -> swarm.SwarmState:

@@ -75,7 +75,7 @@ def main() -> None:
     robot = CylindricalRobot()
     problems = [Problem(robot, simulate(robot, "torque_noise", seed=t), None, seed=t) for t in range(TRIALS)]
     pso = ParticleSwarm(history=False)
-    rules = pso.resolved.rules
+    rules = pso.resolve().rules
     before = load()
 
     def engine(trials: list[Problem], cost: Cost, threads: int) -> float:

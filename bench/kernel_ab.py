@@ -79,7 +79,7 @@ def main() -> None:
     cost = paper.f13()
     robot = CylindricalRobot()
     objective = Objective(Problem(robot, simulate(robot, "torque_noise", seed=0), cost, seed=0), [cost])
-    rules = ParticleSwarm(preset="paper").resolved.rules
+    rules = ParticleSwarm(preset="paper").resolve().rules
     spec = objective.spec()
     linear, offset = spec.linear.contiguous().numpy(), spec.offset.contiguous().numpy()
     factor_codes, parameters = (

@@ -15,6 +15,7 @@ from pathlib import Path
 import torch
 
 from idkit.estimators.physical import PhysicallyConsistentLS
+from idkit.model import IdentifiedModel
 from idkit.problem import Problem
 from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
@@ -49,7 +50,7 @@ def main() -> None:
             problem = Problem(robot, train)
             for weight in (0.0, 10.0, 30.0, 100.0, 300.0):
                 estimate = PhysicallyConsistentLS(prior_weight=weight).fit(problem)
-                params = torch.tensor([estimate.params[n] for n in robot.param_names], dtype=torch.float64)
+                params = IdentifiedModel(robot, estimate).vector
                 scores = [100 * validate(robot, s, params).rel_all for s in own]
                 same = (
                     "–"

@@ -23,6 +23,7 @@ from idkit import registry
 from idkit.conic.program import nearest_consistent
 from idkit.data.load import load_data_file
 from idkit.estimators.physical import PhysicallyConsistentLS
+from idkit.model import IdentifiedModel
 from idkit.problem import Problem, Samples
 from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
@@ -48,7 +49,7 @@ def row(label: str, robot: URDFRobot, params: torch.Tensor, seconds: float, data
 
 
 def vector(robot: URDFRobot, values: dict[str, float]) -> torch.Tensor:
-    return torch.tensor([values[name] for name in robot.param_names], dtype=torch.float64)
+    return IdentifiedModel.from_params(robot, values).vector
 
 
 def main() -> None:

@@ -40,7 +40,7 @@ def main() -> None:
     robot = CylindricalRobot()
     problem = Problem(robot, simulate(robot, "torque_noise", seed=0), paper.f13(), seed=0)
     objective = Objective(problem, [paper.f13()])
-    rules = ParticleSwarm(preset="paper").resolved.rules
+    rules = ParticleSwarm(preset="paper").resolve().rules
     print("| runs | engine | µs CPU per move (ns per particle-move) | split |\n| --- | --- | --- | --- |")
     for runs in (1, 10, 436):  # 436 = the chunk of runs a 10,000-run batch is cut into
         draws = lambda: swarm.Draws([swarm.Uniform(problem.generator(), objective.lower)])  # noqa: E731

@@ -55,6 +55,7 @@ from scipy.optimize import least_squares
 from idkit.data.scenarios import simulate
 from idkit.estimators.varpro import VariableProjection
 from idkit.excitation.fourier import FourierExcitation
+from idkit.model import IdentifiedModel
 from idkit.problem import Problem, Samples
 from idkit.robots.drives import GAZ_PANDA_FRICTION, with_drive_values
 from idkit.robots.urdf import URDFRobot
@@ -96,8 +97,7 @@ def phi_errors(robot: URDFRobot, params: torch.Tensor) -> tuple[float, float]:
 def fit_varpro(robot: URDFRobot, train: Samples) -> tuple[torch.Tensor, int]:
     estimator = VariableProjection(threads=1)
     estimate = estimator.fit(Problem(robot, train))
-    params = torch.tensor([estimate.params[name] for name in robot.param_names], dtype=torch.float64)
-    return params, estimate.details["evaluations"]
+    return IdentifiedModel(robot, estimate).vector, estimate.details["evaluations"]
 
 
 def fit_least_squares(

@@ -1,18 +1,32 @@
 """idkit: identify robot dynamic parameters from measured joint states and torques.
 
-Attributes are imported lazily so that ``import idkit`` (and ``idkit --help``) does not pay for
-torch until something needs it.
+The public names below are imported lazily, so that ``import idkit`` (and ``idkit --help``) does not
+pay for torch until something needs one. The entries: :func:`identify` (a robot's recordings → an
+:class:`IdentifiedModel`) and :func:`run` (one fit of any kind → its result); the plugin interfaces
+``Robot``, ``Cost``, ``Estimator``; ``Problem``, ``Samples`` and ``Estimate``; the plugin ``registry``.
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # what the lazy names are, for type checkers, help() and the API docs
+    from idkit import registry
+    from idkit.api import identify, run
+    from idkit.estimate import Estimate
+    from idkit.interfaces import Cost, Estimator, Robot
+    from idkit.model import IdentifiedModel, Parameters
+    from idkit.problem import Problem, Samples
 
 #: The distribution that installs the package (``idkit`` on PyPI is an unrelated project).
 DISTRIBUTION = "robot-idkit"
 
 _LAZY = {
+    "identify": "idkit.api",
+    "run": "idkit.api",
+    "IdentifiedModel": "idkit.model",
+    "Parameters": "idkit.model",
     "Robot": "idkit.interfaces",
     "Cost": "idkit.interfaces",
     "Estimator": "idkit.interfaces",
@@ -20,10 +34,22 @@ _LAZY = {
     "Samples": "idkit.problem",
     "Estimate": "idkit.estimate",
     "registry": "idkit.registry",
-    "run": "idkit.api",
 }
 
-__all__ = sorted(_LAZY)
+__all__ = [
+    "DISTRIBUTION",
+    "Cost",
+    "Estimate",
+    "Estimator",
+    "IdentifiedModel",
+    "Parameters",
+    "Problem",
+    "Robot",
+    "Samples",
+    "identify",
+    "registry",
+    "run",
+]
 
 
 def _version() -> str:
@@ -37,9 +63,17 @@ def _version() -> str:
 
 
 def __getattr__(name: str) -> Any:
+    """A public name (``__all__``), imported on first use."""
     if name == "__version__":
         return _version()
     if name not in _LAZY:
         raise AttributeError(f"module 'idkit' has no attribute {name!r}")
     module = importlib.import_module(_LAZY[name])
-    return module if module.__name__ == f"idkit.{name}" else getattr(module, name)
+    value = module if module.__name__ == f"idkit.{name}" else getattr(module, name)
+    globals()[name] = value  # once imported, an ordinary attribute
+    return value
+
+
+def __dir__() -> list[str]:
+    """The public names too (``help(idkit)``, tab completion), imported or not."""
+    return sorted({*globals(), *__all__})

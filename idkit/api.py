@@ -1,12 +1,91 @@
-"""``idkit.run(...)``: one fit from Python, with its report written when ``out_dir`` is given."""
+"""The library's one-line entries: ``idkit.identify`` (a robot's logs → a model) and ``idkit.run``
+(one fit of any kind → its result), each writing its report when ``out_dir`` is given."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from idkit.studies.build import Spec
 from idkit.studies.single import RunResult
+
+if TYPE_CHECKING:
+    from idkit.model import IdentifiedModel
+
+
+def identify(
+    robot: Spec,
+    data: Any,
+    *,
+    validate: Any = None,
+    out_dir: str | Path | None = None,
+    plots: bool = False,
+    **options: Any,
+) -> IdentifiedModel:
+    """Identify ``robot`` from the recordings ``data``; the library's form of
+    ``idkit robot=... data=... validate=...``.
+
+    It runs the same study as that command (:func:`idkit.studies.single.run`) with the same defaults
+    — the command's real-robot ones included (:mod:`idkit.studies.defaults`: a ``urdf``/``mjcf`` robot
+    gets ``estimator=pcls``, no cost, friction and offsets, each unless given, said in one note) —
+    where ``estimator``, ``cost``, ``preprocess`` ... are ``options``, and returns the model::
+
+        import idkit
+        m = idkit.identify({"_name_": "urdf", "urdf": "arm.urdf", "friction": True}, "train.csv",
+                           validate=["test.csv"])
+        tau = m.predict(q, qd, qdd)         # numpy or torch, any leading dimensions
+        m.params["link2.m"], m.params.std["link2.m"]
+        m.validation[0].scores.rel_all      # held-out score of test.csv
+        m.save("identified.urdf")           # or .xml (MJCF)
+        m.result.table()                    # the run: provenance, cost, the command's report
+
+    Args:
+        robot: a registry name, a config mapping or a ready robot object.
+        data: the training recordings: a path (CSV, ``.npz``, ROS log), ``Samples``, or a list.
+        validate: held-out recordings the model is scored on (``m.validation``).
+        out_dir: also write the command's report (``result.json``, ``identified.urdf`` ...) here.
+        plots: with ``out_dir``, also the PNG plots.
+        options: the rest of :func:`idkit.studies.single.run`'s keywords (``estimator``, ``cost``,
+            ``seed``, ``preprocess``, ``recording``, ``device``, ``dtype`` ...).
+    """
+    robot, options = _real_robot_defaults(robot, data, options)
+    result = run(robot, data=data, validate=validate, out_dir=out_dir, plots=plots, **options)
+    return result.model
+
+
+def _real_robot_defaults(robot: Spec, data: Any, options: Mapping[str, Any]) -> tuple[Spec, dict[str, Any]]:
+    """``(robot, options)`` with the command's real-robot defaults (:mod:`idkit.studies.defaults`) for
+    what is not given: ``robot``'s own keys and ``options``' names count as given, as typed overrides do
+    on the command line. A ready robot object is kept as built (its friction and offset are given);
+    the estimator and cost follow the same rule. Says what it chose in one ``RealRobotNote``."""
+    import warnings
+
+    from idkit.robots.urdf import URDFRobot
+    from idkit.studies.build import plain
+    from idkit.studies.defaults import RealRobotNote, applies, chosen, describe
+
+    robot, options = plain(robot), dict(options)
+    node: dict[str, Any] | None = None  # the robot's config node, which the defaults may extend
+    if isinstance(robot, (str, Mapping)):
+        if not applies("single", robot, data):
+            return robot, options
+        node = {"_name_": robot} if isinstance(robot, str) else dict(robot)
+        given = {f"robot.{key}" for key in node}
+    elif isinstance(robot, URDFRobot) and data is not None:
+        given = {"robot.friction", "robot.offset"}  # built already: kept as it is
+    else:
+        return robot, options
+    picked = chosen(given | set(options))
+    if not picked:
+        return robot, options
+    for key, value in picked.items():
+        if node is not None and key.startswith("robot."):
+            node[key.removeprefix("robot.")] = value
+        else:
+            options[key] = value
+    warnings.warn(describe(picked), RealRobotNote, stacklevel=3)
+    return (robot if node is None else node), options
 
 
 def run(

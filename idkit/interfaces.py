@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
+from idkit.hyperparameters import Hyperparameters
 from idkit.registry import create
 
 if TYPE_CHECKING:
@@ -206,8 +207,13 @@ class Cost(ABC):
         return None
 
 
-class Estimator(ABC):
+class Estimator(Hyperparameters, ABC):
     """Identifies a robot's parameters from one ``Problem``.
+
+    Hyperparameters follow scikit-learn's contract (:mod:`idkit.hyperparameters`): every constructor
+    keyword stored unchanged under its own name, checked by ``resolve()`` at construction and again
+    at every ``fit`` (so that ``e.particles = 40`` after ``ParticleSwarm(particles=8)`` runs 40), read
+    back by ``get_params()`` and changed by ``set_params(**values)``.
 
     ``fit`` starts with ``problem.check_identifiable()``: with fewer equations (samples × joints)
     than parameters any criterion has an arbitrary minimiser of near-zero cost, so the fit must fail

@@ -51,7 +51,7 @@ from idkit.runtime import resolve_threads, torch_threads
 
 @dataclass(frozen=True)
 class AdamSettings:
-    """An ``AdamMultiStart``'s settings, checked and resolved once.
+    """An ``AdamMultiStart``'s settings, checked and resolved at each fit.
 
     Attributes:
         starts, steps: the budget (integers >= 1, under ``sizes.MAX_EVALUATIONS``).
@@ -110,9 +110,10 @@ class AdamMultiStart(Estimator):
         self.threads = threads
         self.history = history
         self.label = label
-        self.resolved = self._resolve()  # once: a bad option fails at construction, not mid-sweep
+        self.resolve()  # a bad option is refused now; every fit resolves again (idkit.hyperparameters)
 
-    def _resolve(self) -> AdamSettings:
+    def resolve(self) -> AdamSettings:
+        """The options checked and resolved (``ValueError`` naming the option)."""
         for name, value in (("starts", self.starts), ("steps", self.steps)):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"adam option {name} must be an integer >= 1, got {value!r}")
@@ -155,12 +156,13 @@ class AdamMultiStart(Estimator):
         Adam's update is elementwise, so its estimates equal ``fit_costs(problems[t], costs)``
         whatever ``chunk`` (trials per batch; ``None``: about ``CHUNK_ELEMENTS`` error elements).
         """
+        settings = self.resolve()
         problems, costs = list(problems), criteria(problems, costs)
         for problem in problems:
             problem.check_identifiable()
         sizes.announce_long_search(
             "adam",
-            self.resolved.starts * self.resolved.steps,
+            settings.starts * settings.steps,
             len(costs),
             [p.samples.tau.numel() for p in problems],
             sizes.ADAM_RESIDUAL_NS,
@@ -168,14 +170,18 @@ class AdamMultiStart(Estimator):
 
         def trials_per_batch(problem: Problem) -> int:
             return trial_chunk(
-                chunk, len(costs) * self.resolved.starts * problem.robot.n_joints * problem.samples.n_samples
+                chunk, len(costs) * settings.starts * problem.robot.n_joints * problem.samples.n_samples
             )
 
-        return fit_in_batches(problems, trials_per_batch, lambda batch: self._fit_group(batch, costs))
+        def fit_batch(batch: list[Problem]) -> list[list[Estimate]]:
+            return self._fit_group(batch, costs, settings)
 
-    def _fit_group(self, problems: list[Problem], costs: list[Cost]) -> list[list[Estimate]]:
+        return fit_in_batches(problems, trials_per_batch, fit_batch)
+
+    def _fit_group(
+        self, problems: list[Problem], costs: list[Cost], settings: AdamSettings
+    ) -> list[list[Estimate]]:
         """``fit_trials`` of one chunk of trials."""
-        settings = self.resolved
         trials, count = len(problems), len(costs)
         robot = problems[0].robot
         kept_steps = history_rows(settings.steps, settings.stride) if self.history else []

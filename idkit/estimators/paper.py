@@ -11,6 +11,8 @@ values of f13 and f14 at the average are in ``details["costs_at_average"]``.
 
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
@@ -39,12 +41,14 @@ class PaperFinalEstimate(Estimator):
     def __init__(self, pso: Mapping[str, Any] | None = None, floor: float = DEFAULT_FLOOR) -> None:
         self.pso = pso
         self.floor = floor
-        self.swarm()  # validate early: a bad option fails at construction, not mid-sweep
+        self.resolve()  # a bad option is refused now; every fit resolves again (idkit.hyperparameters)
 
-    def swarm(self) -> ParticleSwarm:
-        """The configured PSO (a new instance: building it has no side effects)."""
+    def resolve(self) -> ParticleSwarm:
+        """The configured PSO, its options checked (a new instance: building it has no side effects)."""
         if self.pso is not None and not isinstance(self.pso, Mapping):
             raise ValueError(f"pso_f13_f14 option pso must be a mapping of PSO options, got {self.pso!r}")
+        if not (isinstance(self.floor, numbers.Real) and math.isfinite(self.floor) and self.floor >= 0):
+            raise ValueError(f"pso_f13_f14 option floor must be a finite number >= 0, got {self.floor!r}")
         return ParticleSwarm(**dict(self.pso or {}))
 
     def costs(self) -> list[Cost]:
@@ -62,7 +66,7 @@ class PaperFinalEstimate(Estimator):
         """
         if costs is not None:
             raise ValueError("pso_f13_f14 fixes its criteria (f13, f14); fit_trials takes no costs")
-        pso, criteria = self.swarm(), self.costs()
+        pso, criteria = self.resolve(), self.costs()
         parts = pso.fit_trials(problems, criteria, chunk=chunk)
         return [
             [average_estimates(problem, pair, criteria, LABEL)]

@@ -114,7 +114,7 @@ def _warn_slow(reason: str) -> None:
 
 @dataclass(frozen=True)
 class SwarmSettings:
-    """A ``ParticleSwarm``'s settings, resolved once: the preset's values with the overrides.
+    """A ``ParticleSwarm``'s settings, resolved at each fit: the preset's values with the overrides.
 
     Attributes:
         preset: the preset the values came from.
@@ -211,10 +211,9 @@ class ParticleSwarm(Estimator):
         self.history = history
         self.label = label
         self.engine = engine
-        # Resolved once: a bad option fails at construction, not mid-sweep.
-        self.resolved = self._resolve()
+        self.resolve()  # a bad option is refused now; every fit resolves again (idkit.hyperparameters)
 
-    def _resolve(self) -> SwarmSettings:
+    def resolve(self) -> SwarmSettings:
         """The preset with this instance's overrides applied, checked (``ValueError`` naming the option)."""
         if self.preset not in PRESETS:
             raise ValueError(f"unknown PSO preset {self.preset!r}; use one of {', '.join(PRESETS)}")
@@ -296,7 +295,7 @@ class ParticleSwarm(Estimator):
             ``T`` lists of ``C`` estimates; ``details["batched_trials"]`` says how many trials
             shared the computation and ``details["engine"]`` which engine ran it.
         """
-        settings = self.resolved
+        settings = self.resolve()
         problems, costs = list(problems), criteria(problems, costs)
         for problem in problems:
             problem.check_identifiable()
@@ -325,13 +324,14 @@ class ParticleSwarm(Estimator):
             return trial_chunk(chunk, per_run(problem) * settings.runs if whole else CHUNK_ELEMENTS)
 
         def fit_batch(batch: list[Problem]) -> list[list[Estimate]]:
-            return self._fit_group(batch, costs, run_chunk(batch[0]))
+            return self._fit_group(batch, costs, run_chunk(batch[0]), settings)
 
         return fit_in_batches(problems, trials_per_batch, fit_batch)
 
-    def _fit_group(self, problems: list[Problem], costs: list[Cost], run_chunk: int) -> list[list[Estimate]]:
+    def _fit_group(
+        self, problems: list[Problem], costs: list[Cost], run_chunk: int, settings: SwarmSettings
+    ) -> list[list[Estimate]]:
         """``fit_trials`` of one chunk of trials."""
-        settings = self.resolved
         count, trials = len(costs), len(problems)
         robot = problems[0].robot
         rows = len(swarm.history_rows(settings.iterations, settings.stride))

@@ -36,6 +36,7 @@ from idkit.estimate import Estimate, to_python
 from idkit.estimators.linear.observation import IdentificationError
 from idkit.estimators.linear.uncertainty import Spectrum, base_uncertainties
 from idkit.interfaces import Estimator, Robot
+from idkit.model import IdentifiedModel
 from idkit.optim import swarm
 from idkit.problem import Problem
 from idkit.robots.drives import sigmoid_friction
@@ -234,12 +235,25 @@ class VariableProjection(Estimator):
         self.polish = polish
         self.search_samples = search_samples
         self.refine = refine
-        from idkit.conic.program import ConsistentSettings  # cvxpy stays unimported until a fit
-
-        ConsistentSettings.checked("varpro", prior_weight, auto=True)  # refused now, not after the search
         self.prior_weight = prior_weight
         self.plausible = plausible
         self.threads = threads
+        self.resolve()  # a bad option is refused now, not after the search; every fit resolves again
+
+    def resolve(self) -> None:
+        """Check the options (``ValueError`` naming the one at fault); a fit reads them as they are."""
+        from idkit.conic.program import ConsistentSettings  # cvxpy stays unimported until a fit
+
+        if self.particles < 1 or self.iterations < 1 or self.polish < 0 or self.search_samples < 1:
+            raise ValueError(
+                f"varpro: need particles >= 1, iterations >= 1, polish >= 0 and search_samples >= 1, got "
+                f"{self.particles}, {self.iterations}, {self.polish}, {self.search_samples}"
+            )
+        if self.refine not in ("none", "pcls"):
+            raise ValueError(f"varpro: refine must be 'none' or 'pcls', got {self.refine!r}")
+        if self.threads is not None and (isinstance(self.threads, bool) or self.threads < 1):
+            raise ValueError(f"varpro: threads must be None or an integer >= 1, got {self.threads!r}")
+        ConsistentSettings.checked("varpro", self.prior_weight, auto=True)
 
     @property
     def name(self) -> str:
@@ -247,17 +261,13 @@ class VariableProjection(Estimator):
 
     def fit(self, problem: Problem) -> Estimate:
         start = time.perf_counter()
+        self.resolve()
         problem.check_identifiable()
         robot = problem.robot
         if getattr(robot, "friction", None) != "sigmoid":
             raise IdentificationError(
                 f"varpro: robot {type(robot).__name__} has no nonlinear friction shapes; use a 'urdf' robot "
                 "with friction=sigmoid (a model linear in its parameters needs estimator=ls)"
-            )
-        if self.particles < 1 or self.iterations < 1 or self.polish < 0 or self.search_samples < 1:
-            raise ValueError(
-                f"varpro: need particles >= 1, iterations >= 1, polish >= 0 and search_samples >= 1, got "
-                f"{self.particles}, {self.iterations}, {self.polish}, {self.search_samples}"
             )
         s = problem.tensors()
         n = robot.n_joints
@@ -293,9 +303,10 @@ class VariableProjection(Estimator):
         steepness, shift = theta[:n], theta[n:]
         with torch_threads(threads), torch.no_grad():
             if self.refine == "pcls":
-                params, details = self._pcls(robot, problem, steepness, shift)
+                refined, details = self._pcls(robot, problem, steepness, shift)
+                params = refined.vector.to(s.tau)
                 alpha = robot.base_params(params)
-                predicted = robot.inverse_dynamics(params, s.q, s.qd, s.qdd)
+                predicted = refined.predict(s.q, s.qd, s.qdd)
             else:
                 solved = _solve(data, theta)
                 params = _standard(robot, data, theta, solved.alpha)
@@ -335,8 +346,9 @@ class VariableProjection(Estimator):
 
     def _pcls(
         self, robot: Robot, problem: Problem, steepness: Tensor, shift: Tensor
-    ) -> tuple[Tensor, dict[str, Any]]:
-        """pcls on the robot whose reference sigmoid shape is the one found."""
+    ) -> tuple[IdentifiedModel, dict[str, Any]]:
+        """pcls on the robot whose reference sigmoid shape is the one found: the model on ``robot``
+        (whose parameters include the shape) and the details kept of the fit."""
         from dataclasses import replace
 
         from idkit.estimators.physical import PhysicallyConsistentLS
@@ -346,7 +358,6 @@ class VariableProjection(Estimator):
             shaped = robot.with_options(sigmoid_steepness=steepness.tolist(), sigmoid_shift=shift.tolist())
         refine = PhysicallyConsistentLS(prior_weight=self.prior_weight, plausible=self.plausible)
         fitted = refine.fit(replace(problem, robot=shaped))
-        params = torch.tensor([fitted.params[name] for name in robot.param_names], dtype=torch.float64)
         keep = (
             "min_eigenvalue",
             "divergence",
@@ -357,7 +368,7 @@ class VariableProjection(Estimator):
             "prior_weight",
             "plausibility",
         )
-        return params.to(problem.tensors().tau), {k: fitted.details[k] for k in keep}
+        return IdentifiedModel(robot, fitted), {k: fitted.details[k] for k in keep}
 
 
 def _polish(

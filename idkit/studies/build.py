@@ -130,12 +130,3 @@ def constructor_options(factory: Any) -> dict[str, Any]:
         if ok:
             options[name] = value
     return options
-
-
-def stored_options(plugin: Any) -> dict[str, Any]:
-    """A ready plugin's options read back from the attributes the contract stores them in (every
-    constructor keyword under its own name); options a config cannot hold, or that the plugin does
-    not store, are left out."""
-    absent = object()
-    stored = {key: getattr(plugin, key, absent) for key in constructor_options(type(plugin))}
-    return {key: value for key, value in stored.items() if value is not absent}

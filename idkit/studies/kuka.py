@@ -46,10 +46,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 from torch import Tensor
 
 from idkit.interfaces import CostSearcher
+from idkit.model import IdentifiedModel
 from idkit.problem import Problem, Samples
 from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
@@ -286,6 +286,12 @@ def run(
             "with the FloBaRoID recordings"
         )
     variants = [_model(spec) for spec in models]
+    est_objs = [build("estimator", spec) for spec in estimators]  # refused before the data load
+    searches = [isinstance(obj, CostSearcher) for obj in est_objs]
+    labels = unique_labels(
+        [(spec, search_cost, s) for spec, s in zip(estimators, searches, strict=True)], where="kuka"
+    )
+    cost = build("cost", search_cost)
     names = (train, *test)
     rigid = URDFRobot(str(urdf))
     # an automatic cut-off is chosen with the richest model variant's regressor
@@ -298,12 +304,6 @@ def run(
     recordings = dict(zip(names, loaded, strict=True))
     as_recorded = load_files(rigid, [data_dir / f"{name}.npz" for name in names], {"apply": "off"})
     checks = {name: data_check(f.samples, f.times) for name, f in zip(names, as_recorded, strict=True)}
-    est_objs = [build("estimator", spec) for spec in estimators]
-    searches = [isinstance(obj, CostSearcher) for obj in est_objs]
-    labels = unique_labels(
-        [(spec, search_cost, s) for spec, s in zip(estimators, searches, strict=True)], where="kuka"
-    )
-    cost = build("cost", search_cost)
     data = {"dir": str(data_dir), "train": train, "test": list(test), "stride": stride}
     if any(f.preprocessed for f in loaded):
         data["preprocess"] = {k: v for k, v in training.preprocess.items() if k != "apply"}
@@ -348,21 +348,21 @@ def run(
         for friction, offset, stribeck in variants:
             robot = URDFRobot(str(urdf), friction=friction, offset=offset, stribeck_velocity=stribeck)
             model = {"friction": friction, "offset": offset, "stribeck": stribeck}
-            fits: list[tuple[str, Tensor, float]] = []
+            fits: list[tuple[str, IdentifiedModel, float]] = []
             if not offset and stribeck is None:  # the CAD model has no offset; its friction is the URDF's
-                fits.append((CAD, cad_params(robot, urdf_joint_data(urdf, robot.joint_names)), 0.0))
+                cad = cad_params(robot, urdf_joint_data(urdf, robot.joint_names))
+                fits.append((CAD, IdentifiedModel.from_params(robot, cad, CAD), 0.0))
             problem = Problem(robot, recordings[train].samples, cost, seed=seed, device=device, dtype=dtype)
             for label, estimator in zip(labels, est_objs, strict=True):
                 started = time.perf_counter()
                 estimate = replace(estimator.fit(problem), estimator=label)
                 elapsed = time.perf_counter() - started
-                params = torch.tensor([estimate.params[p] for p in robot.param_names], dtype=torch.float64)
-                fits.append((label, params, elapsed))
+                fits.append((label, IdentifiedModel(robot, estimate), elapsed))
                 estimates.append({"model": label, **model, "estimate": estimate.to_dict()})
-            for label, params, elapsed in fits:
-                physical = consistency(robot, params)
+            for label, identified, elapsed in fits:
+                physical = consistency(robot, identified.vector)
                 for name, recording in recordings.items():
-                    scored = validate_file(robot, params, recording)
+                    scored = validate_file(identified, recording)
                     rows.append(
                         {
                             "model": label,

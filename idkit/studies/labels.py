@@ -26,7 +26,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from idkit import registry
-from idkit.studies.build import Spec, constructor_options, name_and_options, stored_options
+from idkit.hyperparameters import get_params
+from idkit.studies.build import Spec, constructor_options, name_and_options
 
 #: Estimator options shown in the label itself (``-rel``), never in brackets.
 _IN_NAME = ("relative",)
@@ -47,7 +48,7 @@ def _read(kind: registry.Kind, spec: Spec) -> tuple[str | None, str, dict[str, A
         return name, name, options, registry.load(kind, name)
     cls = type(spec)
     registered = registered_name(kind, cls)
-    return registered, registered or cls.__name__, stored_options(spec), cls
+    return registered, registered or cls.__name__, get_params(spec), cls
 
 
 def _changed(kind: registry.Kind, spec: Spec) -> tuple[str | None, str, dict[str, Any]]:

@@ -19,6 +19,7 @@ from typing import Any
 from idkit.data.load import DataFile
 from idkit.estimate import Estimate
 from idkit.interfaces import Estimator
+from idkit.model import IdentifiedModel
 from idkit.problem import Problem
 from idkit.studies.validation import Validation, validate_files
 
@@ -62,6 +63,5 @@ def plausible_alternative(
     if "prior_weight" in fitted.details:  # the same pull towards CAD: the comparison is the bounds alone
         other.prior_weight = fitted.details["prior_weight"]  # type: ignore[attr-defined]
     estimate = other.fit(problem)
-    return PlausibleAlternative(
-        estimate, validate_files(problem.robot, estimate.params, held_out), implausible
-    )
+    scores = validate_files(IdentifiedModel(problem.robot, estimate), held_out)
+    return PlausibleAlternative(estimate, scores, implausible)

@@ -18,6 +18,7 @@ its ``identified.urdf`` text (``identified_urdf=False`` to skip), a fit of an ``
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
@@ -28,6 +29,7 @@ import numpy as np
 
 from idkit.estimate import Estimate
 from idkit.interfaces import CostSearcher
+from idkit.model import IdentifiedModel
 from idkit.notes import Note
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
@@ -74,6 +76,7 @@ class RunResult:
             with ``identified_mjcf=True`` (``None``: not asked, or not writable: non-physical inertia).
         plausible: the same estimator with ``plausible=true``, scored on the same files, when the
             fit left links implausible (:mod:`idkit.studies.plausibility`).
+        robot: the robot object the estimator fitted (``model`` puts the estimate back on it).
     """
 
     estimate: Estimate
@@ -84,6 +87,19 @@ class RunResult:
     urdf: str | None = None
     mjcf: str | None = None
     plausible: PlausibleAlternative | None = None
+    robot: Any = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def model(self) -> IdentifiedModel:
+        """The identified model (``predict``, ``params`` with σ, ``save``), with this run's held-out
+        scores as its ``validation`` and this result as its ``result``.
+
+        Raises:
+            ValueError: the result was made without its robot object (e.g. read back from a file).
+        """
+        if self.robot is None:
+            raise ValueError("this RunResult holds no robot object, so it has no model")
+        return IdentifiedModel(self.robot, self.estimate, validation=self.validation, result=self)
 
     @property
     def seed(self) -> int:
@@ -257,35 +273,32 @@ def _measured(
     return samples, description, training.preprocess
 
 
-def _identified_urdf(robot: Any, params: dict[str, float], payload: Any = None) -> str | None:
+def _identified_urdf(model: IdentifiedModel) -> str | None:
     """The ``identified.urdf`` text of a ``urdf`` robot's fit (with the payload a ``payload`` fit found
     as its own link); ``None`` (with a warning) if unwritable."""
     from idkit.robots.urdf import URDFRobot
-    from idkit.robots.urdf_export import identified_urdf
 
-    if not isinstance(robot, URDFRobot) or robot.source_format != "urdf":
+    if not isinstance(model.robot, URDFRobot) or model.robot.source_format != "urdf":
         return None
     try:
-        return identified_urdf(robot, params, payload)
+        return model.to_urdf()
     except ValueError as exc:
         warnings.warn(f"identified.urdf not written: {exc}", stacklevel=3)
         return None
 
 
-def _identified_mjcf(robot: Any, params: dict[str, float], wanted: bool | None) -> str | None:
+def _identified_mjcf(model: IdentifiedModel, wanted: bool | None) -> str | None:
     """The ``identified.xml`` text of an ``mjcf`` robot's fit (``wanted=None`` or ``True``) or of a
     ``urdf`` robot's (``wanted=True``); ``None`` (with a one-line warning) if MuJoCo would refuse it."""
     from idkit.registry import PluginLoadError
     from idkit.robots.urdf import URDFRobot
 
-    if not isinstance(robot, URDFRobot) or wanted is False:
+    if not isinstance(model.robot, URDFRobot) or wanted is False:
         return None
-    if wanted is None and robot.source_format != "mjcf":
+    if wanted is None and model.robot.source_format != "mjcf":
         return None
-    from idkit.robots.mjcf_export import identified_mjcf
-
     try:
-        return identified_mjcf(robot, params)
+        return model.to_mjcf()
     except (ValueError, PluginLoadError) as exc:
         warnings.warn(f"identified.xml not written: {exc}", stacklevel=3)
         return None
@@ -360,6 +373,8 @@ def run(
     from idkit.problem import Problem
 
     robot_obj = build("robot", robot)
+    cost_obj = build("cost", cost)  # a bad option is refused before the data are loaded
+    estimator_obj = build("estimator", estimator)
     if validate is not None and data is not None:
         refuse_training_files(data, validate)
     samples, truth, source, resolved = _load(
@@ -374,8 +389,6 @@ def run(
         refuse_seen_samples(samples, held_out)
     if held_out:
         source = _describe_files(held_out, resolved, source)
-    cost_obj = build("cost", cost)
-    estimator_obj = build("estimator", estimator)
     read = None if data is None else reader_like_data(robot_obj, data, samples, resolved, recording)
     problem = Problem(
         robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype, read_like_data=read
@@ -395,19 +408,19 @@ def run(
             for kind, spec in (("robot", robot), ("estimator", estimator), ("cost", cost))
         },
     )
-    scores = validate_files(robot_obj, fitted.params, held_out)
+    model = IdentifiedModel(robot_obj, replace(fitted, estimator=label))
+    scores = validate_files(model, held_out)
     with warnings.catch_warnings():  # the alternative's own choices (its prior weight) are not the run's
         warnings.simplefilter("ignore", Note)
         alternative = plausible_alternative(estimator_obj, fitted, problem, held_out)
     return RunResult(
-        replace(fitted, estimator=label),
+        model.estimate,
         truth,
         cost_name,
         provenance,
         [HeldOut(f.path, s, f.times) for f, s in zip(held_out, scores, strict=True)],
-        _identified_urdf(robot_obj, fitted.params, fitted.details.get("payload"))
-        if identified_urdf
-        else None,
-        _identified_mjcf(robot_obj, fitted.params, identified_mjcf),
+        _identified_urdf(model) if identified_urdf else None,
+        _identified_mjcf(model, identified_mjcf),
         alternative,
+        robot_obj,
     )

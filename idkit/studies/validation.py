@@ -33,7 +33,7 @@ Pure computation: no files, no text but the ``metric`` description.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,6 +44,7 @@ from torch import Tensor
 from idkit.data.load import DataFile
 from idkit.data.preprocess import band_limit
 from idkit.interfaces import Robot
+from idkit.model import IdentifiedModel
 from idkit.problem import Samples
 
 #: The scoring band (Hz) of held-out torques (module doc); lowered to ``BAND_OF_RATE ×`` the sampling
@@ -126,7 +127,8 @@ def effort_limits(robot: Robot) -> np.ndarray | None:
 def predict(
     robot: Robot, samples: Samples, params: Tensor | None = None, base_params: Tensor | None = None
 ) -> Tensor:
-    """Predicted torques ``[N, n]`` from standard ``params[P]`` or ``base_params[B]`` (exactly one)."""
+    """Predicted torques ``[N, n]`` from standard ``params[P]`` (through :class:`IdentifiedModel`) or
+    ``base_params[B]`` (through the regressor): exactly one."""
     if (params is None) == (base_params is None):
         raise ValueError("validation: give exactly one of params [P] or base_params [B]")
     if samples.n_joints != robot.n_joints:
@@ -136,8 +138,7 @@ def predict(
         )
     with torch.no_grad():
         if params is not None:
-            params = torch.as_tensor(params).to(samples.q)
-            return robot.inverse_dynamics(params, samples.q, samples.qd, samples.qdd)
+            return IdentifiedModel.from_params(robot, params).predict(samples.q, samples.qd, samples.qdd)
         base = torch.as_tensor(base_params).to(samples.q)
         if base.shape != (len(robot.base_param_names),):
             raise ValueError(
@@ -209,15 +210,28 @@ def score(
     )
 
 
-def validate_file(robot: Robot, vector: Tensor, held: DataFile) -> Validation:
-    """:func:`validate` of standard parameters ``vector[P]`` on one loaded held-out file: its states,
-    its measured torques as recorded and its timestamps."""
-    return validate(robot, held.samples, vector, times=held.times, measured=held.measured_tau)
+def validate_model(
+    model: IdentifiedModel,
+    samples: Samples,
+    *,
+    times: np.ndarray | None = None,
+    measured: np.ndarray | None = None,
+) -> Validation:
+    """:func:`score` of an identified model on held-out ``samples`` (``times``, ``measured``: as for
+    :func:`validate`; the effort limits are the model's robot's)."""
+    with torch.no_grad():
+        predicted = model.predict(samples.q, samples.qd, samples.qdd).detach().cpu().double().numpy()
+    if measured is None:
+        measured = samples.tau.detach().cpu().double().numpy()
+    return score(measured, predicted, effort_limits(model.robot), times)
 
 
-def validate_files(
-    robot: Robot, params: Mapping[str, float], held_out: Sequence[DataFile]
-) -> list[Validation]:
-    """:func:`validate_file` of an estimate's parameter map (``Estimate.params``) on each held-out file."""
-    vector = torch.tensor([float(params[name]) for name in robot.param_names], dtype=torch.float64)
-    return [validate_file(robot, vector, held) for held in held_out]
+def validate_file(model: IdentifiedModel, held: DataFile) -> Validation:
+    """:func:`validate_model` on one loaded held-out file: its states, its measured torques as recorded
+    and its timestamps."""
+    return validate_model(model, held.samples, times=held.times, measured=held.measured_tau)
+
+
+def validate_files(model: IdentifiedModel, held_out: Sequence[DataFile]) -> list[Validation]:
+    """:func:`validate_file` on each held-out file."""
+    return [validate_file(model, held) for held in held_out]

@@ -24,9 +24,11 @@ By registered name (built with the class's ``conformance_options``, if it declar
     check_plugin("estimator", "irls")
 
 What is checked: hyperparameters are keyword arguments with defaults stored as same-named
-attributes; shapes over batch shapes ``()``, ``(2,)``, ``(2, 3)``; float32/float64 preserved;
-batched calls equal stacked single calls; regressor consistency (``Y @ base_params(p) ==
-inverse_dynamics(p)``, ``base_params(params_from_base(a)) == a``); well-formed bounds; finite
+attributes, and for estimators ``get_params()`` round-trips the constructor and an option assigned
+after construction takes effect (or the assignment raises; ``idkit.hyperparameters``); shapes
+over batch shapes ``()``, ``(2,)``, ``(2, 3)``; float32/float64 preserved; batched calls equal
+stacked single calls; regressor consistency (``Y @ base_params(p) == inverse_dynamics(p)``,
+``base_params(params_from_base(a)) == a``); well-formed bounds; finite
 outputs and gradients on valid input; wrong trailing sizes raise instead of broadcasting;
 estimators are deterministic under a seed, report ``Estimate.cost`` on ``problem.cost``, give
 strict-JSON estimates, work in float32, keep ``details["history"]`` in the documented format

@@ -15,6 +15,7 @@ from typing import Any, NoReturn, TypeVar
 import torch
 from torch import Tensor
 
+from idkit.hyperparameters import get_params
 from idkit.options import OptionError, check_options
 
 #: Leading batch shapes every batched method must accept (BoTorch's mix-ins use the same three).
@@ -121,19 +122,9 @@ def expect_raises(what: str, function: Callable[..., Any], *args: Any, fix: str)
 # --- hyperparameters (scikit-learn's contract) -------------------------------------------------
 
 
-def hyperparameter_names(cls: type) -> list[str]:
-    """Keyword arguments of the constructor of ``cls`` (none for a class without one)."""
-    return list(inspect.signature(cls).parameters)
-
-
-def get_params(plugin: Any) -> dict[str, Any]:
-    """The plugin's hyperparameters ``{name: value}``, read from the same-named attributes."""
-    return {name: getattr(plugin, name) for name in hyperparameter_names(type(plugin))}
-
-
-def _same(a: Any, b: Any) -> bool:
+def same(a: Any, b: Any) -> bool:
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
     try:
         return bool(a == b) or (a is b)
     except Exception:  # e.g. tensors of different shapes
@@ -168,7 +159,7 @@ def check_hyperparameters(plugin: Any, *_: Any) -> None:
             )
     fresh = call(f"{cls.__name__}() with default options", cls)
     for name, p in signature.parameters.items():
-        if not _same(getattr(fresh, name), p.default):
+        if not same(getattr(fresh, name), p.default):
             fail(
                 f"{cls.__name__}() stores self.{name} = {getattr(fresh, name)!r} but the default is "
                 f"{p.default!r}; store options unchanged (derive other values in other attributes)"
@@ -185,7 +176,7 @@ def check_hyperparameters(plugin: Any, *_: Any) -> None:
             )
     clone = call(f"{cls.__name__}(**get_params(plugin))", cls, **params)
     for name, value in get_params(clone).items():
-        if not _same(value, params[name]):
+        if not same(value, params[name]):
             fail(f"rebuilding from its own options changed self.{name}: {params[name]!r} -> {value!r}")
 
 

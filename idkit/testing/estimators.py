@@ -12,6 +12,7 @@ iterations), or declare ``conformance_options`` on the class and use ``check_plu
 from __future__ import annotations
 
 import functools
+import inspect
 import json
 import math
 from collections.abc import Callable
@@ -22,9 +23,19 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, HistoryError, history_table
+from idkit.hyperparameters import get_params
 from idkit.interfaces import Cost, Estimator, Robot
+from idkit.model import IdentifiedModel
 from idkit.problem import Problem, Samples
-from idkit.testing._common import call, check_hyperparameters, conformance_check, expect_close, fail
+from idkit.testing._common import (
+    call,
+    check_hyperparameters,
+    conformance_check,
+    expect_close,
+    fail,
+    options_for_checks,
+    same,
+)
 
 
 class ProblemFactory(Protocol):
@@ -67,7 +78,7 @@ def make_problem(
     t = 10.0 * torch.arange(1, n_samples + 1, dtype=torch.float64) / n_samples
     q, qd, qdd = robot.excitation(t)
     with torch.no_grad():
-        tau = robot.inverse_dynamics(truth.to(torch.float64), q, qd, qdd)
+        tau = IdentifiedModel.from_params(robot, truth, "truth").predict(q, qd, qdd)
     gen = torch.Generator().manual_seed(20260301)
     tau = tau * (1 + noise * (2 * torch.rand(tau.shape, generator=gen, dtype=torch.float64) - 1))
     return Problem(robot, Samples(q, qd, qdd, tau), cost=criterion, seed=seed, dtype=dtype)
@@ -286,8 +297,113 @@ def check_estimator_unsupported_problem(
             )
 
 
+def _comparable(a: Any, b: Any) -> bool | None:
+    """Whether two attribute values are equal, or ``None`` where their type cannot tell (no ``__eq__``
+    of its own: a lock, a generator)."""
+    if isinstance(a, Tensor) and isinstance(b, Tensor):
+        return a.shape == b.shape and a.dtype == b.dtype and bool(torch.equal(a.cpu(), b.cpu()))
+    if type(a) is type(b) and type(a).__eq__ is object.__eq__:
+        return None
+    return same(a, b)
+
+
+def _assigned(cls: type, start: dict[str, Any], target: dict[str, Any]) -> tuple[Any, list[str]]:
+    """``cls(**start)`` given ``target``'s values by assignment, and the options whose assignment was
+    refused (those are given to the constructor instead: a frozen object's way)."""
+    refused: list[str] = []
+    while True:
+        built = call(f"{cls.__name__}(**options)", cls, **{**start, **{k: target[k] for k in refused}})
+        failed = []
+        for name, value in target.items():
+            if name in refused or same(start.get(name), value):
+                continue
+            try:
+                setattr(built, name, value)
+            except (AttributeError, TypeError):
+                failed.append(name)
+        if not failed:
+            return built, refused
+        refused += failed
+
+
+@conformance_check
+def check_estimator_params(estimator: Estimator, problem_factory: ProblemFactory = make_problem) -> None:
+    """scikit-learn's contract beyond storing the options (``idkit.hyperparameters``):
+
+    - ``get_params()`` gives the constructor's keywords as stored, and ``cls(**get_params())``
+      rebuilds the estimator; ``set_params(**options)`` returns it and refuses an unknown option;
+    - an option assigned after construction takes effect (or the assignment raises: a frozen object):
+      the estimator built with other options (the defaults, or the class's ``conformance_options``),
+      then given this one's by assignment, holds the state ``cls(**options)`` holds and fits exactly
+      as this estimator does. Nothing is compared where the two option sets agree: build the
+      estimator with options other than its defaults for this part to bite.
+    """
+    cls = type(estimator)
+    stored = get_params(estimator)
+    if hasattr(estimator, "get_params"):
+        reported = call(f"{cls.__name__}.get_params()", estimator.get_params)
+        if not isinstance(reported, dict) or list(reported) != list(stored):
+            keys = list(reported) if isinstance(reported, dict) else type(reported).__name__
+            fail(f"get_params() returned keys {keys}; expected the constructor's keywords {list(stored)}")
+        for name, value in stored.items():
+            if not same(reported[name], value):
+                fail(f"get_params()[{name!r}] is {reported[name]!r} but self.{name} is {value!r}")
+        rebuilt = call(f"{cls.__name__}(**get_params())", cls, **reported)
+        for name, value in rebuilt.get_params().items():
+            if not same(value, stored[name]):
+                fail(f"{cls.__name__}(**get_params()) has {name}={value!r}, expected {stored[name]!r}")
+    if hasattr(estimator, "set_params"):
+        twin = call(f"{cls.__name__}(**options)", cls, **stored)
+        try:
+            returned = twin.set_params(**stored)
+        except (AttributeError, TypeError):  # a frozen object refuses every assignment
+            returned = twin
+        except Exception as exc:
+            fail(f"set_params(**get_params()) raised {type(exc).__name__} on valid input: {exc}")
+        if returned is not twin:
+            fail("set_params must return the estimator itself (scikit-learn's convention)")
+        try:
+            twin.set_params(no_such_option=1)
+        except (ValueError, TypeError):
+            pass
+        else:
+            fail("set_params(no_such_option=1) was accepted; an unknown option must raise a ValueError")
+    parameters = inspect.signature(cls).parameters
+    if any(parameters[name].default is inspect.Parameter.empty for name in stored):
+        return  # check_hyperparameters says which option has no default
+    defaults = {name: parameters[name].default for name in stored}
+    start = defaults
+    if all(same(defaults[k], stored[k]) for k in stored):
+        start = {**defaults, **options_for_checks(cls)}
+    changed = [k for k in stored if not same(start.get(k), stored[k])]
+    if not changed:
+        return
+    assigned, refused = _assigned(cls, start, stored)
+    built = call(f"{cls.__name__}(**options)", cls, **stored)
+    shown = ", ".join(f"{k}={stored[k]!r}" for k in changed if k not in refused)
+    for key in sorted(set(vars(assigned)) | set(vars(built))):
+        a, b = vars(assigned).get(key), vars(built).get(key)
+        if _comparable(a, b) is False:
+            fail(
+                f"{cls.__name__}({', '.join(f'{k}={start[k]!r}' for k in changed)}) then assigning {shown} "
+                f"holds self.{key} = {a!r}, but {cls.__name__} built with those options holds {b!r}: a "
+                "value derived in __init__ ignores a later change; derive it in fit (a resolve() method "
+                "both call, idkit.hyperparameters) or refuse the assignment"
+            )
+    problem = problem_factory(dtype="float64", seed=0)
+    after, direct = _fit(assigned, problem), _fit(estimator, problem)
+    for what in ("params", "base_params", "cost"):
+        if getattr(after, what) != getattr(direct, what):
+            fail(
+                f"assigning {shown} after construction and fitting gives another Estimate.{what} than "
+                f"building with them: {getattr(after, what)!r} vs {getattr(direct, what)!r}; read the "
+                "options in fit (idkit.hyperparameters), not values derived from them in __init__"
+            )
+
+
 ESTIMATOR_CHECKS: tuple[Callable[..., None], ...] = (
     check_hyperparameters,
+    check_estimator_params,
     check_estimator_estimate,
     check_estimator_cost_convention,
     check_estimator_json,

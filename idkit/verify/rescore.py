@@ -39,8 +39,9 @@ COMMENT_TERM = re.compile(r"(\w+)=([-+0-9.eE]+)")
 
 
 @dataclass(frozen=True)
-class IdentifiedModel:
-    """An identified URDF as pinocchio reads it, with the joint terms pinocchio does not model.
+class IdentifiedFile:
+    """An identified URDF as pinocchio reads it, with the joint terms pinocchio does not model (read
+    from the file alone, not through :class:`idkit.model.IdentifiedModel`).
 
     Attributes:
         model: the ``pinocchio.Model``.
@@ -55,7 +56,7 @@ class IdentifiedModel:
     offset: np.ndarray
 
 
-def read_identified(path: str | Path) -> IdentifiedModel:
+def read_identified(path: str | Path) -> IdentifiedFile:
     """Load ``identified.urdf`` with pinocchio and read its ``<dynamics>`` and idkit comment terms."""
     import pinocchio as pin
 
@@ -78,11 +79,11 @@ def read_identified(path: str | Path) -> IdentifiedModel:
     def column(key: str) -> np.ndarray:
         return np.array([terms.get(name, {}).get(key, 0.0) for name in joints])
 
-    return IdentifiedModel(model, joints, column("fc"), column("fv"), column("offset"))
+    return IdentifiedFile(model, joints, column("fc"), column("fv"), column("offset"))
 
 
 def predicted_torques(
-    identified: IdentifiedModel, joints: Sequence[str], q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
+    identified: IdentifiedFile, joints: Sequence[str], q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
 ) -> np.ndarray:
     """``τ̂[N, n]`` at the states ``q, qd, qdd[N, n]`` whose columns are ``joints`` (any order)."""
     import pinocchio as pin
@@ -163,7 +164,7 @@ def documented_score(times: np.ndarray, measured: np.ndarray, predicted: np.ndar
 
 
 def expert_score(
-    identified: IdentifiedModel,
+    identified: IdentifiedFile,
     joints: Sequence[str],
     t: np.ndarray,
     q: np.ndarray,

@@ -119,7 +119,7 @@ def test_objective_base_space_predicts_with_the_regressor(robot, noisy):
 
 
 def test_paper_inertia_schedule():
-    rules = ParticleSwarm(preset="paper").resolved.rules
+    rules = ParticleSwarm(preset="paper").resolve().rules
     assert [rules.weight(m) for m in (0, 50, 100, 299)] == pytest.approx([0.9, 0.65, 0.4, 0.4])
 
 
@@ -155,7 +155,7 @@ def _reference_pso(f, lower, upper, particles, iterations, rules, uniform):
 
 
 def test_paper_preset_equals_a_textbook_loop():
-    rules = ParticleSwarm(preset="paper").resolved.rules
+    rules = ParticleSwarm(preset="paper").resolve().rules
     lower, upper = [-5.0, 0.0, 1.0], [5.0, 2.0, 3.0]
     shift = [4.7, 1.9, 1.2]  # optimum near the walls, so clamping happens
 

@@ -68,12 +68,12 @@ def test_pcls_refuses_an_unknown_solver_from_python_too():
         PhysicallyConsistentLS(solver="CLARABEL")
 
 
-def test_settings_are_resolved_once_and_frozen_while_the_options_stay_as_given():
+def test_settings_are_resolved_and_frozen_while_the_options_stay_as_given():
     from idkit.estimators.linear.robust_ls import RobustLeastSquares
 
     rls = RobustLeastSquares(relative=True, solver="cvxpy", floor=0)
     assert rls.floor == 0 and isinstance(rls.floor, int)  # stored unchanged (scikit-learn's contract)
-    assert rls.settings == RLSSettings(
+    assert rls.resolve() == RLSSettings(
         relative=True,
         floor=0.0,
         max_cond=None,
@@ -83,7 +83,9 @@ def test_settings_are_resolved_once_and_frozen_while_the_options_stay_as_given()
         cvxpy_solver=None,
         polish=True,
     )
-    assert isinstance(rls.settings, LinearSettings)
+    assert isinstance(rls.resolve(), LinearSettings)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        rls.resolve().solver = "closed_form"
     pcls = registry.create("estimator", "pcls")
     assert pcls.settings == ConsistentSettings("auto", None, "auto", AUTO_SOLVERS)
     pcls.solver = "scs"  # resolved when asked (at every fit): a changed option takes effect

@@ -122,7 +122,7 @@ def test_pso_f13_f14_options_are_a_pso_config():
     with pytest.raises(ValueError, match="option particles must be"):
         PaperFinalEstimate(pso={"particles": 0})
     estimator = PaperFinalEstimate(pso={"runs": 2})
-    assert estimator.swarm().runs == 2 and estimator.swarm() is not estimator.swarm()
+    assert estimator.resolve().runs == 2 and estimator.resolve() is not estimator.resolve()
 
 
 @settings(max_examples=5, deadline=None)

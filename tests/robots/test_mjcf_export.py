@@ -11,6 +11,7 @@ from test_mjcf import ARM, mj_torques, moving_states
 from test_urdf_export import perturbed
 from urdf_cases import TREE_URDF
 
+from idkit.model import IdentifiedModel
 from idkit.robots.mjcf import MJCFRobot
 from idkit.robots.mjcf_export import identified_mjcf, urdf_to_mjcf, write_identified_mjcf
 from idkit.robots.urdf import URDFRobot
@@ -157,10 +158,11 @@ def test_a_fit_writes_identified_xml_or_says_why_not(tmp_path):
     assert result.urdf is None  # an mjcf robot has no identified.urdf
     bad = dict(result.estimate.params)
     bad["side.m"] = -1.0
+    unphysical = IdentifiedModel.from_params(MJCFRobot(ARM, friction=True), bad)
     with pytest.warns(UserWarning, match=r"identified.xml not written: mjcf export: .*side \(mass -1\)"):
-        assert single._identified_mjcf(MJCFRobot(ARM, friction=True), bad, None) is None
+        assert single._identified_mjcf(unphysical, None) is None
     urdf = URDFRobot(TREE_URDF)
-    nominal = dict(zip(urdf.param_names, urdf.nominal_params().tolist(), strict=True))
-    assert single._identified_mjcf(urdf, nominal, None) is None
-    assert MJCFRobot(single._identified_mjcf(urdf, nominal, True)).joint_names == urdf.joint_names
-    assert single._identified_mjcf(MJCFRobot(ARM), bad, False) is None
+    nominal = IdentifiedModel.from_params(urdf, urdf.nominal_params())
+    assert single._identified_mjcf(nominal, None) is None
+    assert MJCFRobot(single._identified_mjcf(nominal, True)).joint_names == urdf.joint_names
+    assert single._identified_mjcf(unphysical, False) is None

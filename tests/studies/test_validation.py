@@ -17,6 +17,7 @@ class Constant:
     """A stand-in robot whose prediction is a fixed array (to check the metrics by hand)."""
 
     joint_names = ("a", "b")
+    param_names = ("unused",)
     n_joints = 2
 
     def __init__(self, predicted: torch.Tensor) -> None:

@@ -57,10 +57,11 @@ class Solution:
 
 @dataclass(frozen=True)
 class LinearSettings:
-    """A least-squares estimator's options, checked once by its constructor.
+    """A least-squares estimator's options, checked: what its fit reads.
 
-    The estimator also keeps every option unchanged under its own name (the plugin contract, so a
-    config maps onto the constructor); this typed, checked copy is what its fit reads.
+    The estimator keeps every option unchanged under its own name (the plugin contract, so a config
+    maps onto the constructor); ``resolve()`` makes this typed, checked copy from them, at
+    construction (an early refusal) and at every fit (so that a changed option counts).
 
     Attributes:
         relative: solve the relative system of eqs. (36)–(37).
@@ -112,7 +113,6 @@ class LinearEstimator(Estimator):
     """
 
     label: ClassVar[str]
-    settings: LinearSettings
 
     def __init__(
         self,
@@ -125,16 +125,24 @@ class LinearEstimator(Estimator):
         self.floor = floor
         self.max_cond = max_cond
         self.threads = threads
-        self.settings = LinearSettings.checked(self.label.lower(), relative, floor, max_cond, threads)
+        self.resolve()  # a bad option is refused now; every fit resolves again (idkit.hyperparameters)
 
-    def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
-        """Base parameters ``alpha[T, B]`` of the checked systems; trial ``t``'s warnings go to
-        ``log.recording(t)``, its errors are marked with ``in_trial``."""
+    def resolve(self) -> LinearSettings:
+        """The options checked (``ValueError`` naming the option at fault)."""
+        who = self.label.lower()
+        return LinearSettings.checked(who, self.relative, self.floor, self.max_cond, self.threads)
+
+    def solve(
+        self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings, settings: LinearSettings
+    ) -> Solution:
+        """Base parameters ``alpha[T, B]`` of the checked systems, under the fit's ``settings``
+        (``resolve()``); trial ``t``'s warnings go to ``log.recording(t)``, its errors are marked with
+        ``in_trial``."""
         raise NotImplementedError
 
     @property
     def name(self) -> str:
-        return f"{self.label}-rel" if self.settings.relative else self.label
+        return f"{self.label}-rel" if self.relative else self.label
 
     def fit(self, problem: Problem) -> Estimate:
         """Fit one problem (a stack of one trial)."""
@@ -166,14 +174,14 @@ class LinearEstimator(Estimator):
         start = time.perf_counter()
         robot, trials = problems[0].robot, len(problems)
         work = trials * problems[0].samples.tau.numel() * len(robot.base_param_names)
-        settings = self.settings
+        settings = self.resolve()
         threads = resolve_threads(settings.threads, work)
         log = TrialWarnings(trials)
         try:
             with torch_threads(threads), torch.no_grad():
                 system = stacked_system(problems, settings.relative, settings.floor, log)
                 conditioning = check_conditioning(system, settings.max_cond, log)
-                solution = self.solve(system, conditioning, log)
+                solution = self.solve(system, conditioning, log, settings)
                 params = robot.params_from_base(solution.alpha)  # [T, P]
                 costs = self._costs(problems, params, solution, log)
                 uncertainty = base_uncertainties(
@@ -261,7 +269,9 @@ class LeastSquares(LinearEstimator):
 
     label = "LS"
 
-    def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
+    def solve(
+        self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings, settings: LinearSettings
+    ) -> Solution:
         c = conditioning
         projected = (c.U.mT @ system.tau[..., None]) / c.sigma[..., None]  # [T, B, 1]
         alpha = (c.Vh.mT @ projected)[..., 0] / c.scale
@@ -345,11 +355,13 @@ class TotalLeastSquares(LinearEstimator):
 
     label = "TLS"
 
-    def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
+    def solve(
+        self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings, settings: LinearSettings
+    ) -> Solution:
         solutions = stacked_total_least_squares(system.W, system.tau)
         alpha = torch.stack([tls.alpha for tls in solutions])
         residuals = residual_norms(system, alpha).tolist()
-        limit = self.settings.condition_limit(system.W.dtype)
+        limit = settings.condition_limit(system.W.dtype)
         details = []
         for t, tls in enumerate(solutions):
             tls_cond = tls.sigma_max / tls.gap

@@ -306,7 +306,7 @@ def rls_objective(W: Tensor, tau: Tensor, alpha: Tensor, rho: Tensor) -> Tensor:
 
 @dataclass(frozen=True)
 class RLSSettings(LinearSettings):
-    """RLS's options, checked once by its constructor: the family's (``LinearSettings``) and its own.
+    """RLS's options, checked (``RobustLeastSquares.resolve``): the family's (``LinearSettings``) and its own.
 
     Attributes:
         rho: perturbation bound ``>= 0`` of eq. (17), or ``None`` = the TLS ``rho`` of each system.
@@ -351,7 +351,6 @@ class RobustLeastSquares(LinearEstimator):
     """
 
     label = "RLS"
-    settings: RLSSettings
 
     def __init__(
         self,
@@ -364,15 +363,21 @@ class RobustLeastSquares(LinearEstimator):
         max_cond: float | None = None,
         threads: int | None = None,
     ) -> None:
-        super().__init__(relative=relative, floor=floor, max_cond=max_cond, threads=threads)
         self.rho = rho
         self.solver = solver
         self.cvxpy_solver = cvxpy_solver
         self.polish = polish
-        self.settings = RLSSettings.extend(self.settings, rho, solver, cvxpy_solver, polish)
+        super().__init__(relative=relative, floor=floor, max_cond=max_cond, threads=threads)
 
-    def solve(self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings) -> Solution:
-        W, tau, settings = system.W, system.tau, self.settings
+    def resolve(self) -> RLSSettings:
+        """The family's options and RLS's own, checked (``ValueError`` naming the option at fault)."""
+        return RLSSettings.extend(super().resolve(), self.rho, self.solver, self.cvxpy_solver, self.polish)
+
+    def solve(
+        self, system: LinearSystem, conditioning: Conditioning, log: TrialWarnings, settings: LinearSettings
+    ) -> Solution:
+        assert isinstance(settings, RLSSettings)  # resolve() made them
+        W, tau = system.W, system.tau
         trials = W.shape[0]
         rho = smallest_singular_values(W, tau) if settings.rho is None else [float(settings.rho)] * trials
         source = "tls (eq. 14)" if settings.rho is None else "given"
@@ -385,7 +390,7 @@ class RobustLeastSquares(LinearEstimator):
                     solver="closed form (svd + secular equation)", mu=sol.mu, iterations=sol.iterations
                 )
         else:
-            alpha = torch.stack([self._cvxpy(W, tau, rho, details, log, t) for t in range(trials)])
+            alpha = torch.stack([self._cvxpy(W, tau, rho, details, log, t, settings) for t in range(trials)])
         for record, residual in zip(details, residual_norms(system, alpha).tolist(), strict=True):
             record["residual_norm"] = residual
         values = rls_objective(W, tau, alpha, torch.tensor(rho, dtype=W.dtype, device=W.device))
@@ -394,11 +399,17 @@ class RobustLeastSquares(LinearEstimator):
         )
 
     def _cvxpy(
-        self, W: Tensor, tau: Tensor, rho: list[float], details: list[dict], log: TrialWarnings, trial: int
+        self,
+        W: Tensor,
+        tau: Tensor,
+        rho: list[float],
+        details: list[dict],
+        log: TrialWarnings,
+        trial: int,
+        settings: RLSSettings,
     ) -> Tensor:
         """``alpha[B]`` of trial ``trial`` of ``W[T, M, B]`` by the reference SOCP (one conic solve
         per trial); fills in ``details[trial]``."""
-        settings = self.settings
         try:
             values, status, used = rls_cvxpy(
                 W[trial], tau[trial], rho[trial], settings.cvxpy_solver, settings.polish

@@ -135,12 +135,6 @@ class IRLS(Estimator):
         floor: float = DEFAULT_FLOOR,
         threads: int | None = 1,
     ) -> None:
-        if weight not in WEIGHTS:
-            raise ValueError(f"irls: weight must be one of {sorted(WEIGHTS)}, got {weight!r}")
-        if tuning is not None and not tuning > 0:
-            raise ValueError(f"irls: tuning must be > 0 (or None for the default), got {tuning}")
-        if max_iter < 1 or not tol > 0:
-            raise ValueError(f"irls: need max_iter >= 1 and tol > 0, got {max_iter}, {tol}")
         self.weight = weight
         self.tuning = tuning
         self.max_iter = max_iter
@@ -148,6 +142,16 @@ class IRLS(Estimator):
         self.relative = relative
         self.floor = floor
         self.threads = threads
+        self.resolve()  # a bad option is refused now; every fit checks again (idkit.hyperparameters)
+
+    def resolve(self) -> None:
+        """Check the options (``ValueError`` naming the one at fault); a fit reads them as they are."""
+        if self.weight not in WEIGHTS:
+            raise ValueError(f"irls: weight must be one of {sorted(WEIGHTS)}, got {self.weight!r}")
+        if self.tuning is not None and not self.tuning > 0:
+            raise ValueError(f"irls: tuning must be > 0 (or None for the default), got {self.tuning}")
+        if self.max_iter < 1 or not self.tol > 0:
+            raise ValueError(f"irls: need max_iter >= 1 and tol > 0, got {self.max_iter}, {self.tol}")
 
     @property
     def label(self) -> str:
@@ -236,6 +240,7 @@ class IRLS(Estimator):
 
     def _fit_batch(self, problems: list[Problem]) -> list[list[Estimate]]:
         """``_fit`` with the chosen threads and without autograd's bookkeeping (a part of every small op)."""
+        self.resolve()
         threads = torch.get_num_threads() if self.threads is None else resolve_threads(self.threads, 0)
         with torch_threads(threads), torch.no_grad():
             return self._fit(problems)
