@@ -67,12 +67,13 @@ def _real_robot_defaults(robot: Spec, data: Any, options: Mapping[str, Any]) -> 
 
     robot, options = plain(robot), dict(options)
     node: dict[str, Any] | None = None  # the robot's config node, which the defaults may extend
+    estimator = plain(options.get("estimator"))
     if isinstance(robot, (str, Mapping)):
-        if not applies("single", robot, data):
+        if not applies("single", robot, data, estimator):
             return robot, options
         node = {"_name_": robot} if isinstance(robot, str) else dict(robot)
         given = {f"robot.{key}" for key in node}
-    elif isinstance(robot, URDFRobot) and data is not None:
+    elif isinstance(robot, URDFRobot) and applies("single", "urdf", data, estimator):
         given = {"robot.friction", "robot.offset"}  # built already: kept as it is
     else:
         return robot, options

@@ -33,7 +33,7 @@ OTHER_OPTIONS: dict[str, dict[str, Any]] = {
 }
 #: Being rewritten by the lead, who applies the pattern there: its settings are still derived in
 #: __init__. Strict, so that the mark goes once that is done.
-NOT_YET = {"payload"}
+NOT_YET: set[str] = set()
 
 
 def test_every_registered_estimator_is_listed_here():

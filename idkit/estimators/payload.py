@@ -501,11 +501,16 @@ class PayloadIdentification(Estimator):
         self.correction = correction
         self.min_mass = min_mass
         self.solver = solver
-        self.settings = PayloadSettings.checked(link, reference, correction, min_mass, solver)
+        self.resolve()  # refused now, not after loading the data
+
+    def resolve(self) -> PayloadSettings:
+        """The options checked; at construction and at every fit, so an assigned option counts."""
+        return PayloadSettings.checked(self.link, self.reference, self.correction, self.min_mass, self.solver)
 
     @property
     def name(self) -> str:
-        return "payload" + (f"+reference-{self.settings.correction}" if self.settings.reference else "")
+        settings = self.resolve()
+        return "payload" + (f"+reference-{settings.correction}" if settings.reference else "")
 
     def system(
         self,
@@ -517,7 +522,7 @@ class PayloadIdentification(Estimator):
     ) -> System:
         """The equations of the fit on ``samples`` (the problem's), with the reference if any, read by
         ``read`` (``Problem.read_like_data``: :func:`load_reference`)."""
-        settings = self.settings
+        settings = self.resolve()
         model = settings.reference is not None and settings.correction == "model"
         rows = _rows(robot, samples, base=model)
         arm_params = torch.as_tensor(arm.params)
@@ -563,11 +568,12 @@ class PayloadIdentification(Estimator):
         problem.check_identifiable()
         robot = problem.robot
         tree = tree_of(robot)
-        where = attachment(robot, self.settings.link)
+        settings = self.resolve()
+        where = attachment(robot, settings.link)
         arm = arm_model(robot)
         s = problem.tensors()
         system = self.system(robot, s, arm, where, problem.read_like_data)
-        solution = _solve(system, self.settings)
+        solution = _solve(system, settings)
         phi = solution.x[:10]
         lowest, outside = cone_violations(["payload"], pseudo_inertia(torch.as_tensor(phi)[None]).numpy())
         if outside:

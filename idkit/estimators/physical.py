@@ -231,11 +231,11 @@ class PhysicallyConsistentLS(Estimator):
         self.mass_ratio = mass_ratio
         self.total_mass = total_mass
         self.solver = solver
-        self.settings  # noqa: B018 (checked now, not after loading the data)
+        self.resolve()  # refused now, not after loading the data
 
-    @property
-    def settings(self) -> ConsistentSettings:
-        """The options as they are now: resolved at every fit, so a changed attribute takes effect."""
+    def resolve(self) -> ConsistentSettings:
+        """The options checked and resolved; at construction and at every fit, so an assigned option
+        counts."""
         if not isinstance(self.plausible, bool):
             raise ValueError(f"pcls: plausible must be true or false, got {self.plausible!r}")
         ratio = Plausibility.checked("pcls", mass_ratio=self.mass_ratio).mass_ratio
@@ -253,7 +253,7 @@ class PhysicallyConsistentLS(Estimator):
 
     def fit(self, problem: Problem) -> Estimate:
         start = time.perf_counter()
-        settings = self.settings
+        settings = self.resolve()
         problem.check_identifiable()
         robot = problem.robot
         link_count(robot)

@@ -50,7 +50,7 @@ def test_a_prior_weight_that_is_neither_a_number_nor_auto_is_one_line():
         OptionError, match=r"^estimator 'pcls' option 'prior_weight' must be a float or 'auto'"
     ):
         registry.create("estimator", "pcls", prior_weight="soon")
-    assert registry.create("estimator", "pcls", prior_weight="300").settings.prior_weight == 300.0
+    assert registry.create("estimator", "pcls", prior_weight="300").resolve().prior_weight == 300.0
     from idkit.estimators.physical import PhysicallyConsistentLS
 
     with pytest.raises(
@@ -87,9 +87,9 @@ def test_settings_are_resolved_and_frozen_while_the_options_stay_as_given():
     with pytest.raises(dataclasses.FrozenInstanceError):
         rls.resolve().solver = "closed_form"
     pcls = registry.create("estimator", "pcls")
-    assert pcls.settings == ConsistentSettings("auto", None, "auto", AUTO_SOLVERS)
+    assert pcls.resolve() == ConsistentSettings("auto", None, "auto", AUTO_SOLVERS)
     pcls.solver = "scs"  # resolved when asked (at every fit): a changed option takes effect
-    assert pcls.settings.conic_solvers == ("SCS",)
-    assert registry.create("estimator", "pcls", solver="scs").settings.conic_solvers == ("SCS",)
+    assert pcls.resolve().conic_solvers == ("SCS",)
+    assert registry.create("estimator", "pcls", solver="scs").resolve().conic_solvers == ("SCS",)
     with pytest.raises(dataclasses.FrozenInstanceError):
-        pcls.settings.solver = "scs"
+        pcls.resolve().solver = "scs"
