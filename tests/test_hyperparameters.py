@@ -31,24 +31,13 @@ OTHER_OPTIONS: dict[str, dict[str, Any]] = {
     "pcls": {"prior_weight": 1.0},
     "payload": {"min_mass": 0.1},
 }
-#: Being rewritten by the lead, who applies the pattern there: its settings are still derived in
-#: __init__. Strict, so that the mark goes once that is done.
-NOT_YET: set[str] = set()
 
 
 def test_every_registered_estimator_is_listed_here():
     assert set(registry.available("estimator")) == set(OTHER_OPTIONS)
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="the lead applies the pattern"))
-        if n in NOT_YET
-        else n
-        for n in OTHER_OPTIONS
-    ],
-)
+@pytest.mark.parametrize("name", list(OTHER_OPTIONS))
 def test_an_option_assigned_after_construction_counts(name):
     """The conformance check with options other than the defaults: the estimator built with its
     defaults and given these by assignment holds the same state and fits the same numbers."""
