@@ -1,0 +1,285 @@
+"""Each moving body's geometry as a bounding ellipsoid and box, in the frame of its inertial parameters.
+
+What the plausibility options of the conic program need (:mod:`idkit.conic.plausible`): a body's
+mass must lie inside its geometry, which Wensing, Kim & Slotine's bound ``tr(J Q4) ≥ 0`` states for
+an ellipsoid (:mod:`idkit.robots.bounding`), and a report checks its centre of mass against the box.
+
+Which geometry: per link, its URDF ``<collision>`` elements, or its ``<visual>`` ones where no
+collision element is usable; a MuJoCo body's colliding geoms (``contype`` or ``conaffinity`` set),
+or all its geoms where none collides. A body gathers its own link's and those of every link welded
+to it, each through its fixed-joint placement and ``<origin>`` (MuJoCo: the compiled geom poses,
+meshes as MuJoCo recentred them). The frame is the body frame of the standard parameters: a URDF
+body's child link frame; the MuJoCo body frame moved to the joint's ``pos``
+(:mod:`idkit.robots.mjcf`).
+
+Never an error for geometry the dynamics do not need: a mesh that is not found or not read (a
+``.dae``, a ``package://`` path without its folder in ``package_dirs``), an unknown or malformed
+shape, is left out and named in ``missing``; a body left with nothing has no bound (``None``).
+"""
+
+from __future__ import annotations
+
+import os
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from idkit.interfaces import Robot
+from idkit.robots.bounding import Solid, ellipsoid_bound, minimum_volume_ellipsoid, thickened
+from idkit.robots.meshes import MeshError, mesh_file, mesh_vertices
+from idkit.robots.mjcf import MJCFRobot, compile_mjcf, import_mujoco
+from idkit.robots.urdf import URDFRobot
+from idkit.robots.urdf_frames import link_placement
+from idkit.robots.urdf_model import read_urdf_text, rpy_matrix
+
+
+@dataclass(frozen=True)
+class BodyGeometry:
+    """One moving body's geometry, in its body frame (m).
+
+    Attributes:
+        ellipsoid_centre: ``c[3]``.
+        ellipsoid_shape: ``Q[3, 3]``: ``x`` is inside iff ``(x − c)ᵀ Q (x − c) ≤ 1``; the minimum-volume
+            ellipsoid of all the body's solids (exact for one primitive; within 2.2 % of the
+            minimum volume where a curved solid enters as a circumscribing polyhedron).
+        box_lo, box_hi: ``[3]`` the axis-aligned bounding box of the solids.
+        sources: what was bounded, one phrase each (``"lwr_1_link collision sphere"``), and a note
+            when flat geometry was thickened.
+        missing: the body's geometry that was left out, ``"<link>: <what> (<why>)"``.
+    """
+
+    ellipsoid_centre: np.ndarray
+    ellipsoid_shape: np.ndarray
+    box_lo: np.ndarray
+    box_hi: np.ndarray
+    sources: tuple[str, ...]
+    missing: tuple[str, ...]
+
+    def q4(self) -> np.ndarray:
+        """``Q4[4, 4]`` with ``tr(J Q4) ≥ 0`` iff a pseudo-inertia ``J ⪰ 0`` has its mass in the ellipsoid."""
+        return ellipsoid_bound(self.ellipsoid_centre, self.ellipsoid_shape)
+
+    def in_ellipsoid(self, point: np.ndarray) -> bool:
+        offset = np.asarray(point, dtype=np.float64) - self.ellipsoid_centre
+        return bool(offset @ self.ellipsoid_shape @ offset <= 1.0)
+
+    def in_box(self, point: np.ndarray) -> bool:
+        point = np.asarray(point, dtype=np.float64)
+        return bool(np.all(point >= self.box_lo) and np.all(point <= self.box_hi))
+
+
+@dataclass(frozen=True)
+class RobotGeometry:
+    """Every moving body's geometry (:func:`body_geometry`).
+
+    Attributes:
+        bodies: body link name → its :class:`BodyGeometry`, or ``None`` when none of its links has
+            usable geometry; in the robot's body order.
+        missing: all geometry left out, ``"<link>: <what> (<why>)"``.
+    """
+
+    bodies: dict[str, BodyGeometry | None]
+    missing: tuple[str, ...]
+
+    def summary(self) -> str:
+        """One line for a report: how many bodies are bounded, which are not, what was left out."""
+        without = [name for name, geometry in self.bodies.items() if geometry is None]
+        parts = [f"geometry bounds {len(self.bodies) - len(without)} of {len(self.bodies)} bodies"]
+        if without:
+            parts.append(f"no usable geometry on {', '.join(without)}")
+        if self.missing:
+            parts.append(f"left out: {'; '.join(self.missing)}")
+        return "; ".join(parts)
+
+
+class _Unusable(ValueError):
+    """One geometry element that is left out (the message says why)."""
+
+
+#: Per body link: ``(label, solid)`` of each usable geometry, and what was left out of it.
+_Found = dict[str, tuple[list[tuple[str, Solid]], list[str]]]
+
+
+def body_geometry(robot: Robot, package_dirs: Sequence[str | os.PathLike[str]] = ()) -> RobotGeometry:
+    """The bounding ellipsoid and box of each moving body of a ``urdf`` or ``mjcf`` robot.
+
+    Args:
+        robot: a :class:`~idkit.robots.urdf.URDFRobot` or :class:`~idkit.robots.mjcf.MJCFRobot`.
+        package_dirs: folders holding the packages that URDF ``package://`` mesh paths name.
+
+    Raises:
+        ValueError: any other robot (it has no geometry to read).
+    """
+    if isinstance(robot, MJCFRobot):
+        found = _mjcf_solids(robot)
+    elif isinstance(robot, URDFRobot):
+        found = _urdf_solids(robot, [Path(d) for d in package_dirs])
+    else:
+        raise ValueError(f"geometry: needs a urdf or mjcf robot, got {type(robot).__name__}")
+    bodies: dict[str, BodyGeometry | None] = {}
+    missing: list[str] = []
+    for link, (solids, lost) in found.items():
+        try:
+            bodies[link] = _bound(solids, tuple(lost)) if solids else None
+        except ValueError as error:
+            lost.append(f"{link}: {', '.join(label for label, _ in solids)} ({error})")
+            bodies[link] = None
+        missing += lost
+    return RobotGeometry(bodies, tuple(missing))
+
+
+def _bound(found: list[tuple[str, Solid]], missing: tuple[str, ...]) -> BodyGeometry:
+    """The bounds of a body's solids (``ValueError``: they make a single point)."""
+    labels = tuple(label for label, _ in found)
+    exact = found[0][1].exact_ellipsoid() if len(found) == 1 else None
+    if exact is not None:
+        centre, shape = exact
+    else:
+        points, pad = thickened(np.concatenate([solid.points() for _, solid in found]))
+        centre, shape = minimum_volume_ellipsoid(points)
+        if pad:
+            labels += (f"flat geometry thickened to ±{pad * 1e3:.3g} mm",)
+    boxes = [solid.bounds() for _, solid in found]
+    lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    return BodyGeometry(centre, shape, lo, hi, labels, missing)
+
+
+# ------------------------------------------------------------------------------------------- URDF
+def _urdf_solids(robot: URDFRobot, package_dirs: list[Path]) -> _Found:
+    data, label = read_urdf_text(robot.urdf)
+    base = Path(label).resolve().parent if label != "<URDF text>" else None
+    links = {link.get("name"): link for link in ET.fromstring(data).findall("link")}
+    found: _Found = {}
+    for body in robot.tree.bodies:
+        solids, lost = found.setdefault(body.link, ([], []))
+        for name in (body.link, *body.welded):
+            placement = link_placement(robot.tree, robot.urdf, name)
+            for role in ("collision", "visual"):  # visual only where no collision element is usable
+                usable = []
+                for element in links[name].findall(role):
+                    what = f"{role} {_shape_name(element)}"
+                    try:
+                        solid = _urdf_solid(element, placement.rotation, placement.translation)
+                        if solid.kind == "mesh":
+                            solid = _with_mesh(solid, element, base, package_dirs)
+                    except _Unusable as error:
+                        lost.append(f"{name}: {what} ({error})")
+                        continue
+                    usable.append((f"{name} {what}", solid))
+                solids += usable
+                if usable:
+                    break
+    return found
+
+
+def _shape_name(element: ET.Element) -> str:
+    shape = element.find("geometry/*")
+    if shape is None:
+        return "without a shape"
+    return f"mesh {shape.get('filename', '')}" if shape.tag == "mesh" else shape.tag
+
+
+def _numbers(element: ET.Element, attribute: str, count: int, default: str | None = None) -> np.ndarray:
+    text = element.get(attribute, default)
+    if text is None:
+        raise _Unusable(f"no {attribute}")
+    try:
+        values = np.array([float(v) for v in text.split()], dtype=np.float64)
+    except ValueError:
+        raise _Unusable(f"{attribute}={text!r} is not numeric") from None
+    if values.shape != (count,) or not np.isfinite(values).all():
+        raise _Unusable(f"{attribute}={text!r} is not {count} finite number{'s' * (count > 1)}")
+    return values
+
+
+def _urdf_solid(element: ET.Element, rotation: np.ndarray, translation: np.ndarray) -> Solid:
+    """The solid of a ``<collision>`` or ``<visual>`` in the body frame (a mesh without vertices yet)."""
+    origin = element.find("origin")
+    xyz = _numbers(origin, "xyz", 3, "0 0 0") if origin is not None else np.zeros(3)
+    rpy = _numbers(origin, "rpy", 3, "0 0 0") if origin is not None else np.zeros(3)
+    shape = element.find("geometry/*")
+    if shape is None:
+        raise _Unusable("no shape in <geometry>")
+    pose = rotation @ rpy_matrix(rpy), rotation @ xyz + translation
+    if shape.tag == "mesh":
+        scale = shape.get("scale", "1 1 1")
+        factors = _numbers(shape, "scale", 1 if len(scale.split()) == 1 else 3, "1 1 1")
+        return Solid("mesh", np.broadcast_to(factors, (3,)).copy(), *pose)
+    if shape.tag == "box":
+        size = _numbers(shape, "size", 3) / 2
+    elif shape.tag == "sphere":
+        size = _numbers(shape, "radius", 1)
+    elif shape.tag in ("cylinder", "capsule"):
+        size = np.array([_numbers(shape, "radius", 1)[0], _numbers(shape, "length", 1)[0] / 2])
+    else:
+        raise _Unusable(f"<{shape.tag}> is not a URDF shape (box, cylinder, sphere, mesh)")
+    if (size < 0).any():
+        raise _Unusable("a negative size")
+    return Solid(shape.tag, size, *pose)
+
+
+def _with_mesh(solid: Solid, element: ET.Element, base: Path | None, package_dirs: list[Path]) -> Solid:
+    """The mesh solid with its scaled vertices (``size`` held the scale)."""
+    filename = element.find("geometry/mesh").get("filename", "")
+    path = mesh_file(filename, base, package_dirs)
+    if path is None:
+        raise _Unusable("not found" + (": give package_dirs" if filename.startswith("package://") else ""))
+    try:
+        vertices = mesh_vertices(path)
+    except MeshError as error:
+        raise _Unusable(str(error)) from None
+    return Solid("mesh", np.zeros(0), solid.rotation, solid.translation, vertices * solid.size)
+
+
+# ------------------------------------------------------------------------------------------- MJCF
+def _mjcf_solids(robot: MJCFRobot) -> _Found:
+    """The geoms of each body's MuJoCo bodies, posed as compiled (``mj_kinematics`` at ``qpos0``)."""
+    mujoco = import_mujoco()
+    read = robot.mujoco_model
+    model = compile_mjcf(read.text, read.source, read.tree.source)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    body_id = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b): b for b in range(model.nbody)}
+    found: _Found = {}
+    for body, anchor in zip(robot.tree.bodies, read.anchors, strict=True):
+        solids, lost = found.setdefault(body.link, ([], []))
+        b = body_id[body.link]
+        frame = data.xmat[b].reshape(3, 3)
+        origin = data.xpos[b] + frame @ anchor
+        for name in (body.link, *body.welded):
+            geoms = np.flatnonzero(model.geom_bodyid == body_id[name])
+            colliding = [g for g in geoms if model.geom_contype[g] or model.geom_conaffinity[g]]
+            for g in colliding or geoms:
+                rotation = frame.T @ data.geom_xmat[g].reshape(3, 3)
+                translation = frame.T @ (data.geom_xpos[g] - origin)
+                kind = mujoco.mjtGeom(int(model.geom_type[g])).name.removeprefix("mjGEOM_").lower()
+                what = f"geom {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or '#' + str(g)} {kind}"
+                try:
+                    solids.append((f"{name} {what}", _mjcf_solid(model, g, kind, rotation, translation)))
+                except _Unusable as error:
+                    lost.append(f"{name}: {what} ({error})")
+    return found
+
+
+def _mjcf_solid(model: Any, g: int, kind: str, rotation: np.ndarray, translation: np.ndarray) -> Solid:
+    size = np.asarray(model.geom_size[g], dtype=np.float64)
+    if kind in ("box", "ellipsoid"):
+        return Solid(kind, size, rotation, translation)
+    if kind == "sphere":
+        return Solid(kind, size[:1], rotation, translation)
+    if kind in ("capsule", "cylinder"):
+        return Solid(kind, size[:2], rotation, translation)
+    if kind == "mesh":
+        mesh = int(model.geom_dataid[g])
+        start, count = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
+        vertices = np.asarray(model.mesh_vert[start : start + count], dtype=np.float64)
+        return Solid("mesh", np.zeros(0), rotation, translation, vertices)
+    if kind == "hfield":  # x, y half-extents; elevation above, base below the geom frame's origin
+        rx, ry, top, bottom = np.asarray(model.hfield_size[int(model.geom_dataid[g])], dtype=np.float64)
+        centre = translation + rotation @ np.array([0.0, 0.0, (top - bottom) / 2])
+        return Solid("box", np.array([rx, ry, (top + bottom) / 2]), rotation, centre)
+    raise _Unusable("unbounded" if kind == "plane" else "not a solid idkit bounds")
