@@ -20,6 +20,7 @@ shape, is left out and named in ``missing``; a body left with nothing has no bou
 from __future__ import annotations
 
 import os
+import weakref
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -104,8 +105,14 @@ class _Unusable(ValueError):
 _Found = dict[str, tuple[list[tuple[str, Solid]], list[str]]]
 
 
+#: Per robot (weakly held) and ``package_dirs``: what :func:`body_geometry` built. A body of several
+#: solids costs a few hundred Newton steps; the estimator, its report and the CLI ask again.
+_BUILT: weakref.WeakKeyDictionary[Robot, dict[tuple[str, ...], RobotGeometry]] = weakref.WeakKeyDictionary()
+
+
 def body_geometry(robot: Robot, package_dirs: Sequence[str | os.PathLike[str]] = ()) -> RobotGeometry:
-    """The bounding ellipsoid and box of each moving body of a ``urdf`` or ``mjcf`` robot.
+    """The bounding ellipsoid and box of each moving body of a ``urdf`` or ``mjcf`` robot (built once
+    per robot and ``package_dirs``; the files are not read again).
 
     Args:
         robot: a :class:`~idkit.robots.urdf.URDFRobot` or :class:`~idkit.robots.mjcf.MJCFRobot`.
@@ -114,12 +121,17 @@ def body_geometry(robot: Robot, package_dirs: Sequence[str | os.PathLike[str]] =
     Raises:
         ValueError: any other robot (it has no geometry to read).
     """
-    if isinstance(robot, MJCFRobot):
-        found = _mjcf_solids(robot)
-    elif isinstance(robot, URDFRobot):
-        found = _urdf_solids(robot, [Path(d) for d in package_dirs])
-    else:
+    if not isinstance(robot, URDFRobot):
         raise ValueError(f"geometry: needs a urdf or mjcf robot, got {type(robot).__name__}")
+    built = _BUILT.setdefault(robot, {})
+    key = tuple(str(d) for d in package_dirs)
+    if key not in built:
+        built[key] = _build(robot, [Path(d) for d in package_dirs])
+    return built[key]
+
+
+def _build(robot: URDFRobot, package_dirs: list[Path]) -> RobotGeometry:
+    found = _mjcf_solids(robot) if isinstance(robot, MJCFRobot) else _urdf_solids(robot, package_dirs)
     bodies: dict[str, BodyGeometry | None] = {}
     missing: list[str] = []
     for link, (solids, lost) in found.items():
@@ -145,6 +157,8 @@ def _bound(found: list[tuple[str, Solid]], missing: tuple[str, ...]) -> BodyGeom
             labels += (f"flat geometry thickened to ±{pad * 1e3:.3g} mm",)
     boxes = [solid.bounds() for _, solid in found]
     lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    for array in (centre, shape, lo, hi):
+        array.flags.writeable = False  # shared by every caller (cached)
     return BodyGeometry(centre, shape, lo, hi, labels, missing)
 
 
