@@ -177,9 +177,8 @@ def _urdf_solids(robot: URDFRobot, package_dirs: list[Path]) -> _Found:
                 for element in links[name].findall(role):
                     what = f"{role} {_shape_name(element)}"
                     try:
-                        solid = _urdf_solid(element, placement.rotation, placement.translation)
-                        if solid.kind == "mesh":
-                            solid = _with_mesh(solid, element, base, package_dirs)
+                        pose = (placement.rotation, placement.translation)
+                        solid = _urdf_solid(element, *pose, base, package_dirs)
                     except _Unusable as error:
                         lost.append(f"{name}: {what} ({error})")
                         continue
@@ -210,8 +209,15 @@ def _numbers(element: ET.Element, attribute: str, count: int, default: str | Non
     return values
 
 
-def _urdf_solid(element: ET.Element, rotation: np.ndarray, translation: np.ndarray) -> Solid:
-    """The solid of a ``<collision>`` or ``<visual>`` in the body frame (a mesh without vertices yet)."""
+def _urdf_solid(
+    element: ET.Element,
+    rotation: np.ndarray,
+    translation: np.ndarray,
+    base: Path | None,
+    package_dirs: list[Path],
+) -> Solid:
+    """The solid of a ``<collision>`` or ``<visual>`` on a link placed at ``(rotation, translation)`` in
+    its body frame (mesh paths relative to ``base``, the URDF's folder)."""
     origin = element.find("origin")
     xyz = _numbers(origin, "xyz", 3, "0 0 0") if origin is not None else np.zeros(3)
     rpy = _numbers(origin, "rpy", 3, "0 0 0") if origin is not None else np.zeros(3)
@@ -222,7 +228,8 @@ def _urdf_solid(element: ET.Element, rotation: np.ndarray, translation: np.ndarr
     if shape.tag == "mesh":
         scale = shape.get("scale", "1 1 1")
         factors = _numbers(shape, "scale", 1 if len(scale.split()) == 1 else 3, "1 1 1")
-        return Solid("mesh", np.broadcast_to(factors, (3,)).copy(), *pose)
+        vertices = _mesh(shape.get("filename", ""), base, package_dirs) * factors
+        return Solid("mesh", np.zeros(0), *pose, vertices)
     if shape.tag == "box":
         size = _numbers(shape, "size", 3) / 2
     elif shape.tag == "sphere":
@@ -236,17 +243,15 @@ def _urdf_solid(element: ET.Element, rotation: np.ndarray, translation: np.ndarr
     return Solid(shape.tag, size, *pose)
 
 
-def _with_mesh(solid: Solid, element: ET.Element, base: Path | None, package_dirs: list[Path]) -> Solid:
-    """The mesh solid with its scaled vertices (``size`` held the scale)."""
-    filename = element.find("geometry/mesh").get("filename", "")
+def _mesh(filename: str, base: Path | None, package_dirs: list[Path]) -> np.ndarray:
+    """``[n, 3]`` the vertices of the mesh file ``filename`` names."""
     path = mesh_file(filename, base, package_dirs)
     if path is None:
         raise _Unusable("not found" + (": give package_dirs" if filename.startswith("package://") else ""))
     try:
-        vertices = mesh_vertices(path)
+        return mesh_vertices(path)
     except MeshError as error:
         raise _Unusable(str(error)) from None
-    return Solid("mesh", np.zeros(0), solid.rotation, solid.translation, vertices * solid.size)
 
 
 # ------------------------------------------------------------------------------------------- MJCF
