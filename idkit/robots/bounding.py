@@ -79,10 +79,9 @@ class Solid:
         if self.kind in ("box", "sphere", "ellipsoid"):
             semi = np.full(3, s[0]) if self.kind == "sphere" else s
             half = np.abs(r) @ semi if self.kind == "box" else np.sqrt((r**2) @ semi**2)
-        else:  # a disc of radius s[0] swept ±s[1] along the axis (a capsule: a ball swept)
-            axis = r[:, 2]
-            radial = s[0] if self.kind == "capsule" else s[0] * np.sqrt(np.clip(1 - axis**2, 0, 1))
-            half = s[1] * np.abs(axis) + radial
+        else:  # a disc of radius s[0] swept ±s[1] along the axis r[:, 2] (a capsule: a ball swept)
+            radial = s[0] if self.kind == "capsule" else s[0] * np.hypot(r[:, 0], r[:, 1])
+            half = s[1] * np.abs(r[:, 2]) + radial
         return self.translation - half, self.translation + half
 
     def exact_ellipsoid(self) -> tuple[np.ndarray, np.ndarray] | None:

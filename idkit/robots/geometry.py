@@ -262,15 +262,18 @@ def _mjcf_solids(robot: MJCFRobot) -> _Found:
     model = compile_mjcf(read.text, read.source, read.tree.source)
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
-    body_id = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b): b for b in range(model.nbody)}
+    owner = np.zeros(model.nbody, dtype=int)  # the jointed MuJoCo body each one moves with (0: world)
+    for b in range(1, model.nbody):  # parents first
+        owner[b] = b if model.body_jntnum[b] else owner[model.body_parentid[b]]
     found: _Found = {}
     for body, anchor in zip(robot.tree.bodies, read.anchors, strict=True):
         solids, lost = found.setdefault(body.link, ([], []))
-        b = body_id[body.link]
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body.link)
         frame = data.xmat[b].reshape(3, 3)
         origin = data.xpos[b] + frame @ anchor
-        for name in (body.link, *body.welded):
-            geoms = np.flatnonzero(model.geom_bodyid == body_id[name])
+        for carrier in np.flatnonzero(owner == b):  # welded bodies may be unnamed
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, carrier) or f"body #{carrier}"
+            geoms = np.flatnonzero(model.geom_bodyid == carrier)
             colliding = [g for g in geoms if model.geom_contype[g] or model.geom_conaffinity[g]]
             for g in colliding or geoms:
                 rotation = frame.T @ data.geom_xmat[g].reshape(3, 3)
@@ -301,4 +304,4 @@ def _mjcf_solid(model: Any, g: int, kind: str, rotation: np.ndarray, translation
         rx, ry, top, bottom = np.asarray(model.hfield_size[int(model.geom_dataid[g])], dtype=np.float64)
         centre = translation + rotation @ np.array([0.0, 0.0, (top - bottom) / 2])
         return Solid("box", np.array([rx, ry, (top + bottom) / 2]), rotation, centre)
-    raise _Unusable("unbounded" if kind == "plane" else "not a solid idkit bounds")
+    raise _Unusable("not a solid idkit bounds")  # an SDF plugin (planes are static in MuJoCo)

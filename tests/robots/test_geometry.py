@@ -531,3 +531,23 @@ def test_the_kuka_collision_primitives_are_bounded_and_its_missing_meshes_named(
     np.testing.assert_allclose(
         [wrist.box_lo, wrist.box_hi], [[-1, -1, 0], [1, 1, 2]], atol=1e-9
     )  # turned by π about z
+
+
+def test_unnamed_welded_mjcf_bodies_and_height_fields():
+    """An unnamed welded body's geoms count (named by its index); a height field is the box from its
+    base to its top elevation."""
+    pytest.importorskip("mujoco")
+    mjcf = """<mujoco><asset><hfield name="ground" nrow="2" ncol="2" size="0.3 0.2 0.1 0.05"/></asset>
+      <worldbody><body name="b"><joint name="j" axis="0 0 1"/><geom type="sphere" size="0.1"/>
+      <body pos="0 0 0.5"><geom type="sphere" size="0.1"/><geom name="relief" type="hfield" hfield="ground"/></body>
+      <body name="tip" pos="0 0.5 0"><geom type="box" size="0.1 0.1 0.1"/></body></body></worldbody></mujoco>"""
+    geometry = body_geometry(MJCFRobot(mjcf))
+    body = geometry.bodies["b"]
+    assert body.sources == (
+        "b geom #0 sphere",
+        "body #2 geom #1 sphere",
+        "body #2 geom relief hfield",
+        "tip geom #3 box",
+    )
+    np.testing.assert_allclose([body.box_lo, body.box_hi], [[-0.3, -0.2, -0.1], [0.3, 0.6, 0.6]])
+    assert geometry.missing == ()
