@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 #: Directions sampled on the unit sphere and circle; their hulls, inflated to contain the ball and the
-#: disc, are at most 2.2 % (sphere: 512 points) and 0.5 % (circle: 64 points) larger in volume.
+#: disc, are at most 2.2 % (sphere: 512 points) and 0.3 % (circle: 64 points) larger in volume.
 SPHERE_POINTS = 512
 CIRCLE_POINTS = 64
 #: Kinds of :class:`Solid` and what ``size`` holds for each.
