@@ -63,7 +63,7 @@ def _real_robot_defaults(robot: Spec, data: Any, options: Mapping[str, Any]) -> 
 
     from idkit.robots.urdf import URDFRobot
     from idkit.studies.build import plain
-    from idkit.studies.defaults import RealRobotNote, applies, chosen, describe
+    from idkit.studies.defaults import RealRobotNote, applies, chosen, describe, searches_cost
 
     robot, options = plain(robot), dict(options)
     node: dict[str, Any] | None = None  # the robot's config node, which the defaults may extend
@@ -77,7 +77,7 @@ def _real_robot_defaults(robot: Spec, data: Any, options: Mapping[str, Any]) -> 
         given = {"robot.friction", "robot.offset"}  # built already: kept as it is
     else:
         return robot, options
-    picked = chosen(given | set(options))
+    picked = chosen(given | set(options), searches_cost(estimator))
     if not picked:
         return robot, options
     for key, value in picked.items():

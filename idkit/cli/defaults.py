@@ -14,7 +14,7 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from idkit.cli.nodes import plugin_node
-from idkit.studies.defaults import RealRobotNote, applies, chosen, describe
+from idkit.studies.defaults import RealRobotNote, applies, chosen, describe, searches_cost
 
 
 def apply_real_robot_defaults(cfg: DictConfig, overrides: Sequence[str]) -> None:
@@ -22,7 +22,7 @@ def apply_real_robot_defaults(cfg: DictConfig, overrides: Sequence[str]) -> None
     if not applies(str(cfg.get("task")), cfg.get("robot"), cfg.get("data"), cfg.get("estimator")):
         return
     given = {override.key_or_group for override in OverridesParser.create().parse_overrides(list(overrides))}
-    options = chosen(given)
+    options = chosen(given, searches_cost(cfg.get("estimator")))
     if not options:
         return
     with open_dict(cfg):

@@ -34,13 +34,17 @@ class Plausibility:
     Attributes:
         mass_ratio: ``(lo, hi)`` with ``0 <= lo <= 1 <= hi``: link masses within these multiples of CAD.
         total_mass: the moving links' total mass (kg), or ``None``.
+        geometry: each link's mass inside the ellipsoid bounding its geometry, where it has some.
     """
 
     mass_ratio: tuple[float, float] | None = None
     total_mass: float | None = None
+    geometry: bool = False
 
     @classmethod
-    def checked(cls, who: str, mass_ratio: Any = None, total_mass: Any = None) -> Plausibility:
+    def checked(
+        cls, who: str, mass_ratio: Any = None, total_mass: Any = None, geometry: bool = False
+    ) -> Plausibility:
         """The bounds, or ``ValueError`` naming ``who`` and the option."""
         ratio = None
         if mass_ratio is not None:
@@ -61,11 +65,11 @@ class Plausibility:
             if not (math.isfinite(total_mass) and total_mass > 0):
                 raise ValueError(f"{who}: total_mass must be > 0 kg, got {total_mass!r}")
             total = float(total_mass)
-        return cls(ratio, total)
+        return cls(ratio, total, bool(geometry))
 
     @property
     def active(self) -> bool:
-        return self.mass_ratio is not None or self.total_mass is not None
+        return self.mass_ratio is not None or self.total_mass is not None or self.geometry
 
     def describe(self) -> str:
         """One phrase for reports: what was bounded."""
@@ -74,6 +78,8 @@ class Plausibility:
             parts.append(f"link masses within [{self.mass_ratio[0]:g}, {self.mass_ratio[1]:g}] x CAD")
         if self.total_mass is not None:
             parts.append(f"total mass {self.total_mass:g} kg")
+        if self.geometry:
+            parts.append("mass inside each link's geometry (where the model has some)")
         return "; ".join(parts) or "none"
 
 
@@ -101,6 +107,29 @@ def plausibility_constraints(
                     f"([{lo * cad.sum():g}, {hi * cad.sum():g}] kg for the CAD total {cad.sum():g} kg)"
                 )
         out.append(cad @ masses == bounds.total_mass)
+    if bounds.geometry:
+        out += _inside_geometry(robot, z, unit)
+    return out
+
+
+def _inside_geometry(robot: Robot, z: Any, unit: np.ndarray) -> list[Any]:
+    """``tr(J_i Q4_i) >= 0`` for every link with geometry, on the scaled unknowns: ``J(p) = m0 S J(z) S``
+    with ``S = diag(L, L, L, 1)`` (:mod:`idkit.conic.prior`), so ``tr(J(z) S Q4 S) >= 0``."""
+    import cvxpy as cp
+
+    from idkit.conic.program import pseudo_inertia_expression
+    from idkit.robots.geometry import body_geometry
+
+    found = body_geometry(robot).bodies
+    out = []
+    for i, link in enumerate(robot.link_names):
+        geometry = found.get(link)
+        if geometry is None:
+            continue
+        length = unit[10 * i + 1] / unit[10 * i]
+        stretch = np.diag([length, length, length, 1.0])
+        bound = stretch @ geometry.q4() @ stretch
+        out.append(cp.trace(pseudo_inertia_expression(z[10 * i : 10 * i + 10], cp) @ bound) >= 0)
     return out
 
 
@@ -111,28 +140,49 @@ PLAUSIBLE_MASS_RATIO = (0.5, 2.0)
 
 
 def plausibility_report(robot: Robot, bounds: Plausibility, params: Any) -> dict[str, Any]:
-    """For ``details["plausibility"]``: what was enforced, each link's mass beside CAD, the links
-    outside :data:`PLAUSIBLE_MASS_RATIO` (``implausible``) and those that ended at an enforced
-    bound (within 1e-6 relative: where the data pulled against plausibility)."""
+    """For ``details["plausibility"]``: what was enforced, each link's mass and centre of mass beside
+    CAD, the links that are implausible — a mass outside :data:`PLAUSIBLE_MASS_RATIO` times CAD, or a
+    centre of mass the fit moved out of the box bounding the link's geometry (where the CAD's is
+    inside it) — and those that ended at an enforced mass bound (within 1e-6 relative: where the
+    data pulled against plausibility)."""
+    from idkit.robots.geometry import body_geometry
+
     nb = link_count(robot)
-    fitted = np.asarray(params[: 10 * nb : 10].tolist(), dtype=np.float64)
-    cad = robot.nominal_params().double().numpy()[0 : 10 * nb : 10]
+    values = np.asarray(params[: 10 * nb].tolist(), dtype=np.float64).reshape(nb, 10)
+    cad_values = robot.nominal_params().double().numpy()[: 10 * nb].reshape(nb, 10)
+    fitted, cad = values[:, 0], cad_values[:, 0]
+    centres = values[:, 1:4] / np.where(fitted > 0, fitted, np.nan)[:, None]
+    cad_centres = cad_values[:, 1:4] / cad[:, None]
     ratio = fitted / cad
     lo, hi = PLAUSIBLE_MASS_RATIO
-    implausible = [name for name, r in zip(robot.link_names, ratio, strict=True) if not lo <= r <= hi]
+    names = robot.link_names
+    heavy = {name for name, r in zip(names, ratio, strict=True) if not lo <= r <= hi}
+    geometry = body_geometry(robot)
+    moved = {
+        name
+        for name, centre, cad_centre in zip(names, centres, cad_centres, strict=True)
+        if (shape := geometry.bodies.get(name)) is not None
+        and shape.in_box(cad_centre)
+        and not (np.isfinite(centre).all() and shape.in_box(centre))
+    }
     at_bound: list[str] = []
     if bounds.mass_ratio is not None:
         lo, hi = bounds.mass_ratio
         at_bound = [
             name
-            for name, r in zip(robot.link_names, ratio, strict=True)
+            for name, r in zip(names, ratio, strict=True)
             if abs(r - lo) <= 1e-6 * max(lo, 1e-12) or abs(r - hi) <= 1e-6 * hi
         ]
     return {
         "enforced": bounds.describe(),
-        "mass": dict(zip(robot.link_names, fitted.tolist(), strict=True)),
-        "cad_mass": dict(zip(robot.link_names, cad.tolist(), strict=True)),
-        "implausible": implausible,
+        "mass": dict(zip(names, fitted.tolist(), strict=True)),
+        "cad_mass": dict(zip(names, cad.tolist(), strict=True)),
+        "com": dict(zip(names, centres.tolist(), strict=True)),
+        "cad_com": dict(zip(names, cad_centres.tolist(), strict=True)),
+        "implausible": [name for name in names if name in heavy or name in moved],
+        "mass_outside": [name for name in names if name in heavy],
+        "com_outside_geometry": [name for name in names if name in moved],
         "flagged_outside": list(PLAUSIBLE_MASS_RATIO),
+        "geometry": geometry.summary(),
         "at_bound": at_bound,
     }

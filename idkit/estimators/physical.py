@@ -194,7 +194,8 @@ class PhysicallyConsistentLS(Estimator):
             training data best (:func:`cross_validated_weight`).
         min_mass: lower bound on every link mass (kg); ``None`` = 1 % of the smallest CAD mass.
         plausible: keep every link plausible, not only consistent (:mod:`idkit.conic.plausible`):
-            its mass within ``mass_ratio`` times CAD. Off by default: it trades held-out accuracy for
+            its mass within ``mass_ratio`` times CAD and inside the ellipsoid bounding its collision
+            (or visual) geometry where the model has some. Off by default: it trades held-out accuracy for
             physical realism, and the report shows both (every fit flags links outside
             :data:`~idkit.conic.plausible.PLAUSIBLE_MASS_RATIO`).
         mass_ratio: ``[lo, hi]``, the bound ``plausible`` enforces.
@@ -239,7 +240,9 @@ class PhysicallyConsistentLS(Estimator):
         if not isinstance(self.plausible, bool):
             raise ValueError(f"pcls: plausible must be true or false, got {self.plausible!r}")
         ratio = Plausibility.checked("pcls", mass_ratio=self.mass_ratio).mass_ratio
-        bounds = Plausibility.checked("pcls", ratio if self.plausible else None, self.total_mass)
+        bounds = Plausibility.checked(
+            "pcls", ratio if self.plausible else None, self.total_mass, geometry=self.plausible
+        )
         return ConsistentSettings.checked(
             "pcls", self.prior_weight, self.min_mass, self.solver, auto=True, plausibility=bounds
         )

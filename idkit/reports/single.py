@@ -63,33 +63,51 @@ def text(result: RunResult) -> str:
 
 
 def _plausibility_lines(result: RunResult) -> list[str]:
-    """Each link's mass beside CAD when a link is implausible or a bound was enforced, and what
-    keeping every link plausible costs on the held-out files (when it was computed)."""
+    """Each link's mass and centre of mass beside CAD when a link is implausible or a bound was
+    enforced, and what keeping every link plausible costs on the held-out files (when computed)."""
     found = result.estimate.details.get("plausibility")
     if not found or not (found.get("implausible") or found.get("enforced", "none") != "none"):
         return []
     lo, hi = found.get("flagged_outside", (0.5, 2.0))
+    moved = set(found.get("com_outside_geometry", ()))
     lines = [
         "",
-        f"link masses (kg) beside CAD; '!' outside [{lo:g}, {hi:g}] x CAD; enforced: {found['enforced']}",
+        f"plausibility: '!' a mass outside [{lo:g}, {hi:g}] x CAD or a centre of mass moved out of the "
+        f"link's geometry; enforced: {found['enforced']}",
+        f"{'link':<24}{'mass (kg)':>11}{'CAD':>9}{'ratio':>8}   {'centre of mass (m)':<26}{'CAD':<24}",
     ]
     for link, mass in found["mass"].items():
         cad = found["cad_mass"][link]
         flag = " !" if link in found.get("implausible", ()) else ""
-        bound = " (at its bound)" if link in found.get("at_bound", ()) else ""
-        lines.append(f"{link:<24}{mass:12.4g}{cad:12.4g}{mass / cad:9.2f} x{flag}{bound}")
+        notes = [
+            n
+            for n, on in (
+                ("at its bound", link in found.get("at_bound", ())),
+                ("outside its geometry", link in moved),
+            )
+            if on
+        ]
+        com = "(" + ", ".join(f"{x:.3f}" for x in found["com"][link]) + ")"
+        cad_com = "(" + ", ".join(f"{x:.3f}" for x in found["cad_com"][link]) + ")"
+        lines.append(
+            f"{link:<24}{mass:11.4g}{cad:9.4g}{mass / cad:7.2f}x   {com:<26}{cad_com:<24}{flag}"
+            + (f" ({'; '.join(notes)})" if notes else "")
+        )
+    if found.get("geometry"):
+        lines.append(found["geometry"])
     other = result.plausible
     if other is not None:
         now = " / ".join(f"{100 * h.scores.rel_all:.2f} %" for h in result.validation)
         then = " / ".join(f"{100 * s.rel_all:.2f} %" for s in other.scores)
         lines.append(
-            f"implausible: {', '.join(other.implausible)}; with estimator.plausible=true every link mass "
-            f"stays within [{lo:g}, {hi:g}] x CAD and the held-out ‖E‖/‖T‖ is {then} (this fit: {now})"
+            f"implausible: {', '.join(other.implausible)}; with estimator.plausible=true (masses within "
+            f"[{lo:g}, {hi:g}] x CAD, inside each link's geometry) the held-out ‖E‖/‖T‖ is {then} "
+            f"(this fit: {now})"
         )
     elif found.get("implausible"):
         lines.append(
             f"implausible: {', '.join(found['implausible'])}; estimator.plausible=true keeps every link mass "
-            f"within [{lo:g}, {hi:g}] x CAD (give validate= files to see what it costs)"
+            f"within [{lo:g}, {hi:g}] x CAD and inside its geometry (give validate= files to see the cost)"
         )
     return lines
 

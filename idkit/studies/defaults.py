@@ -56,19 +56,32 @@ def applies(task: str, robot: Any, data: Any, estimator: Any = None) -> bool:
     )
 
 
-def chosen(given: Collection[str]) -> dict[str, Any]:
+def chosen(given: Collection[str], searches_cost: bool = False) -> dict[str, Any]:
     """The real-robot options the user left to idkit: ``REAL_ROBOT`` without those in ``given``
-    (``"estimator"``, ``"robot.friction"``, ...; a group given also covers its keys, and a given
-    estimator keeps its cost as the config has it: a cost searcher needs one)."""
+    (``"estimator"``, ``"robot.friction"``, ...). A given estimator is kept, and with it the config's
+    cost when it searches one (``searches_cost``: PSO, Adam); an estimator with its own criterion
+    (``ls``, ``pcls``, ``varpro``) gets none, unless a cost was given too."""
     out = {}
     for option, value in REAL_ROBOT.items():
-        group = option.split(".")[0]
-        if option in given or (option == "cost" and "estimator" in given):
+        if option in given or (option == "estimator" and "estimator" in given):
             continue
-        if option != group and group in given and group != "robot":
+        if option == "cost" and "estimator" in given and searches_cost:
             continue
         out[option] = value
     return out
+
+
+def searches_cost(estimator: Any) -> bool:
+    """Whether ``estimator`` (a registry name, a config node naming one, or an object) searches a cost,
+    and so needs ``cost=`` (PSO, Adam)."""
+    from idkit import registry
+    from idkit.interfaces import CostSearcher
+
+    if isinstance(estimator, Mapping):
+        estimator = estimator.get("_name_")
+    if isinstance(estimator, str):
+        return issubclass(registry.load("estimator", estimator), CostSearcher)
+    return estimator is not None and isinstance(estimator, CostSearcher)
 
 
 def describe(options: Mapping[str, Any]) -> str:

@@ -14,7 +14,7 @@ from hydra.core.global_hydra import GlobalHydra
 
 from idkit.cli.app import setup
 from idkit.cli.defaults import apply_real_robot_defaults
-from idkit.studies.defaults import RealRobotNote, applies, chosen
+from idkit.studies.defaults import RealRobotNote, applies, chosen, searches_cost
 
 URDF = str(files("idkit") / "robots/assets/cylindrical.urdf")
 
@@ -45,13 +45,12 @@ def test_what_the_user_typed_is_kept():
         "robot.friction": True,
         "robot.offset": True,
     }
-    # an estimator given keeps the config's cost (a swarm needs one); a friction given is kept
-    assert chosen({"robot", "estimator", "robot.friction"}) == {"robot.offset": True}
-    assert chosen({"cost", "estimator.prior_weight"}) == {
-        "estimator": "pcls",
-        "robot.friction": True,
-        "robot.offset": True,
-    }
+    # a given swarm keeps the config's cost (it searches one); a friction given is kept
+    assert chosen({"robot", "estimator", "robot.friction"}, searches_cost=True) == {"robot.offset": True}
+    # an estimator with its own criterion gets no cost unless one is given
+    assert chosen({"estimator"}) == {"cost": None, "robot.friction": True, "robot.offset": True}
+    assert chosen({"estimator", "cost"}) == {"robot.friction": True, "robot.offset": True}
+    assert searches_cost("pso") and searches_cost({"_name_": "adam"}) and not searches_cost("pcls")
 
 
 def test_the_composed_config_is_changed_in_place_with_one_note():
