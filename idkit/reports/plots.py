@@ -119,6 +119,7 @@ def motion_against_limits(
     joint_names: Sequence[str],
     title: str,
     path: Path,
+    inner: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Path:
     """A motion against its box: rows ``q``, ``q̇``, ``q̈``, one column per joint.
 
@@ -126,6 +127,7 @@ def motion_against_limits(
         grid: dense times ``[G]``; ``motion``: ``(q, qd, qdd)``, each ``[G, n]``.
         lower, upper: the limits ``[3, n]`` (``±inf`` lines are not drawn).
         samples: ``(t[N], (q, qd, qdd))`` at the sample times, drawn as dots.
+        inner: the limits less their safety margins ``(lower, upper)``, each ``[3, n]``, dotted.
     """
     import numpy as np
 
@@ -139,6 +141,9 @@ def motion_against_limits(
             for bound in (lower[v, j], upper[v, j]):
                 if np.isfinite(bound):
                     ax.axhline(bound, color="r", lw=0.8, ls="--")
+            for bound in () if inner is None else (inner[0][v, j], inner[1][v, j]):
+                if np.isfinite(bound):
+                    ax.axhline(bound, color="r", lw=0.6, ls=":")
             ax.set_ylabel(f"{label} {joint_names[j]}" if j == 0 or n > 1 else label, fontsize="small")
             if v == 0:
                 ax.set_title(joint_names[j], fontsize="small")

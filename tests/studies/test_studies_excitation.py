@@ -82,6 +82,34 @@ def test_report_writes_the_documented_files(written):
     assert "| theta1 | " in text and "all checks passed" in text and "exported at 1000 Hz" in text
 
 
+def test_every_sample_keeps_the_configured_margin_and_the_report_says_against_what(written):
+    result, files = written
+    found = read_trajectory(files["csv"], ("theta1", "d2", "d3"))
+    for row, name in enumerate(("q", "qd", "qdd")):
+        low, high = EQ38[row, :, 0], EQ38[row, :, 1]
+        half = (high - low) / 2
+        values = getattr(found, name)
+        assert (np.minimum(values - low, high - values) >= 0.05 * half).all(), name
+    payload = json.loads(Path(files["result"]).read_text())["payload"]
+    assert payload["margins"] == dict.fromkeys(("position", "velocity", "acceleration", "effort"), 0.05)
+    assert payload["improved"] is True and payload["after"] < payload["start"]
+    text = report.text(result)
+    assert f"cond = {result.result.start:.6g}" in text and "than the start" in text
+    assert "all checks passed (every margin at least the required 5 % of each limit's half-range)" in text
+
+
+def test_a_search_that_does_not_beat_its_start_keeps_the_start_and_says_so(written):
+    """The start is an optimised motion; a one-candidate search cannot beat it."""
+    good = written[0].result.excitation.options()
+    kept = study.run("cylindrical", options=good, method="pso", swarms=1, particles=2, iterations=1, seed=0)
+    r = kept.result
+    assert not r.improved and r.after == r.start and r.details["search_result"] > r.start
+    assert torch.allclose(r.excitation.to_vector(), written[0].result.excitation.to_vector(), rtol=1e-9)
+    text = report.text(kept)
+    assert "no improvement found" in text and "optimised" not in text
+    assert f"the start is kept (cond = {r.after:.6g})" in text and kept.check.ok
+
+
 def test_yaml_loads_back_as_the_same_motion(written):
     result, files = written
     loaded = load_excitation(files["excitation"])
