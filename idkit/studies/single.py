@@ -102,6 +102,11 @@ class RunResult:
         return IdentifiedModel(self.robot, self.estimate, validation=self.validation, result=self)
 
     @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The robot's joints, in the order of every per-joint figure (``()`` without the robot)."""
+        return () if self.robot is None else tuple(self.robot.joint_names)
+
+    @property
     def seed(self) -> int:
         return self.provenance.seed
 
@@ -132,6 +137,7 @@ class RunResult:
             "relative_error": self.relative_error,
             "parameter_error": self.parameter_error,
             "cost": {"name": self.cost_name, "value": self.estimate.cost},
+            "joint_names": list(self.joint_names),
             "validation": {held.file: held.scores.to_dict() for held in self.validation},
             **(
                 {"plausible_alternative": self.plausible.to_dict([h.file for h in self.validation])}
