@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from idkit.limits import MOTION_VARIABLES
-from idkit.reports import files
+from idkit.reports import excitation_page, files
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.studies.excitation import ExcitationStudy
@@ -167,4 +167,10 @@ def write(study: ExcitationStudy, out_dir: str | Path, plots: bool = True) -> di
                 (inner.lower.numpy(), inner.upper.numpy()),
             )
         )
-    return write_result(out, study.provenance, study.payload(), written)
+    return write_result(
+        out,
+        study.provenance,
+        study.payload(),
+        written,
+        lambda document: excitation_page.render(document, out),
+    )

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from idkit.reports import files
+from idkit.reports import files, html
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.reports.tables import markdown_table
@@ -103,4 +103,10 @@ def write(study: KukaStudy, out_dir: str | Path, plots: bool = True) -> dict[str
         plot = _plot(study, out / "kuka_heldout_torques.png")
         if plot is not None:
             written["plot"] = str(plot)
-    return write_result(out, study.provenance, study.payload(), written)
+    return write_result(
+        out,
+        study.provenance,
+        study.payload(),
+        written,
+        lambda document: html.text_page(document, text(study), out),
+    )

@@ -48,7 +48,7 @@ def lines(details: Mapping[str, Any]) -> list[str]:
         f"({conditioning}) · ‖E‖/‖T‖ {100 * block['rel_error']:.2f} % "
         f"(arm model alone {100 * block['rel_error_arm_only']:.2f} %)"
     )
-    out += _arm_lines(details.get("arm_model") or {}) + _reference_lines(details.get("reference"))
+    out += arm_lines(details.get("arm_model") or {}) + reference_lines(details.get("reference"))
     out += (block.get("recordings") or {}).get("notes", [])
     judged = block.get("verdict")
     if block["com"] is None or judged is None:
@@ -59,7 +59,7 @@ def lines(details: Mapping[str, Any]) -> list[str]:
     out += _verdict_lines(block, judged)
     if judged["unusable"] is None:
         out += not_identified(judged, block.get("free") or ())
-    out += _sdk_lines(link, block["sdk"])
+    out += sdk_lines(link, block["sdk"])
     return out
 
 
@@ -130,7 +130,7 @@ def not_identified(judged: Mapping[str, Any], free: Sequence[str] = ()) -> list[
     return lines
 
 
-def _arm_lines(arm: Mapping[str, Any]) -> list[str]:
+def arm_lines(arm: Mapping[str, Any]) -> list[str]:
     terms = arm.get("joint_terms") or {}
     kinds = sorted({name.rpartition(".")[2] for name in terms})
     out = [
@@ -151,7 +151,7 @@ def _arm_lines(arm: Mapping[str, Any]) -> list[str]:
 _HOW = {"as data=": " as data= was", "defaults": " with the default options, not as data="}
 
 
-def _reference_lines(reference: Mapping[str, Any] | None) -> list[str]:
+def reference_lines(reference: Mapping[str, Any] | None) -> list[str]:
     if not reference:
         return []
     head = (
@@ -171,7 +171,7 @@ def _reference_lines(reference: Mapping[str, Any] | None) -> list[str]:
     return [head + f"{100 * reference['rel_error_corrected']:.2f} % with the fitted correction of the arm"]
 
 
-def _sdk_lines(link: str, sdk: Mapping[str, Any]) -> list[str]:
+def sdk_lines(link: str, sdk: Mapping[str, Any]) -> list[str]:
     """The SDK calls the verdict allows (``sdk``: :func:`idkit.estimators.payload_verdict.sdk_calls`),
     then the calls withheld and why."""
     franka, ur = sdk.get("libfranka"), sdk.get("ur")

@@ -157,7 +157,7 @@ def motion_against_limits(
     n = len(joint_names)
     fig, axes = _subplots(3, n, figsize=(3.2 * n, 6.5), sharex=True, squeeze=False)
     t_samples, at_samples = samples
-    for v, label in enumerate(("q", "q̇", "q̈")):
+    for v, label in enumerate(("q", "qd", "qdd")):
         for j, ax in enumerate(axes[v]):
             ax.plot(grid, motion[v][:, j], lw=1.0)
             ax.plot(t_samples, at_samples[v][:, j], "o", ms=3, color="C1")

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from idkit.estimate import HistoryError, history_table
-from idkit.reports import files
+from idkit.reports import files, single_page
 from idkit.reports import payload as payload_report
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
@@ -194,7 +194,9 @@ def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[st
             path = out / f"validation_{k + 1}.png"
             names = joint_labels(result, held.scores.measured.shape[1])
             written[f"validation_plot_{k + 1}"] = str(_validation_plot(label, held, path, names))
-    return write_result(out, result.provenance, result.payload(), written)
+    return write_result(
+        out, result.provenance, result.payload(), written, lambda document: single_page.render(document, out)
+    )
 
 
 def _validation_plot(label: str, held: HeldOut, path: Path, joint_names: list[str]) -> Path:

@@ -107,6 +107,13 @@ class RunResult:
         return () if self.robot is None else tuple(self.robot.joint_names)
 
     @property
+    def nominal(self) -> dict[str, float] | None:
+        """The robot's a-priori parameters (a URDF's CAD inertials) by name, for the report to set the
+        estimate beside (``None``: no robot object, or a robot without them)."""
+        nominal = None if self.robot is None else self.robot.nominal_params()
+        return None if nominal is None else dict(zip(self.robot.param_names, nominal.tolist(), strict=True))
+
+    @property
     def seed(self) -> int:
         return self.provenance.seed
 
@@ -138,6 +145,7 @@ class RunResult:
             "parameter_error": self.parameter_error,
             "cost": {"name": self.cost_name, "value": self.estimate.cost},
             "joint_names": list(self.joint_names),
+            "nominal": self.nominal,
             "validation": {held.file: held.scores.to_dict() for held in self.validation},
             **(
                 {"plausible_alternative": self.plausible.to_dict([h.file for h in self.validation])}
