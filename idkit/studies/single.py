@@ -2,7 +2,8 @@
 
 ``run``'s signature is the command line's config: ``idkit estimator=pso cost=f13 +scenario=outliers
 seed=1 n_samples=40`` calls ``run(robot=..., estimator=..., cost=..., scenario=..., seed=1,
-n_samples=40, ...)``. From Python, ``idkit.run(...)`` calls it and writes the report::
+n_samples=40, ...)``. From Python, ``idkit.run(...)`` (:mod:`idkit.api`) calls it and adds the
+report's ``table()`` and ``save()``; a study never imports a report::
 
     import idkit
     result = idkit.run(estimator="pso", cost="f13", scenario="outliers", seed=0)
@@ -153,19 +154,6 @@ class RunResult:
                 else {}
             ),
         }
-
-    # Conveniences for Python users; the formatting lives in idkit.reports.single.
-    def table(self) -> str:
-        """The report's text table (``idkit.reports.single.text``)."""
-        from idkit.reports import single
-
-        return single.text(self)
-
-    def save(self, out_dir: str | Path, make_plots: bool = True) -> dict[str, str]:
-        """Write the report into ``out_dir`` (``idkit.reports.single.write``); returns the files."""
-        from idkit.reports import single
-
-        return single.write(self, out_dir, plots=make_plots)
 
 
 def _scenario_spec(scenario: Any) -> Any:
