@@ -55,7 +55,7 @@ def written(tmp_path_factory) -> tuple[study.ExcitationStudy, dict[str, str]]:
 
 def test_report_writes_the_documented_files(written):
     result, files = written
-    assert set(files) == {"excitation", "csv", "npz", "plot", "result"}
+    assert set(files) == {"excitation", "csv", "npz", "plot", "report", "result"}
     data = json.loads(Path(files["result"]).read_text())
     assert data["task"] == "excitation" and data["status"] == "complete" and data["seed"] == 2
     assert (
@@ -232,7 +232,7 @@ def test_without_rest_and_rate_the_old_motion_and_no_export(tmp_path):
     assert found.trajectory is None and found.check.samples == 10001
     assert found.result.excitation.options()["rest"] is False and found.result.excitation.period == 10.0
     files = report.write(found, tmp_path)
-    assert set(files) == {"excitation", "plot", "result"}
+    assert set(files) == {"excitation", "plot", "report", "result"}
 
 
 def test_the_ls_error_criterion_through_the_study():
