@@ -86,9 +86,9 @@ def verdict(
         "shares": shares,
         "unusable": unusable,
         "rule": (
-            f"identified: standard deviation at most {100 * IDENTIFIED_SHARE:g} % of the quantity's scale "
-            f"(mass: itself; centre of mass: its distance from the origin, at least {100 * MIN_LENGTH:g} cm; "
-            "inertia: its largest principal moment)"
+            f"identified: standard deviation at most {100 * IDENTIFIED_SHARE:g} % of the quantity's scale, "
+            f"which is the mass itself, the centre of mass's distance from the origin (at least "
+            f"{100 * MIN_LENGTH:g} cm), the inertia's largest principal moment"
         ),
     }
 

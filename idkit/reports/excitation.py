@@ -59,7 +59,7 @@ def _outcome(study: ExcitationStudy) -> list[str]:
     start = r.details.get("start") or {}
     if r.start is None:
         lines = [
-            f"  start ({r.name} with the given options): not runnable ({start.get('why', 'unknown')}); "
+            f"  start ({r.name} as configured): not runnable ({start.get('why', 'unknown')}); "
             "no comparison"
         ]
     else:
@@ -70,7 +70,7 @@ def _outcome(study: ExcitationStudy) -> list[str]:
             + "fitted into the limits less their margins"
             + (f", shrunk by {shrunk:.4g}" if shrunk != 1.0 else "")
         )
-        lines = [f"  start  ({r.name} with the given options, {made}): {r.criterion} = {r.start:.6g}"]
+        lines = [f"  start  ({r.name} as configured, {made}): {r.criterion} = {r.start:.6g}"]
     if r.improved:
         versus = (
             "" if r.start is None else f" ({criterion_change(r.criterion, r.start, r.after)} than the start)"

@@ -55,7 +55,7 @@ def lines(details: Mapping[str, Any]) -> list[str]:
         out.append(f"mass             {_pm(block['mass'], block['mass_std'], ' kg')}")
         out.append("no payload mass found: centre of mass and inertia undefined, nothing to set")
         return out
-    out.append(f"verdict ({judged['rule']}):")
+    out.append(f"verdict — {judged['rule']}:")
     out += _verdict_lines(block, judged)
     if judged["unusable"] is None:
         out += not_identified(judged, block.get("free") or ())
