@@ -59,8 +59,7 @@ def _outcome(study: ExcitationStudy) -> list[str]:
     start = r.details.get("start") or {}
     if r.start is None:
         lines = [
-            f"  start ({r.name} as configured): not runnable ({start.get('why', 'unknown')}); "
-            "no comparison"
+            f"  start ({r.name} as configured): not runnable ({start.get('why', 'unknown')}); no comparison"
         ]
     else:
         shrunk = (start.get("shrink") or {}).get("shrunk_by", 1.0)

@@ -15,20 +15,19 @@ report wrote), so the page of a finished run can be made again from its folder. 
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from idkit.conic.plausible import PLAUSIBLE_MASS_RATIO
 from idkit.reports import html as h
 
 #: Per-joint relative RMS error on held-out data: at most the first share is ``good`` (a rigid-body
 #: model with friction on a real arm: the KUKA's best fits reach 2.4–4.9 %), above the second
 #: ``poor`` (worse than a CAD model usually predicts: the KUKA's CAD model 11.6 %); ``fair`` between.
 HELD_OUT_BANDS = (0.05, 0.15)
-#: A link's identified mass is plausible within this factor of its CAD mass.
-MASS_FACTOR = 2.0
 #: A link's identified centre of mass is plausible within this distance (m) of its CAD position.
 COM_SHIFT = 0.1
 #: A base parameter is poorly determined above this relative standard deviation (%).
@@ -106,9 +105,16 @@ def _lowest_eigenvalue(inertial: np.ndarray) -> float:
     return float(np.linalg.eigvalsh(np.array(pseudo_inertia_rows(list(inertial)), dtype=np.float64)).min())
 
 
-def link_plausibility(params: Mapping[str, float], nominal: Mapping[str, float]) -> list[dict[str, Any]]:
+def link_plausibility(
+    params: Mapping[str, float],
+    nominal: Mapping[str, float],
+    mass_ratio: Sequence[float] = PLAUSIBLE_MASS_RATIO,
+) -> list[dict[str, Any]]:
     """Per link: CAD and identified mass, their ratio, how far the centre of mass moved, the smallest
-    pseudo-inertia eigenvalue, and ``plausible`` (:data:`MASS_FACTOR`, :data:`COM_SHIFT`, a real body)."""
+    pseudo-inertia eigenvalue, and ``plausible``: the mass within ``mass_ratio`` times CAD's (the
+    range every fit flags, :data:`idkit.conic.plausible.PLAUSIBLE_MASS_RATIO`), the centre of mass
+    within :data:`COM_SHIFT` of CAD's, and a body that can exist."""
+    low, high = mass_ratio
     found = []
     for link in _links(params):
         mine, cad = _inertial(params, link), _inertial(nominal, link)
@@ -122,7 +128,7 @@ def link_plausibility(params: Mapping[str, float], nominal: Mapping[str, float])
         plausible = bool(
             mine[0] > 0
             and lowest >= -1e-9 * max(1.0, abs(mine[0]))
-            and 1 / MASS_FACTOR <= ratio <= MASS_FACTOR
+            and low <= ratio <= high
             and shift <= COM_SHIFT
         )
         found.append(
@@ -141,14 +147,17 @@ def link_plausibility(params: Mapping[str, float], nominal: Mapping[str, float])
 
 def _plausibility(payload: Mapping[str, Any]) -> str:
     params, nominal = payload["estimate"]["params"], payload.get("nominal")
-    if "payload" in (payload["estimate"].get("details") or {}):
+    details = payload["estimate"].get("details") or {}
+    if "payload" in details:
         return h.paragraph(
             "A payload fit keeps the arm as given (its model is the one compared with CAD when it was "
-            "identified); the payload's own verdict is below."
+            "identified); the payload's own verdict is above."
         )
     if not nominal or not _links(params):
         return h.paragraph("No per-link CAD model to compare with (this robot has no link inertials).")
-    links = link_plausibility(params, nominal)
+    recorded = details.get("plausibility") or {}
+    low, high = recorded.get("flagged_outside") or PLAUSIBLE_MASS_RATIO
+    links = link_plausibility(params, nominal, (low, high))
     wrong = [row["link"] for row in links if not row["plausible"]]
     head = (
         h.badge("good", "every link plausible")
@@ -156,26 +165,55 @@ def _plausibility(payload: Mapping[str, Any]) -> str:
         else h.badge("poor", f"implausible: {', '.join(wrong)}")
     )
     rule = h.paragraph(
-        f"Plausible: a mass within a factor {MASS_FACTOR:g} of CAD's, a centre of mass within "
+        f"Plausible: a mass within [{low:g}, {high:g}] × CAD's, a centre of mass within "
         f"{100 * COM_SHIFT:g} cm of CAD's, a positive semidefinite pseudo-inertia (a body that can exist). "
         "Only combinations of a link's parameters are identified: where the data leave the rest free, "
-        "the estimator's prior (pcls) or its minimum-norm choice (ls) decides them.",
+        "the estimator's prior (pcls) or its minimum-norm choice (ls) decides them."
+        + (f" Enforced by the fit: {recorded['enforced']}." if recorded.get("enforced") else ""),
         "rule",
     )
+    bound = set(recorded.get("at_bound") or ())
     rows = [
         [
             row["link"],
             h.num(row["cad_mass"]),
             h.num(row["mass"]),
-            h.num(row["ratio"], "" if row["plausible"] else "poor", 4),
-            h.num(row["com_shift"], "", 4),
+            h.num(row["ratio"], "" if low <= row["ratio"] <= high else "poor", 4),
+            h.num(row["com_shift"], "" if row["com_shift"] <= COM_SHIFT else "poor", 4),
             h.num(row["min_eigenvalue"], "" if row["min_eigenvalue"] >= 0 else "poor", 3),
+            "yes" if row["link"] in bound else "",
             h.raw(h.badge("good" if row["plausible"] else "poor", "yes" if row["plausible"] else "no")),
         ]
         for row in links
     ]
-    header = ["link", "CAD mass (kg)", "mass (kg)", "ratio", "CoM moved (m)", "min eig J", "plausible"]
-    return f"<p>{head}</p>" + rule + h.table(header, rows, "plausibility")
+    header = [
+        "link",
+        "CAD mass (kg)",
+        "mass (kg)",
+        "ratio",
+        "CoM moved (m)",
+        "min eig J",
+        "at a bound",
+        "plausible",
+    ]
+    return f"<p>{head}</p>" + rule + h.table(header, rows, "plausibility") + _alternative(payload)
+
+
+def _alternative(payload: Mapping[str, Any]) -> str:
+    """What keeping every link plausible costs on the held-out files, when the study computed it."""
+    other = payload.get("plausible_alternative")
+    if not other:
+        return ""
+    ours = payload.get("validation") or {}
+    rows = [
+        [file, h.num(ours.get(file, {}).get("rel_all"), shown=h.percent(ours.get(file, {}).get("rel_all"))),
+         h.num(scores["rel_all"], shown=h.percent(scores["rel_all"]))]
+        for file, scores in (other.get("validation") or {}).items()
+    ]  # fmt: skip
+    return h.paragraph(
+        f"With {other.get('option')} every link mass stays within the range; its held-out ‖E‖/‖T‖ "
+        "beside this fit's:"
+    ) + h.table(["file", "this fit", "plausible fit"], rows, "plausible-alternative")
 
 
 def _identifiability(details: Mapping[str, Any]) -> str:
