@@ -15,6 +15,12 @@ from idkit.cli.compare import main as compare_main
 from idkit.reports import compare, single_page
 from idkit.reports import excitation as excitation_report
 from idkit.studies import excitation as excitation_study
+from tests.reports import report_cases
+
+
+@pytest.fixture(scope="module")
+def validated_run(tmp_path_factory):
+    return report_cases.validated_run(tmp_path_factory.mktemp("run"))
 
 
 class Page(HTMLParser):

@@ -4,8 +4,15 @@ relative error, and the residual under measured vs predicted."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from idkit.reports import plots, single
+from tests.reports import report_cases
+
+
+@pytest.fixture(scope="module")
+def validated_run(tmp_path_factory):
+    return report_cases.validated_run(tmp_path_factory.mktemp("run"))
 
 
 def test_the_summary_names_the_joints_and_gives_each_its_relative_error(validated_run):

@@ -1,8 +1,10 @@
-"""One small measured-data fit with a held-out file, shared by the report tests."""
+"""One small measured-data fit with a held-out file, for the report tests (each module makes its own,
+module-scoped: a ``conftest.py`` here would shadow the suite's own ``conftest`` module)."""
 
 from __future__ import annotations
 
-import pytest
+from pathlib import Path
+
 import torch
 
 import idkit
@@ -22,11 +24,10 @@ def simulated(robot: URDFRobot, seed: int, n: int = 300) -> Samples:
     return Samples(q, qd, qdd, tau)
 
 
-@pytest.fixture(scope="module")
-def validated_run(tmp_path_factory):
-    """``(result, folder)``: ``ls`` on the bundled cylindrical URDF, one held-out
-    file, its report written with plots."""
-    folder = tmp_path_factory.mktemp("run")
+def validated_run(folder: Path) -> tuple[idkit.api.Run, Path]:
+    """``(result, report folder)``: ``ls`` on the bundled cylindrical URDF, trained on ``folder /
+    train.npz`` and validated on ``folder / test.npz`` (both written here), its report written with
+    plots into ``folder / out``."""
     robot = URDFRobot("cylindrical")
     save_samples(simulated(robot, 0), folder / "train.npz")
     save_samples(simulated(robot, 1), folder / "test.npz")
