@@ -269,6 +269,7 @@ def hydra_compose():
             "excitation.acceleration_limit=[1,2,3]",
         ),
         ("+experiment=excitation", "excitation.criterion=ls_error", "excitation.noise.state=0.1"),
+        ("+experiment=excitation", "excitation.margin={effort: 0.2, position: 0.1}"),
         ("+experiment=robustness", "scenario.excitation=excitation.yaml"),
         ("+experiment=paper", "scenario.excitation=fourier"),
         ("+scenario=outliers", "scenario.excitation=fourier", "estimator=ls"),
@@ -296,16 +297,16 @@ def _idkit(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 def test_the_command_writes_a_file_a_scenario_loads(tmp_path):
     out = _idkit("+experiment=excitation", "robot=cylindrical", *TINY, "hydra.run.dir=opt", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
-    assert (
-        "before (paper): cond = 36.1141" in out.stdout
-        and "after  (fourier, optimised): cond = " in out.stdout
-    )
+    assert "robot's default motion (paper): cond = 36.1141" in out.stdout
+    assert "after  (fourier, optimised): cond = " in out.stdout or "no improvement found" in out.stdout
+    assert "all checks passed (every margin at least the required 5 %" in out.stdout
     run = tmp_path / "opt"
     assert {p.name for p in run.iterdir()} >= {
         "excitation.yaml",
         "excitation.csv",
         "excitation.npz",
         "excitation.png",
+        "report.html",
         "result.json",
     }
     out = _idkit(
@@ -334,6 +335,14 @@ def test_the_command_writes_a_file_a_scenario_loads(tmp_path):
             "excitation.t_end=10.0005 s is not a whole number of 0.001 s steps",
         ),
         (("+experiment=excitation", "excitation.family=fourrier", *TINY), "unknown excitation 'fourrier'"),
+        (
+            ("+experiment=excitation", "excitation.margin=1.5", *TINY),
+            "excitation.margin must be a share of each limit's half-range in [0, 1)",
+        ),
+        (
+            ("+experiment=excitation", "excitation.margin={torque: 0.1}", *TINY),
+            "excitation.margin.torque is not a limit with a margin",
+        ),
     ],
 )
 def test_bad_inputs_give_one_line(tmp_path, args, message):
