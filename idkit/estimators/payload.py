@@ -618,7 +618,7 @@ class PayloadIdentification(Estimator):
         recordings.update(
             reference_motion_share=reference.get("motion_share"), reference_cond=reference.get("cond")
         )
-        notes, unusable = recording_notes(recordings, self.settings.reference)
+        notes, unusable = recording_notes(recordings, settings.reference)
         block = payload_block(
             phi, solution.covariance[:10, :10], where.link, tree.bodies[where.body].link, lowest[0], unusable
         )
