@@ -8,8 +8,8 @@ and effort limits, the recording's peak accelerations and without self-collision
 search spends its time, each part and its alternatives timed in the same run). Prints Markdown
 tables with wall and CPU time, and criterion evaluations per second. How much the optimised motion
 helps identification is the robustness study on it (docs/excitation.md).
-Options: ``--criterion cond|logdet|ls_error``, ``--seed``, budget (``--swarms --particles
---iterations --adam-steps``; default: the task's default budget).
+Options: ``--criterion cond|logdet|ls_error``, ``--seed``, ``--margin`` (default 0.05), budget
+(``--swarms --particles --iterations --adam-steps``; default: the task's default budget).
 """
 
 from __future__ import annotations
@@ -47,8 +47,8 @@ BUDGET = ("swarms", "particles", "iterations", "adam_steps")
 T_END, SAMPLES = 20.0, 100
 
 
-def budget(args: argparse.Namespace) -> dict[str, int]:
-    return {key: getattr(args, key) for key in (*BUDGET, "seed")}
+def budget(args: argparse.Namespace) -> dict[str, float]:
+    return {key: getattr(args, key) for key in (*BUDGET, "seed", "margin")}
 
 
 def worst(excess: torch.Tensor) -> str:
@@ -88,11 +88,13 @@ def cylindrical(args: argparse.Namespace) -> None:
     print(f"| excitation | {args.criterion} at t = 1..10 s | worst excursion beyond eq. (38) |")
     print("|---|---:|---|")
     print(f"| eq. (39) (`paper`) | {result.before:.4g} | {worst(result.excess_before)} |")
+    print(f"| the start (`fourier`'s default, made runnable) | {result.start:.4g} | 0 (inside) |")
     print(
         f"| optimised `fourier`, at rest at both ends | {result.after:.4g} | {worst(result.excess_after)} |"
     )
     print(
-        f"\nclosest approach to a limit (optimised): {slack(result.limits, result.excitation, result.grid)}"
+        f"\nclosest approach to a limit (optimised): {slack(result.limits, result.excitation, result.grid)}; "
+        f"margin {args.margin:g} of each half-range; improved on the start: {result.improved}"
     )
     print(f"{speed(result, wall, cpu)}\ndetails: {result.details}")
 
@@ -142,6 +144,7 @@ def kuka(args: argparse.Namespace) -> None:
     tau = nominal_torques(robot, *dense).abs().amax(0)
     print(f"\nworst excursion beyond the box {worst(result.excess_after)}; closest approach: "
           f"{slack(limits, result.excitation, result.grid)}")  # fmt: skip
+    print(f"margin {args.margin:g} of each half-range; start {result.start:.4g}; improved: {result.improved}")
     print(f"peak |tau| / effort per joint: {', '.join(f'{x:.2f}' for x in (tau / result.effort).tolist())}")
     print(f"details: {result.details}")
 
@@ -198,6 +201,7 @@ def main() -> None:
     parser.add_argument("robot", choices=("cylindrical", "kuka", "profile"))
     parser.add_argument("--criterion", default="cond", choices=("cond", "logdet", "ls_error"))
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--margin", type=float, default=0.05, help="safety margin of every limit (share)")
     for key in BUDGET:
         parser.add_argument(f"--{key.replace('_', '-')}", type=int, default=DEFAULTS[key].default)
     parser.add_argument("--repeats", type=int, default=3, help="profile: repetitions of each part")

@@ -1,9 +1,15 @@
 """The library's one-line entries: ``idkit.identify`` (a robot's logs → a model) and ``idkit.run``
-(one fit of any kind → its result), each writing its report when ``out_dir`` is given."""
+(one fit of any kind → its result), each writing its report when ``out_dir`` is given.
+
+The study (:mod:`idkit.studies.single`) computes and never imports a report; this layer, above
+both, gives the result ``idkit.run`` returns the report's two shortcuts (:class:`Run`: ``table()``,
+``save()``).
+"""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -89,6 +95,29 @@ def _real_robot_defaults(robot: Spec, data: Any, options: Mapping[str, Any]) -> 
     return (robot if node is None else node), options
 
 
+@dataclass
+class Run(RunResult):
+    """A :class:`~idkit.studies.single.RunResult` with its report's shortcuts: what ``idkit.run`` returns."""
+
+    @classmethod
+    def of(cls, result: RunResult) -> Run:
+        """``result`` with the shortcuts (the same fields, not copied)."""
+        return cls(**{f.name: getattr(result, f.name) for f in fields(result)})
+
+    def table(self) -> str:
+        """The report's text table (``idkit.reports.single.text``)."""
+        from idkit.reports import single
+
+        return single.text(self)
+
+    def save(self, out_dir: str | Path, make_plots: bool = True) -> dict[str, str]:
+        """Write the report into ``out_dir`` (``idkit.reports.single.write``: ``result.json``,
+        ``report.html``, plots …); returns the files."""
+        from idkit.reports import single
+
+        return single.write(self, out_dir, plots=make_plots)
+
+
 def run(
     robot: Spec = "cylindrical",
     estimator: Spec = "pso",
@@ -98,19 +127,18 @@ def run(
     out_dir: str | Path | None = None,
     plots: bool = False,
     **options: Any,
-) -> RunResult:
+) -> Run:
     """``idkit.studies.single.run(robot, estimator, cost, scenario, **options)``, then, if
     ``out_dir`` is given, ``idkit.reports.single.write`` into it (``plots``: also the PNG plots).
 
     Example: ``idkit.run(estimator="pso", cost="f13", scenario="outliers", seed=0).table()``.
     """
     from idkit.reports import files
-    from idkit.reports import single as report
     from idkit.studies import single
 
     if out_dir is not None:  # a folder it cannot write into fails now, not after the fit
         files.writable_folder(out_dir, "out_dir")
-    result = single.run(robot, estimator, cost, scenario, **options)
+    result = Run.of(single.run(robot, estimator, cost, scenario, **options))
     if out_dir is not None:
-        report.write(result, out_dir, plots=plots)
+        result.save(out_dir, make_plots=plots)
     return result

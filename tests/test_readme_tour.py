@@ -50,11 +50,21 @@ def test_the_readme_tour_runs_as_written_in_a_scratch_folder(tmp_path):
         "arm/identified.xml",
         "mj/identified.xml",
         "drive/result.json",
+        "arm/report.html",
+        "compare.html",
     ):
         assert (scratch / written).is_file(), written
     # the tour's claims about its simulated arm: the tool is 2 kg, d2's rotor inertia 2 kg (a slide)
     payload = json.loads((scratch / "tool/result.json").read_text())["payload"]["estimate"]["details"]
-    assert payload["payload"]["mass"] == pytest.approx(2.0, rel=0.01)
+    assert (
+        payload["payload"]["mass"] == pytest.approx(2.0, rel=0.01) and payload["payload"]["verdict"]["mass"]
+    )
+    # the excitation improves on its start or says it did not, every margin at least the configured one
+    motion = json.loads((scratch / "motion/result.json").read_text())["payload"]
+    assert motion["improved"] is (motion["after"] < motion["start"]) and motion["check"]["violations"] == []
+    shares = [m["share"] for joint in motion["check"]["margins"].values() for m in joint.values()]
+    assert min(shares) >= 0.05 - 1e-9
+    assert motion["improved"] or "no improvement found" in done.stdout
     drive = json.loads((scratch / "drive/result.json").read_text())["payload"]["estimate"]["params"]
     assert drive["d2.armature"] == pytest.approx(2.0, rel=0.02)
     validation = json.loads((scratch / "arm/result.json").read_text())["payload"]["validation"]

@@ -41,6 +41,9 @@ FULL_ERROR = "HYDRA_FULL_ERROR"
 #: Read when the command starts, before ``main`` sets the switch for Hydra.
 TRACEBACKS_REQUESTED = os.environ.get(FULL_ERROR) == "1" or output.debugging()
 
+#: The first word that runs ``idkit compare`` (:mod:`idkit.cli.compare`) instead of a task.
+COMPARE = "compare"
+
 #: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
 INTERRUPTED = 130
 
@@ -127,6 +130,10 @@ def task(cfg: DictConfig) -> Any:
 def main() -> None:
     """Run the command; a refused input ends in one line on stderr and exit status 1 (``errors``)."""
     words = sys.argv[1:]
+    if words[:1] == [COMPARE]:  # a command of its own, not a Hydra app
+        from idkit.cli.compare import main as compare
+
+        sys.exit(compare(words[1:]))
     if command_line.VERSION_FLAG in words:
         import idkit
 

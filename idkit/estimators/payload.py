@@ -91,6 +91,13 @@ from idkit.conic.program import (
 )
 from idkit.estimate import Estimate, to_python
 from idkit.estimators.linear.observation import IdentificationError, _null_directions
+from idkit.estimators.payload_verdict import (
+    equilibrated_cond,
+    motion_share,
+    recording_notes,
+    sdk_calls,
+    verdict,
+)
 from idkit.interfaces import Estimator, Robot
 from idkit.problem import Problem, Samples
 from idkit.robots.inertia import centroidal, frame_change, pseudo_inertia
@@ -323,10 +330,17 @@ def sdk_conventions(mass: float, com: np.ndarray, inertia: np.ndarray) -> dict[s
 
 
 def payload_block(
-    phi: np.ndarray, covariance: np.ndarray, link: str, body: str, min_eigenvalue: float
+    phi: np.ndarray,
+    covariance: np.ndarray,
+    link: str,
+    body: str,
+    min_eigenvalue: float,
+    unusable: str | None = None,
 ) -> dict[str, Any]:
     """``result.json``'s ``payload``: mass, centre of mass, inertia about it, their standard
-    deviations, the standard parameters and the SDK conventions (``None`` where the mass is 0)."""
+    deviations, the standard parameters, the verdict of each quantity
+    (:func:`idkit.estimators.payload_verdict.verdict`; ``unusable``: why nothing counts as identified)
+    and the SDK calls it allows (``None`` where the mass is 0)."""
     variance = np.where(np.isfinite(np.diag(covariance)), np.diag(covariance), np.inf)
     block: dict[str, Any] = {
         "link": link,
@@ -339,7 +353,7 @@ def payload_block(
         "mass_std": float(np.sqrt(variance[0])),
     }
     if not phi[0] > 0:
-        block.update(com=None, com_std=None, inertia=None, inertia_std=None, sdk=None)
+        block.update(com=None, com_std=None, inertia=None, inertia_std=None, sdk=None, verdict=None)
         return block
     mass, com, inertia = centroidal(phi)
     finite = np.isfinite(np.diag(covariance))
@@ -348,13 +362,16 @@ def payload_block(
     std = np.sqrt(np.maximum(np.diag(jac @ safe @ jac.T), 0.0))
     std[(np.abs(jac[:, ~finite]) > 0).any(1)] = np.inf  # touched by an unidentified direction
     rows = [(0, 1, 2), (1, 3, 4), (2, 4, 5)]
+    inertia_std = [[float(std[4 + k]) for k in row] for row in rows]
+    judged = verdict(mass, float(std[0]), com, std[1:4], inertia, inertia_std, unusable)
     block.update(
         mass=mass,
         com=com.tolist(),
         com_std=std[1:4].tolist(),
         inertia=inertia.tolist(),
-        inertia_std=[[float(std[4 + k]) for k in row] for row in rows],
-        sdk=sdk_conventions(mass, com, inertia),
+        inertia_std=inertia_std,
+        verdict=judged,
+        sdk=sdk_calls(sdk_conventions(mass, com, inertia), judged),
     )
     return block
 
@@ -538,12 +555,15 @@ class PayloadIdentification(Estimator):
         ref_samples, made = load_reference(robot, settings.reference, samples, read)
         ref = _rows(robot, ref_samples, base=model)
         ref_residual = ref.tau - ref.Y @ arm_params
+        inertials = slice(0, 10 * len(robot.tree.bodies))
         about = {
             "file": settings.reference,
             "samples": ref_samples.n_samples,
             **made,
             "correction": settings.correction,
             "rel_error_arm": float(ref_residual.norm() / ref.tau.norm()),
+            "motion_share": motion_share(robot, ref_samples.q, ref_samples.qd, ref_samples.qdd, inertials),
+            **({"cond": equilibrated_cond(ref.W)} if ref.W is not None else {}),
         }
         if settings.correction == "samples":
             about["max_mismatch"] = same_trajectory(
@@ -592,8 +612,15 @@ class PayloadIdentification(Estimator):
             details["reference"] = _reference_details(
                 system.reference, solution.x[10:], robot.base_param_names
             )
+        body = slice(10 * where.body, 10 * where.body + 10)
+        recordings = {"data_motion_share": motion_share(robot, s.q, s.qd, s.qdd, body)}
+        reference = details.get("reference") or {}
+        recordings.update(
+            reference_motion_share=reference.get("motion_share"), reference_cond=reference.get("cond")
+        )
+        notes, unusable = recording_notes(recordings, settings.reference)
         block = payload_block(
-            phi, solution.covariance[:10, :10], where.link, tree.bodies[where.body].link, lowest[0]
+            phi, solution.covariance[:10, :10], where.link, tree.bodies[where.body].link, lowest[0], unusable
         )
         block.update(
             equations=int(system.A.shape[0]),
@@ -602,6 +629,8 @@ class PayloadIdentification(Estimator):
             cond=solution.cond,
             sigma2=solution.sigma2,
             unidentifiable=list(solution.unidentifiable),
+            free=list(solution.free),
+            recordings={**recordings, "notes": notes},
             rel_error_arm_only=float(before.norm()) / norm,
             rel_error=float(after.norm()) / norm,
         )
@@ -650,6 +679,7 @@ class Solution:
         covariance: ``[k, k]`` ``s² (AᵀA)⁺`` (``inf`` rows and columns on unidentified directions).
         sigma2: ``s²``; rank, cond: of the column-equilibrated ``A``.
         unidentifiable: readable free directions.
+        free: the unknowns a free direction touches (their standard deviations are infinite).
         solver, status, solve_time_s: of the conic solve.
     """
 
@@ -659,6 +689,7 @@ class Solution:
     rank: int
     cond: float
     unidentifiable: tuple[str, ...]
+    free: tuple[str, ...]
     solver: str
     status: str
     solve_time_s: float
@@ -782,6 +813,7 @@ def _solve(system: System, settings: PayloadSettings) -> Solution:
         rank=int(kept.sum()),
         cond=float(S[0] / S[-1]) if kept.all() else math.inf,
         unidentifiable=free,
+        free=tuple(name for name, out in zip(names, touched, strict=True) if out),
         solver=used,
         status=status,
         solve_time_s=elapsed,

@@ -5,16 +5,19 @@ What is checked, on every sample of the file (``.csv`` or ``.npz``, joints by na
 
 * position, velocity and acceleration within the robot's limits (a URDF's ``<limit>``; its missing
   acceleration limits from ``--acceleration-limit``, else the effort-derived default of
-  ``idkit.excitation.effort``);
-* the nominal model's torques (the URDF's CAD parameters) within each joint's ``<limit effort>``;
+  ``idkit.excitation.effort``), each by its safety margin (``--margin``, default 5 % of the limit's
+  half-range: :mod:`idkit.excitation.margins`);
+* the nominal model's torques (the URDF's CAD parameters) within each joint's ``<limit effort>``,
+  by the same margin;
 * at rest at both ends: ``|qd|``, ``|qdd| <= --rest-tolerance`` (1e-6) at the first and last sample;
 * a regular sample rate: every step within 1e-6 of the median step (``t`` increasing);
 * no self-collision, where pinocchio + coal are installed and the URDF has collision geometry
   (``idkit.excitation.collision``; otherwise the report says it was not checked, and why).
 
 Prints the margin of every joint and quantity (how far its worst sample stays from the limit, and
-that as a share of the half-range), then one line per violation (joint, time, value, limit) and
-exits with status 1 if there is any; a file or option it cannot use is refused in one line with
+that as a share of the half-range), then one line per violation (joint, time, value, limit: beyond
+the limit, or inside it but within the margin) and exits with status 1 if there is any — "all
+checks passed" means every margin is met; a file or option it cannot use is refused in one line with
 status 2. :func:`check_trajectory` is the same check from Python (the ``excitation`` task runs it on
 the samples it writes).
 """
@@ -31,6 +34,7 @@ import numpy as np
 
 from idkit.excitation.collision import NotChecked, SelfCollision
 from idkit.excitation.export import Trajectory
+from idkit.excitation.margins import QUANTITIES, SHARE_TOLERANCE, Margins
 from idkit.limits import MOTION_VARIABLES, MotionLimits
 
 #: Largest ``|qd|``, ``|qdd|`` at the ends of a motion that counts as at rest.
@@ -38,9 +42,6 @@ REST_TOLERANCE = 1e-6
 
 #: Largest relative deviation of a time step from the median step.
 RATE_TOLERANCE = 1e-6
-
-#: The quantities whose margins are reported, per joint.
-QUANTITIES = (*MOTION_VARIABLES, "effort")
 
 #: Exit status for a file with violations, and for an input that cannot be checked.
 VIOLATED, UNUSABLE = 1, 2
@@ -57,6 +58,8 @@ class Violation:
         time: the (first or worst) offending instant, seconds.
         value, limit: the offending value and the limit it breaks (``None`` for a contact).
         samples: how many samples break it.
+        margin: for a sample inside the limit but within its safety margin, the margin it misses
+            (a share of the half-range); ``None`` for a sample beyond the limit.
     """
 
     subject: str
@@ -65,6 +68,7 @@ class Violation:
     value: float | None = None
     limit: float | None = None
     samples: int = 1
+    margin: float | None = None
 
     def line(self) -> str:
         """``lwr_1_joint: effort 180.2 at t = 3.21 s beyond the limit ±176 (41 samples)``."""
@@ -80,6 +84,11 @@ class Violation:
             return (
                 f"t: step {self.value:.9g} s after t = {self.time:.9g} s, expected {self.limit:.9g} s "
                 f"(±{RATE_TOLERANCE:g} relative){more}"
+            )
+        if self.margin is not None:
+            return (
+                f"{self.subject}: {self.quantity} {self.value:.6g} at t = {self.time:.6g} s within the "
+                f"{100 * self.margin:.3g} % safety margin of the limit {self.limit:.6g}{more}"
             )
         return (
             f"{self.subject}: {self.quantity} {self.value:.6g} at t = {self.time:.6g} s beyond the limit "
@@ -101,7 +110,8 @@ class TrajectoryCheck:
         rest: ``{"start"|"end": {"velocity": max |qd|, "acceleration": max |qdd|}}`` over joints.
         collision: the self-collision status (``checked with …`` or ``not checked (…)``).
         effort: the effort status (``checked …`` or ``not checked (…)``).
-        violations: every broken requirement.
+        violations: every broken requirement (a missed margin included).
+        required: the safety margins enforced (:class:`~idkit.excitation.margins.Margins`).
     """
 
     joint_names: tuple[str, ...]
@@ -113,6 +123,7 @@ class TrajectoryCheck:
     collision: str
     effort: str
     violations: tuple[Violation, ...] = field(default_factory=tuple)
+    required: Margins = field(default_factory=Margins)
 
     @property
     def ok(self) -> bool:
@@ -128,6 +139,7 @@ class TrajectoryCheck:
             "rest": self.rest,
             "self_collision": self.collision,
             "effort": self.effort,
+            "required_margins": self.required.as_dict(),
             "violations": [v.line() for v in self.violations],
         }
 
@@ -150,7 +162,11 @@ class TrajectoryCheck:
             f"{end}: |qd| ≤ {v['velocity']:.2g}, |qdd| ≤ {v['acceleration']:.2g}"
             for end, v in self.rest.items()
         )
-        verdict = "all checks passed" if self.ok else f"{len(self.violations)} violation(s)"
+        verdict = (
+            f"all checks passed (every margin at least the required {self.required.describe()})"
+            if self.ok
+            else f"{len(self.violations)} violation(s) (required margins: {self.required.describe()})"
+        )
         return "\n".join(
             [
                 f"{self.samples} samples over {self.duration:g} s at {self.rate:.6g} Hz; at the ends {rest}",
@@ -162,9 +178,17 @@ class TrajectoryCheck:
 
 
 def _margins(
-    name: str, values: np.ndarray, t: np.ndarray, lower: np.ndarray, upper: np.ndarray, joints: Sequence[str]
+    name: str,
+    values: np.ndarray,
+    t: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    joints: Sequence[str],
+    required: float = 0.0,
 ) -> tuple[dict[str, dict[str, float]], list[Violation]]:
-    """Per joint: the worst sample of ``values[T, n]`` against ``[lower, upper]`` (``±inf``: none)."""
+    """Per joint: the worst sample of ``values[T, n]`` against ``[lower, upper]`` (``±inf``: none); a
+    violation for samples beyond a limit, else for samples inside it by less than ``required`` of the
+    half-range."""
     inside = np.minimum(values - lower, upper - values)  # [T, n], negative beyond a limit
     found, violations = {}, []
     for j, joint in enumerate(joints):
@@ -180,10 +204,16 @@ def _margins(
             "share": float(inside[k, j] / half) if np.isfinite(half) else float("nan"),
             "at": float(t[k]),
         }
+        limit = float(upper[j] if upper[j] - values[k, j] < values[k, j] - lower[j] else lower[j])
         beyond = int((inside[:, j] < 0).sum())
         if beyond:
-            limit = upper[j] if values[k, j] > upper[j] else lower[j]
-            violations.append(Violation(joint, name, float(t[k]), float(values[k, j]), float(limit), beyond))
+            violations.append(Violation(joint, name, float(t[k]), float(values[k, j]), limit, beyond))
+        elif np.isfinite(half) and required > 0:
+            short = int((inside[:, j] < (required - SHARE_TOLERANCE) * half).sum())
+            if short:
+                violations.append(
+                    Violation(joint, name, float(t[k]), float(values[k, j]), limit, short, required)
+                )
     return found, violations
 
 
@@ -232,6 +262,7 @@ def check_trajectory(
     effort: np.ndarray | None,
     collision: SelfCollision | NotChecked,
     rest_tolerance: float = REST_TOLERANCE,
+    margins: Margins | None = None,
 ) -> TrajectoryCheck:
     """Check ``trajectory`` (module docstring).
 
@@ -242,7 +273,9 @@ def check_trajectory(
         effort: the effort limits ``[n]``, or ``None`` (the robot declares none).
         collision: a self-collision test, or why there is none.
         rest_tolerance: largest ``|qd|``, ``|qdd|`` at the first and last sample.
+        margins: the safety margins every sample must keep (``None``: the default, 5 %).
     """
+    required = Margins.of(margins)
     if tuple(limits.joint_names) != trajectory.joint_names:
         raise ValueError(
             f"check: limits are for {limits.joint_names}, the trajectory has {trajectory.joint_names}"
@@ -261,7 +294,7 @@ def check_trajectory(
         checks.append(("effort", torques, -effort, effort))
         effort_status = "checked: the nominal model's torques against each joint's effort limit"
     for name, values, lower, upper in checks:
-        found, broken = _margins(name, values, t, lower, upper, joints)
+        found, broken = _margins(name, values, t, lower, upper, joints, required.share(name))
         for joint, margin in found.items():
             margins[joint][name] = margin
         violations += broken
@@ -281,6 +314,7 @@ def check_trajectory(
         collision.status(),
         effort_status,
         tuple(violations),
+        required,
     )
 
 
@@ -291,6 +325,7 @@ def check_file(
     collision: bool = True,
     package_dirs: Sequence[str] = (),
     rest_tolerance: float = REST_TOLERANCE,
+    margins: Margins | None = None,
 ) -> tuple[TrajectoryCheck, str]:
     """Check the trajectory file ``path`` for the URDF robot ``urdf``; also says where the
     acceleration limits came from."""
@@ -313,7 +348,7 @@ def check_file(
         torques = nominal_torques(robot, *states).numpy()
     test = self_collision(robot, package_dirs) if collision else NotChecked("switched off (--no-collision)")
     checked = check_trajectory(
-        trajectory, limits, torques, None if effort is None else effort.numpy(), test, rest_tolerance
+        trajectory, limits, torques, None if effort is None else effort.numpy(), test, rest_tolerance, margins
     )
     accelerations = ", ".join(f"{v:.4g}" for v in limits.upper[2].tolist())
     where = {
@@ -322,6 +357,28 @@ def check_file(
         "effort": "not in the URDF: the effort-derived default (idkit.excitation.effort)",
     }[source]
     return checked, f"acceleration limits ±[{accelerations}]: {where}"
+
+
+def margin_option(words: Sequence[str] | None) -> Margins:
+    """``--margin``'s words as margins: none (the default), one share, or ``quantity=share`` pairs.
+
+    Raises:
+        ValueError: a word that is neither, naming it.
+    """
+    if not words:
+        return Margins()
+    try:
+        if len(words) == 1 and "=" not in words[0]:
+            return Margins.of(float(words[0]), "--margin")
+        pairs = dict(word.split("=", 1) for word in words)
+        return Margins.of({key: float(value) for key, value in pairs.items()}, "--margin")
+    except ValueError as exc:
+        if str(exc).startswith("--margin"):
+            raise
+        raise ValueError(
+            f"--margin takes one share (0.05) or quantity=share pairs (position=0.05 effort=0.1), "
+            f"got {' '.join(words)}"
+        ) from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -335,12 +392,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--acceleration-limit", type=float, nargs="+", metavar="A", help="|qdd| bound: one, or one per joint"
     )
     parser.add_argument("--rest-tolerance", type=float, default=REST_TOLERANCE)
+    parser.add_argument(
+        "--margin",
+        nargs="+",
+        metavar="M",
+        help="safety margin, a share of each limit's half-range: one number for every limit (default "
+        "0.05), or quantity=share pairs (position=0.05 effort=0.1)",
+    )
     parser.add_argument("--no-collision", action="store_true", help="skip the self-collision check")
     parser.add_argument(
         "--package-dir", action="append", default=[], help="folder holding packages of package:// meshes"
     )
     args = parser.parse_args(argv)
     try:
+        margins = margin_option(args.margin)
         checked, acceleration = check_file(
             args.file,
             args.robot,
@@ -348,6 +413,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             not args.no_collision,
             args.package_dir,
             args.rest_tolerance,
+            margins,
         )
     except (ValueError, FileNotFoundError, TypeError) as exc:
         print(f"idkit: {exc}", file=sys.stderr)

@@ -5,7 +5,10 @@ excitation family (``fourier`` by default) to minimise a criterion of the base r
 over the ``N`` sample times (``idkit.excitation.criterion``: column-scaled condition number,
 D-optimality, or the expected LS error under state and torque noise), subject to the robot's joint
 position, velocity and acceleration limits at every instant, its effort limits (the nominal
-model's torques) and, optionally, no self-collision.
+model's torques) and, optionally, no self-collision. Every limit keeps a safety margin
+(``margin``, :mod:`idkit.excitation.margins`: 5 % of its half-range by default): the search and
+the final stage see each limit narrowed by its margin, so the check that enforces the margins
+passes.
 
 Constraints are hard, without penalty weights:
 
@@ -27,6 +30,12 @@ Search, seeded: the batched particle swarm of ``idkit.optim.swarm`` (``swarms`` 
 swarms of ``particles`` candidates: every candidate of an iteration is one tensor computation),
 then Adam through autograd from each swarm's best (``method="pso+adam"``, the default), or either
 alone. Both work in the unit cube of the family's ``coefficient_box``.
+
+**The start.** The family's member with the given options (for ``fourier``, its deterministic
+default series, at rest when ``rest``) made runnable by the same final stage is the motion the
+optimiser has to beat. If the search ends no better than it (a search can: its candidates are
+random, the start is not), the start is returned, ``improved`` is false and the report says that
+no improvement was found — an "optimised" motion is never worse than its start.
 """
 
 from __future__ import annotations
@@ -45,6 +54,7 @@ from idkit.excitation.collision import SelfCollision
 from idkit.excitation.criterion import Criterion, NoiseModel, make_criterion, observation_matrix
 from idkit.excitation.effort import effort_limits, nominal_torques
 from idkit.excitation.feasible import fit_into_limits, largest_feasible_scale, offset_indices, scale_motion
+from idkit.excitation.margins import Margins
 from idkit.excitation.spec import build_excitation
 from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
@@ -70,16 +80,22 @@ class ExcitationResult:
 
     Attributes:
         name: registry name of the excitation family (``idkit.excitations``).
-        excitation: the optimised member, feasible on ``grid``.
+        excitation: the optimised member (or the start, when the search did not improve on it),
+            feasible on ``grid`` with every margin kept.
         baseline: the robot's default excitation (what ``simulate`` samples unless told otherwise).
         criterion: ``"cond"``, ``"logdet"`` or ``"ls_error"``.
         before, after: the criterion of ``baseline`` and of ``excitation`` at the sample times ``t``.
         t: sample times ``[N]``.
-        limits: the box the motion had to respect.
+        limits: the box the motion had to respect (the limits themselves; the margins apply within).
         grid: the dense check grid ``[G]`` over ``[0, t_end]``.
         excess_before, excess_after: worst excursion beyond each limit on ``grid`` ``[3, n]``
             (rows position, velocity, acceleration; 0 inside).
         effort: the effort limits ``[n]`` kept, or ``None`` (the robot declares none, or ``effort=False``).
+        margins: the safety margins kept inside every limit.
+        start: the criterion of the start (module doc), ``None`` if the start could not be made
+            runnable (``details["start"]`` says why).
+        improved: whether the search found a motion better than the start (``False``: ``excitation``
+            is the start).
         details: method, budget, seed, the best loss, wall and CPU time of each stage, the number of
             candidate ``evaluations`` of the criterion, and ``shrunk_by`` (the common scale of the
             final stage, 1 if none was needed) with ``shrunk_for`` and ``criterion_before_shrink``.
@@ -97,6 +113,9 @@ class ExcitationResult:
     excess_before: Tensor
     excess_after: Tensor
     effort: Tensor | None = None
+    margins: Margins = field(default_factory=Margins)
+    start: float | None = None
+    improved: bool = True
     details: dict[str, Any] = field(default_factory=dict)
 
     def samples(self) -> tuple[Tensor, Tensor, Tensor, Tensor]:
@@ -137,6 +156,7 @@ def optimize_excitation(
     noise: NoiseModel | None = None,
     effort: bool = True,
     collision: SelfCollision | None = None,
+    margin: float | Mapping[str, float] | Margins | None = None,
 ) -> ExcitationResult:
     """Choose the coefficients of an excitation family for ``robot`` (module docstring).
 
@@ -161,6 +181,8 @@ def optimize_excitation(
         noise: the noise model of ``ls_error`` (default ``NoiseModel()``); ignored by the others.
         effort: keep the nominal torques within the robot's effort limits (if it declares them).
         collision: a self-collision test the result must pass on the check grid (``None``: none).
+        margin: the safety margin of every limit, a share of its half-range, or one per quantity
+            (``{"position": 0.05, "effort": 0.1}``; :mod:`idkit.excitation.margins`); ``None``: 5 %.
     """
     criterion_ = make_criterion(criterion, robot, n_samples, noise)
     if method not in METHODS:
@@ -181,12 +203,14 @@ def optimize_excitation(
         raise ValueError(
             f"optimize_excitation: limits are for joints {limits.joint_names}, robot has {robot.joint_names}"
         )
+    margins = Margins.of(margin, "excitation.margin")
     family = build_excitation(excitation, robot, options)
     efforts = effort_limits(robot) if effort else None
+    inner, inner_efforts = margins.narrowed(limits), margins.narrowed_effort(efforts)
     like = {"device": torch.device(device), "dtype": torch.float64}
     t = sample_times(n_samples, t_end)
     grid = torch.linspace(0.0, t_end, grid_points, dtype=torch.float64)
-    objective = _Objective(robot, family, criterion_, limits, efforts, t, grid, like, collision)
+    objective = _Objective(robot, family, criterion_, inner, inner_efforts, t, grid, like, collision)
     generator = torch_generator(seed)
     budget = {
         "swarms": swarms,
@@ -200,7 +224,7 @@ def optimize_excitation(
         unit, details = _search(objective, objective.dims, method, budget, generator, like)
     check_grid = torch.linspace(0.0, t_end, check_points, dtype=torch.float64)
     final, unshrunk, shrink = _runnable(
-        robot, family, objective.coefficients(unit), limits, efforts, collision, check_grid
+        robot, family, objective.coefficients(unit), inner, inner_efforts, collision, check_grid
     )
     baseline = robot.default_excitation()
     before, after = (_value(robot, criterion_, e, t) for e in (baseline, final))
@@ -213,6 +237,17 @@ def optimize_excitation(
     )
     if unshrunk is not None:
         details["criterion_before_shrink"] = _value(robot, criterion_, unshrunk, t)
+    start, start_value, details["start"] = _start(
+        robot, family, criterion_, inner, inner_efforts, collision, check_grid, t
+    )
+    improved = start_value is None or _better(criterion_, after, start_value)
+    if not improved:
+        assert start is not None
+        details["search_result"] = after
+        final, after = start, start_value
+        for key in ("shrunk_by", "shrunk_for", "criterion_before_shrink"):
+            details.pop(key, None)
+        details.update(details["start"]["shrink"])
     return ExcitationResult(
         name=excitation,
         excitation=final,
@@ -226,8 +261,46 @@ def optimize_excitation(
         excess_before=limits.excess(*baseline(check_grid)),
         excess_after=limits.excess(*final(check_grid)),
         effort=efforts,
+        margins=margins,
+        start=start_value,
+        improved=improved,
         details=details,
     )
+
+
+def _better(criterion: Criterion, value: float, than: float) -> bool:
+    """Whether ``value`` of ``criterion`` is strictly better than ``than``."""
+    return value > than if criterion.better == "larger" else value < than
+
+
+def _start(
+    robot: Robot,
+    family: Excitation,
+    criterion: Criterion,
+    limits: MotionLimits,
+    efforts: Tensor | None,
+    collision: SelfCollision | None,
+    grid: Tensor,
+    t: Tensor,
+) -> tuple[Excitation | None, float | None, dict[str, Any]]:
+    """The start (module doc) made runnable, its criterion, and ``details["start"]``; ``(None, None,
+    {"runnable": False, "why": …})`` when it cannot be (its rest pose fails the effort or collision
+    test). An offset outside a joint's position range (``fourier``'s default 0 for a joint whose
+    range excludes 0) is moved to the middle of the range: scaling cannot move an offset."""
+    vector = family.to_vector().clone()
+    where = offset_indices(family)
+    low, high = limits.lower[0], limits.upper[0]
+    offsets = vector[where]
+    outside = (offsets < low) | (offsets > high)
+    middle = torch.where(torch.isfinite(low + high), (low + high) / 2, offsets.clamp(low, high))
+    vector[where] = torch.where(outside, middle, offsets)
+    try:
+        start, _, shrink = _runnable(robot, family, vector, limits, efforts, collision, grid)
+    except ValueError as exc:
+        return None, None, {"runnable": False, "why": str(exc)}
+    value = _value(robot, criterion, start, t)
+    moved = [name for name, out in zip(limits.joint_names, outside.tolist(), strict=True) if out]
+    return start, value, {"runnable": True, "criterion": value, "shrink": shrink, "offsets_centred": moved}
 
 
 def _value(robot: Robot, criterion: Criterion, excitation: Excitation, t: Tensor) -> float:

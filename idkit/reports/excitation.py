@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from idkit.limits import MOTION_VARIABLES
-from idkit.reports import files
+from idkit.reports import excitation_page, files
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.studies.excitation import ExcitationStudy
@@ -35,26 +35,68 @@ def _excursions(study: ExcitationStudy, which: str) -> str:
     return ", ".join(found) if found else "none"
 
 
+def _default_excursions(study: ExcitationStudy) -> str:
+    """The default motion's excursions, and that it cannot be run as it is when it has any."""
+    found = _excursions(study, "before")
+    return found if found == "none" else f"{found} (not runnable as it is)"
+
+
 def criterion_change(criterion: str, before: float, after: float) -> str:
-    """How the optimised motion's criterion compares with the default motion's, in words: a
-    motion kept inside the limits can end worse than a default that leaves them, and says so."""
+    """How ``after`` compares with ``before`` in words (``1.52 times smaller``, ``+3.1``)."""
     if criterion == "logdet":
         return f"{after - before:+.3g}"
     ratio = before / after
     return f"{ratio:.2f} times smaller" if ratio >= 1 else f"{1 / ratio:.2f} times larger"
 
 
+def _outcome(study: ExcitationStudy) -> list[str]:
+    """The start, and the optimised motion against it, or that the search did not beat it.
+
+    The robot's default motion (``before``) may leave the limits; the start is the family's member
+    made runnable with the same margins, so it is what an optimised motion must improve on.
+    """
+    r = study.result
+    start = r.details.get("start") or {}
+    if r.start is None:
+        lines = [
+            f"  start ({r.name} as configured): not runnable ({start.get('why', 'unknown')}); no comparison"
+        ]
+    else:
+        shrunk = (start.get("shrink") or {}).get("shrunk_by", 1.0)
+        centred = start.get("offsets_centred") or []
+        made = (
+            (f"offsets of {', '.join(centred)} moved to mid-range, " if centred else "")
+            + "fitted into the limits less their margins"
+            + (f", shrunk by {shrunk:.4g}" if shrunk != 1.0 else "")
+        )
+        lines = [f"  start  ({r.name} as configured, {made}): {r.criterion} = {r.start:.6g}"]
+    if r.improved:
+        versus = (
+            "" if r.start is None else f" ({criterion_change(r.criterion, r.start, r.after)} than the start)"
+        )
+        lines.append(
+            f"  after  ({r.name}, optimised): {r.criterion} = {r.after:.6g}{versus}; "
+            f"outside the limits: {_excursions(study, 'after')}"
+        )
+    else:
+        lines.append(
+            f"  no improvement found: the search's best ({r.criterion} = "
+            f"{r.details['search_result']:.6g}) is not better than the start, so the start is kept "
+            f"({r.criterion} = {r.after:.6g}); outside the limits: {_excursions(study, 'after')}"
+        )
+    return lines
+
+
 def text(study: ExcitationStudy) -> str:
-    """The criterion before and after, and whether each motion stays within the limits."""
+    """The default motion, the start and the optimised motion, the margins, and the check's verdict."""
     from idkit.studies.excitation import ACCELERATION_SOURCES
 
     r = study.result
     n, t_end = int(r.t.numel()), float(r.grid[-1])
-    change = criterion_change(r.criterion, r.before, r.after)
     shrunk = r.details.get("shrunk_by", 1.0)
     shrink = (
         []
-        if shrunk == 1.0
+        if shrunk == 1.0 or not r.improved
         else [
             f"  shrunk by {shrunk:.4g} for {' and '.join(r.details['shrunk_for'])} "
             f"({r.criterion} {r.details['criterion_before_shrink']:.6g} before)"
@@ -70,11 +112,11 @@ def text(study: ExcitationStudy) -> str:
             f"Excitation `{r.name}` for {study.robot_name}, criterion {r.criterion} ({BETTER[r.criterion]}) "
             f"at N = {n} samples over {t_end:g} s",
             "",
-            f"  before ({study.baseline_name or 'default'}): {r.criterion} = {r.before:.6g}; "
-            f"outside the limits: {_excursions(study, 'before')}",
-            f"  after  ({r.name}, optimised): {r.criterion} = {r.after:.6g} ({change}); "
-            f"outside the limits: {_excursions(study, 'after')}",
+            f"  robot's default motion ({study.baseline_name or 'default'}): {r.criterion} = {r.before:.6g}; "
+            f"outside the limits: {_default_excursions(study)}",
+            *_outcome(study),
             *shrink,
+            f"  safety margin inside every limit: {r.margins.describe()}",
             f"  acceleration limits: {ACCELERATION_SOURCES[study.acceleration_source]}",
             f"  {exported}; load it with scenario.excitation=<run dir>/excitation.yaml",
             "",
@@ -108,6 +150,7 @@ def write(study: ExcitationStudy, out_dir: str | Path, plots: bool = True) -> di
         written["npz"] = str(files.write_npz(out / "excitation.npz", trajectory.arrays()))
     if plots:
         dense = [x.numpy() for x in r.excitation(r.grid)]
+        inner = r.margins.narrowed(r.limits, extra=0.0)
         written["plot"] = str(
             figures.motion_against_limits(
                 r.grid.numpy(),
@@ -116,9 +159,17 @@ def write(study: ExcitationStudy, out_dir: str | Path, plots: bool = True) -> di
                 r.limits.upper.numpy(),
                 (t, (q, qd, qdd)),
                 r.limits.joint_names,
-                f"{study.robot_name}: optimised {r.name} excitation ({r.criterion} "
-                f"{r.before:.3g} → {r.after:.3g}); dashed: limits ({', '.join(MOTION_VARIABLES)})",
+                f"{study.robot_name}: {'optimised' if r.improved else 'start (no improvement found)'} "
+                f"{r.name} excitation ({r.criterion} {r.after:.3g}); dashed: limits "
+                f"({', '.join(MOTION_VARIABLES)}), dotted: less the safety margins",
                 out / "excitation.png",
+                (inner.lower.numpy(), inner.upper.numpy()),
             )
         )
-    return write_result(out, study.provenance, study.payload(), written)
+    return write_result(
+        out,
+        study.provenance,
+        study.payload(),
+        written,
+        lambda document: excitation_page.render(document, out),
+    )

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from idkit.reports import files
+from idkit.reports import files, html
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.reports.tables import markdown_table
@@ -30,7 +30,8 @@ def text(study: KukaStudy) -> str:
     p = study.provenance
     if p.status == "partial":
         lines += [f"PARTIAL: {p.done} of {p.requested} model variants (interrupted).", ""]
-    joints = [f"j{j + 1}" for j in range(n)]
+    named = study.traces.joint_names if study.traces is not None else ()
+    joints = list(named) if len(named) == n else [f"j{j + 1}" for j in range(n)]
     header = ["model", "friction", "offset", *joints, "‖E‖/‖T‖", "NRMS/limit", "min eig"]
     for rec in (*study.test, study.train):
         lines += [f"### {rec}" + (" (training data)" if rec == study.train else " (held out)"), ""]
@@ -79,7 +80,12 @@ def _plot(study: KukaStudy, path: Path) -> Path | None:
     labelled = [_variant(r) for r in chosen]
     predicted = {key: traces.predicted[key] for key in labelled}
     return figures.traces(
-        traces.times, traces.measured, predicted, f"KUKA LWR4+ held-out torques, {traces.recording}", path
+        traces.times,
+        traces.measured,
+        predicted,
+        f"KUKA LWR4+ held-out torques, {traces.recording}",
+        path,
+        traces.joint_names or None,
     )
 
 
@@ -97,4 +103,10 @@ def write(study: KukaStudy, out_dir: str | Path, plots: bool = True) -> dict[str
         plot = _plot(study, out / "kuka_heldout_torques.png")
         if plot is not None:
             written["plot"] = str(plot)
-    return write_result(out, study.provenance, study.payload(), written)
+    return write_result(
+        out,
+        study.provenance,
+        study.payload(),
+        written,
+        lambda document: html.text_page(document, text(study), out),
+    )

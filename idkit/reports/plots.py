@@ -93,17 +93,40 @@ def traces(
     predicted: Mapping[str, np.ndarray],
     title: str,
     path: Path,
-    ylabel: str = "joint {j} (N·m)",
+    joint_names: Sequence[str] | None = None,
+    unit: str = "N·m",
+    residuals: bool = True,
 ) -> Path:
-    """One panel per joint: a measured signal ``[N, n]`` against predictions ``[N, n]`` over ``times[N]``."""
+    """Per joint, a measured signal ``[N, n]`` against predictions ``[N, n]`` over ``times[N]`` and,
+    under it (``residuals``), each prediction's residual ``measured − predicted``: the misfit a
+    summary number hides (a joint whose friction model fails) shows there.
+
+    Args:
+        joint_names: the ``n`` joints' names for the axes (``None``: ``joint 1``, ``joint 2``, …).
+        unit: of the signal, for the axes.
+    """
     n = measured.shape[1]
-    fig, axes = _subplots(n, 1, figsize=(10, 2.0 * n), sharex=True, squeeze=False)
-    for j, ax in enumerate(axes[:, 0]):
+    names = list(joint_names) if joint_names is not None else [f"joint {j + 1}" for j in range(n)]
+    rows = 2 * n if residuals else n
+    heights = [3, 1.4] * n if residuals else [1] * n
+    fig, axes = _subplots(
+        rows, 1, figsize=(10, (2.2 if residuals else 2.0) * n), sharex=True, squeeze=False,
+        gridspec_kw={"height_ratios": heights},
+    )  # fmt: skip
+    step = 2 if residuals else 1
+    for j in range(n):
+        ax = axes[step * j, 0]
         ax.plot(times, measured[:, j], "k", lw=2.0, label="measured")
         for label, values in predicted.items():
-            ax.plot(times, values[:, j], lw=1.0, label=label.format(j=j + 1))
-        ax.set_ylabel(ylabel.format(j=j + 1))
+            ax.plot(times, values[:, j], lw=1.0, label=label)
+        ax.set_ylabel(f"{names[j]} ({unit})", fontsize="small")
         ax.legend(fontsize=7, loc="upper right")
+        if residuals:
+            below = axes[step * j + 1, 0]
+            below.axhline(0.0, color="k", lw=0.6)
+            for k, values in enumerate(predicted.values()):
+                below.plot(times, measured[:, j] - values[:, j], lw=0.8, color=f"C{k}")
+            below.set_ylabel("residual", fontsize="x-small")
     axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle(title)
     fig.tight_layout()
@@ -119,6 +142,7 @@ def motion_against_limits(
     joint_names: Sequence[str],
     title: str,
     path: Path,
+    inner: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Path:
     """A motion against its box: rows ``q``, ``q̇``, ``q̈``, one column per joint.
 
@@ -126,19 +150,23 @@ def motion_against_limits(
         grid: dense times ``[G]``; ``motion``: ``(q, qd, qdd)``, each ``[G, n]``.
         lower, upper: the limits ``[3, n]`` (``±inf`` lines are not drawn).
         samples: ``(t[N], (q, qd, qdd))`` at the sample times, drawn as dots.
+        inner: the limits less their safety margins ``(lower, upper)``, each ``[3, n]``, dotted.
     """
     import numpy as np
 
     n = len(joint_names)
     fig, axes = _subplots(3, n, figsize=(3.2 * n, 6.5), sharex=True, squeeze=False)
     t_samples, at_samples = samples
-    for v, label in enumerate(("q", "q̇", "q̈")):
+    for v, label in enumerate(("q", "qd", "qdd")):
         for j, ax in enumerate(axes[v]):
             ax.plot(grid, motion[v][:, j], lw=1.0)
             ax.plot(t_samples, at_samples[v][:, j], "o", ms=3, color="C1")
             for bound in (lower[v, j], upper[v, j]):
                 if np.isfinite(bound):
                     ax.axhline(bound, color="r", lw=0.8, ls="--")
+            for bound in () if inner is None else (inner[0][v, j], inner[1][v, j]):
+                if np.isfinite(bound):
+                    ax.axhline(bound, color="r", lw=0.6, ls=":")
             ax.set_ylabel(f"{label} {joint_names[j]}" if j == 0 or n > 1 else label, fontsize="small")
             if v == 0:
                 ax.set_title(joint_names[j], fontsize="small")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,11 @@ from idkit.reports import files
 from idkit.studies.result import Provenance
 
 RESULT_FILE = "result.json"
+#: The run's self-contained page (``idkit.reports.html``), written just before ``result.json``.
+REPORT_FILE = "report.html"
+
+#: Renders the page of a run from its ``result.json`` document.
+Page = Callable[[dict[str, Any]], str]
 
 
 def claim(out_dir: str | Path, provenance: Provenance) -> Path:
@@ -54,11 +60,23 @@ def document(provenance: Provenance, payload: dict[str, Any], written: dict[str,
 
 
 def write_result(
-    out_dir: str | Path, provenance: Provenance, payload: dict[str, Any], written: dict[str, str]
+    out_dir: str | Path,
+    provenance: Provenance,
+    payload: dict[str, Any],
+    written: dict[str, str],
+    page: Page | None = None,
 ) -> dict[str, str]:
-    """Write ``result.json`` into ``out_dir`` (after :func:`claim`); returns ``written`` + its path."""
+    """Write ``result.json`` into ``out_dir`` (after :func:`claim`), and first, with ``page``, the
+    run's ``report.html`` made from the same document; returns ``written`` + their paths."""
     out = claim(out_dir, provenance)
     path = out / RESULT_FILE
-    written = {**written, "result": str(path)}
-    files.write_json(path, document(provenance, payload, written))
+    written = {
+        **written,
+        **({"report": str(out / REPORT_FILE)} if page is not None else {}),
+        "result": str(path),
+    }
+    content = document(provenance, payload, written)
+    if page is not None:
+        files.write_text(out / REPORT_FILE, page(content))
+    files.write_json(path, content)
     return written

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from idkit.reports import files
+from idkit.reports import files, html
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.reports.tables import markdown_table
@@ -125,4 +125,10 @@ def write(study: RobustnessStudy, out_dir: str | Path, plots: bool = True) -> di
                 " (boxes: quartiles; whiskers: 5th-95th percentile)",
             )
         )
-    return write_result(out, study.provenance, study.payload(), written)
+    return write_result(
+        out,
+        study.provenance,
+        study.payload(),
+        written,
+        lambda document: html.text_page(document, text(study), out),
+    )

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from idkit.estimate import HistoryError, history_table
-from idkit.reports import files
+from idkit.reports import files, single_page
 from idkit.reports import payload as payload_report
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
@@ -135,7 +135,14 @@ def _percent(value: Any) -> str:
     return "inf" if value == float("inf") else f"{value:.3g} %"
 
 
+def joint_labels(result: RunResult, n: int) -> list[str]:
+    """The robot's joint names (``j1``, ``j2``, … for a result that does not carry them)."""
+    names = list(result.joint_names)
+    return names if len(names) == n else [f"j{j + 1}" for j in range(n)]
+
+
 def _validation_lines(result: RunResult) -> list[str]:
+    """Per held-out file: ``‖E‖/‖T‖`` over all joints, then each joint's RMS error and relative error."""
     if not result.validation:
         return []
     n = len(result.validation[0].scores.rms)
@@ -148,11 +155,18 @@ def _validation_lines(result: RunResult) -> list[str]:
         if band == "mixed"
         else f"torques compared below {band:g} Hz"
     )
-    lines = ["", f"held-out validation: RMS torque error per joint, ‖E‖/‖T‖ over all joints ({compared})"]
-    lines.append(f"{'file':<32}" + "".join(f"{'j' + str(j + 1):>9}" for j in range(n)) + f"{'‖E‖/‖T‖':>10}")
+    names = joint_labels(result, n)
+    width = max(12, *(len(name) + 2 for name in names))
+    lines = [
+        "",
+        f"held-out validation ({compared}): ‖E‖/‖T‖ over all joints; per joint the RMS torque error and "
+        "its share of the joint's RMS measured torque",
+    ]
     for held in result.validation:
-        cells = "".join(f"{v:9.3g}" for v in held.scores.rms)
-        lines.append(f"{_short(held.file):<32}{cells}{100 * held.scores.rel_all:9.2f} %")
+        lines.append(f"{_short(held.file, 60)}: ‖E‖/‖T‖ {100 * held.scores.rel_all:.2f} %")
+        lines.append(f"  {'joint':<{width}}{'RMS error':>12}{'relative':>11}")
+        for name, rms, relative in zip(names, held.scores.rms, held.scores.relative, strict=True):
+            lines.append(f"  {name:<{width}}{rms:12.4g}{100 * relative:9.2f} %")
     return lines
 
 
@@ -196,12 +210,16 @@ def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[st
     if plots:
         for k, held in enumerate(result.validation):
             path = out / f"validation_{k + 1}.png"
-            written[f"validation_plot_{k + 1}"] = str(_validation_plot(label, held, path))
-    return write_result(out, result.provenance, result.payload(), written)
+            names = joint_labels(result, held.scores.measured.shape[1])
+            written[f"validation_plot_{k + 1}"] = str(_validation_plot(label, held, path, names))
+    return write_result(
+        out, result.provenance, result.payload(), written, lambda document: single_page.render(document, out)
+    )
 
 
-def _validation_plot(label: str, held: HeldOut, path: Path) -> Path:
-    """Measured vs predicted torques on the start of a held-out file (x: time, else sample index)."""
+def _validation_plot(label: str, held: HeldOut, path: Path, joint_names: list[str]) -> Path:
+    """Measured vs predicted torques on the start of a held-out file, with the residual under each
+    joint (x: time, else sample index)."""
     scores = held.scores
     if held.times is not None:
         times = held.times
@@ -210,4 +228,6 @@ def _validation_plot(label: str, held: HeldOut, path: Path) -> Path:
         times = np.arange(scores.measured.shape[0], dtype=np.float64)
         keep = times < PLOT_SAMPLES
     title = f"{label}: held-out {held.file} (‖E‖/‖T‖ {100 * scores.rel_all:.2f} %)"
-    return figures.traces(times[keep], scores.measured[keep], {label: scores.predicted[keep]}, title, path)
+    return figures.traces(
+        times[keep], scores.measured[keep], {label: scores.predicted[keep]}, title, path, joint_names
+    )

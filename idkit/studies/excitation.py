@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from idkit.data.presets import Scenario
+from idkit.excitation.margins import DEFAULT_MARGIN
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
@@ -70,7 +71,10 @@ class ExcitationStudy:
             "baseline": self.baseline_name,
             "criterion": r.criterion,
             "before": r.before,
+            "start": r.start,
             "after": r.after,
+            "improved": r.improved,
+            "margins": r.margins.as_dict(),
             "n_samples": int(r.t.numel()),
             "t_end": float(r.grid[-1]),
             "limits": r.limits.as_dict(),
@@ -136,6 +140,7 @@ def run(
     rate: float | None = 1000.0,
     acceleration_limit: float | Sequence[float] | None = None,
     collision: bool = True,
+    margin: float | Mapping[str, float] = DEFAULT_MARGIN,
     method: str = "pso+adam",
     swarms: int = 4,
     particles: int = 32,
@@ -169,6 +174,9 @@ def run(
             ``None``: the robot's, else derived from its effort limits.
         collision: check self-collision (pinocchio + coal, where installed and the URDF has
             collision geometry) and shrink the motion until none is found.
+        margin: the safety margin kept inside every limit (position, velocity, acceleration,
+            effort), a share of its half-range; or one per quantity (``{effort: 0.1}``, the others
+            5 %). The optimiser keeps it and the check enforces it (:mod:`idkit.excitation.margins`).
         check_points: the result's check grid (``None``: the controller samples, or 10001 points).
         dtype: only ``float64`` (limits are checked and coefficients written in double precision).
 
@@ -216,12 +224,13 @@ def run(
         device=device,
         noise=NoiseModel(**dict(noise or {}), seed=seed),
         collision=test if isinstance(test, SelfCollision) else None,
+        margin=margin,
     )
     samples = result.excitation(result.grid if times is None else times)
     trajectory = Trajectory.of(robot_obj.joint_names, result.grid if times is None else times, *samples)
     torques = None if result.effort is None else nominal_torques(robot_obj, *samples).numpy()
     effort = None if result.effort is None else result.effort.numpy()
-    check = check_trajectory(trajectory, limits, torques, effort, test)
+    check = check_trajectory(trajectory, limits, torques, effort, test, margins=result.margins)
     provenance = Provenance(
         task=TASK,
         label=f"{family} excitation ({criterion})",

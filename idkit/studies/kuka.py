@@ -152,12 +152,14 @@ def variant(label: str, friction: bool, offset: bool, stribeck: float | None = N
 
 @dataclass
 class Traces:
-    """Measured and predicted torques ``[N, n]`` of one held-out recording, for the plot."""
+    """Measured and predicted torques ``[N, n]`` of one held-out recording, for the plot (joints
+    named by ``joint_names``)."""
 
     recording: str
     times: np.ndarray
     measured: np.ndarray
     predicted: dict[str, np.ndarray]
+    joint_names: tuple[str, ...] = ()
 
 
 @dataclass
@@ -328,7 +330,7 @@ def run(
     traces, keep = None, None
     if shown is not None and shown.times is not None:
         keep = (shown.times >= plot_window[0]) & (shown.times <= plot_window[1])
-        traces = Traces(test[0], shown.times[keep], shown.measured_tau[keep], {})
+        traces = Traces(test[0], shown.times[keep], shown.measured_tau[keep], {}, tuple(rigid.joint_names))
 
     def result() -> KukaStudy:
         repeats = _repeat_rows(recordings, train, test, rigid) if rows else []

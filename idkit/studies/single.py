@@ -2,7 +2,8 @@
 
 ``run``'s signature is the command line's config: ``idkit estimator=pso cost=f13 +scenario=outliers
 seed=1 n_samples=40`` calls ``run(robot=..., estimator=..., cost=..., scenario=..., seed=1,
-n_samples=40, ...)``. From Python, ``idkit.run(...)`` calls it and writes the report::
+n_samples=40, ...)``. From Python, ``idkit.run(...)`` (:mod:`idkit.api`) calls it and adds the
+report's ``table()`` and ``save()``; a study never imports a report::
 
     import idkit
     result = idkit.run(estimator="pso", cost="f13", scenario="outliers", seed=0)
@@ -102,6 +103,18 @@ class RunResult:
         return IdentifiedModel(self.robot, self.estimate, validation=self.validation, result=self)
 
     @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The robot's joints, in the order of every per-joint figure (``()`` without the robot)."""
+        return () if self.robot is None else tuple(self.robot.joint_names)
+
+    @property
+    def nominal(self) -> dict[str, float] | None:
+        """The robot's a-priori parameters (a URDF's CAD inertials) by name, for the report to set the
+        estimate beside (``None``: no robot object, or a robot without them)."""
+        nominal = None if self.robot is None else self.robot.nominal_params()
+        return None if nominal is None else dict(zip(self.robot.param_names, nominal.tolist(), strict=True))
+
+    @property
     def seed(self) -> int:
         return self.provenance.seed
 
@@ -132,6 +145,8 @@ class RunResult:
             "relative_error": self.relative_error,
             "parameter_error": self.parameter_error,
             "cost": {"name": self.cost_name, "value": self.estimate.cost},
+            "joint_names": list(self.joint_names),
+            "nominal": self.nominal,
             "validation": {held.file: held.scores.to_dict() for held in self.validation},
             **(
                 {"plausible_alternative": self.plausible.to_dict([h.file for h in self.validation])}
@@ -139,19 +154,6 @@ class RunResult:
                 else {}
             ),
         }
-
-    # Conveniences for Python users; the formatting lives in idkit.reports.single.
-    def table(self) -> str:
-        """The report's text table (``idkit.reports.single.text``)."""
-        from idkit.reports import single
-
-        return single.text(self)
-
-    def save(self, out_dir: str | Path, make_plots: bool = True) -> dict[str, str]:
-        """Write the report into ``out_dir`` (``idkit.reports.single.write``); returns the files."""
-        from idkit.reports import single
-
-        return single.write(self, out_dir, plots=make_plots)
 
 
 def _scenario_spec(scenario: Any) -> Any:

@@ -226,7 +226,12 @@ def test_a_trajectory_that_cannot_identify_the_payload_says_so():
     assert found["mass"] == pytest.approx(0.5, rel=1e-6) and found["rank"] < 10
     assert any("payload.Ixx" in d for d in found["unidentifiable"])
     assert np.isinf(np.array(found["inertia_std"])).any()
-    assert any("not identified by this recording" in line for line in payload_report.lines(estimate.details))
+    assert found["verdict"]["mass"] and not found["verdict"]["inertia"]
+    lines = payload_report.lines(estimate.details)
+    assert "  mass            identified      0.5 ± " in "\n".join(lines)
+    assert any(line.startswith("  inertia         not identified") for line in lines)
+    assert any(line.startswith("not identified, free: ") and "the inertia's Ixx" in line for line in lines)
+    assert not any("setLoad(" in line or "set_target_payload(" in line for line in lines)
 
 
 @pytest.mark.parametrize(

@@ -15,6 +15,7 @@ from idkit.excitation.collision import NotChecked, self_collision
 from idkit.excitation.effort import nominal_torques
 from idkit.excitation.export import Trajectory, columns, controller_times
 from idkit.excitation.fourier import FourierExcitation
+from idkit.excitation.margins import Margins
 from idkit.limits import MotionLimits
 from idkit.reports import files
 from idkit.robots.urdf import URDFRobot
@@ -22,6 +23,7 @@ from tests.excitation.arm_cases import ARM_URDF, TOUCH
 
 JOINTS = ("a", "b")
 LIMITS = MotionLimits.from_ranges(JOINTS, [(-1, 1), (1, 2)], [(-3, 3), (-3, 3)], [(-15, 15), (-15, 15)])
+NO_MARGIN = Margins.of(0.0)
 
 
 def sine_trajectory(amplitude: float = 0.5, rate: float = 100.0) -> Trajectory:
@@ -36,7 +38,7 @@ def sine_trajectory(amplitude: float = 0.5, rate: float = 100.0) -> Trajectory:
 
 def test_margins_are_the_worst_sample_distance_from_each_limit():
     trajectory = sine_trajectory(0.2)
-    found = check_trajectory(trajectory, LIMITS, None, None, NotChecked("test"))
+    found = check_trajectory(trajectory, LIMITS, None, None, NotChecked("test"), margins=NO_MARGIN)
     assert found.ok and found.samples == 201 and found.rate == pytest.approx(100.0) and found.duration == 2.0
     position = found.margins["a"]["position"]
     # q_a peaks at 0.2 · 2² = 0.8 at t = 1 s: 0.2 from the upper limit, a fifth of the half-range.
@@ -46,6 +48,51 @@ def test_margins_are_the_worst_sample_distance_from_each_limit():
     assert "effort" not in found.margins["a"] and found.effort.startswith("not checked")
     assert found.rest["start"] == {"velocity": 0.0, "acceleration": 0.0}
     assert "| a | 0.2 (20.0 %) |" in found.table()
+
+
+def test_a_sample_inside_a_limit_but_within_its_margin_is_a_violation():
+    trajectory = sine_trajectory(0.2)  # q_b starts on its lower limit 1; q_a peaks 0.2 below its upper
+    found = check_trajectory(trajectory, LIMITS, None, None, NotChecked("test"))  # the default: 5 %
+    (violation,) = found.violations
+    close = int((trajectory.q[:, 1] - 1 < 0.05 * 0.5).sum())  # within 5 % of the half-range 0.5
+    assert (
+        violation.line()
+        == f"b: position 1 at t = 0 s within the 5 % safety margin of the limit 1 ({close} samples)"
+    )
+    assert not found.ok and found.summary().splitlines()[-1].startswith(
+        "1 violation(s) (required margins: 5 %"
+    )
+    # a margin per quantity: none on positions passes; 25 % on them also catches q_a (20 % from its limit)
+    assert check_trajectory(
+        trajectory, LIMITS, None, None, NotChecked("x"), margins=Margins.of({"position": 0})
+    ).ok
+    wide = check_trajectory(trajectory, LIMITS, None, None, NotChecked("x"), margins=Margins.of(0.25))
+    assert [(v.subject, v.quantity) for v in wide.violations] == [("a", "position"), ("b", "position")]
+    assert found.as_dict()["required_margins"]["effort"] == 0.05
+
+
+def test_margins_are_shares_in_zero_to_one():
+    assert Margins.of({"effort": 0.1}).as_dict() == {
+        "position": 0.05,
+        "velocity": 0.05,
+        "acceleration": 0.05,
+        "effort": 0.1,
+    }
+    for bad in (1.0, -0.1, float("nan"), True, "x"):
+        with pytest.raises(ValueError, match=r"excitation.margin must be a share .* in \[0, 1\)"):
+            Margins.of(bad, "excitation.margin")
+    with pytest.raises(
+        ValueError, match="excitation.margin.torque is not a limit with a margin; they are position"
+    ):
+        Margins.of({"torque": 0.1}, "excitation.margin")
+
+
+def test_narrowed_limits_keep_the_margin_inside_every_finite_box():
+    limits = MotionLimits.from_ranges(["a"], [(1.0, 3.0)], [(-2.0, 2.0)], [(-math.inf, math.inf)])
+    inner = Margins.of(0.1).narrowed(limits, extra=0.0)
+    assert inner.lower[:, 0].tolist() == pytest.approx([1.1, -1.8, -math.inf])
+    assert inner.upper[:, 0].tolist() == pytest.approx([2.9, 1.8, math.inf])
+    assert Margins.of(0.1).narrowed_effort(torch.tensor([10.0]), extra=0.0).tolist() == pytest.approx([9.0])
 
 
 def test_every_violation_names_joint_time_value_and_limit():
@@ -64,7 +111,8 @@ def test_every_violation_names_joint_time_value_and_limit():
 def test_not_at_rest_and_irregular_rate_are_violations():
     trajectory = sine_trajectory(0.2)
     moving = Trajectory(JOINTS, trajectory.t, trajectory.q, trajectory.qd + 1e-5, trajectory.qdd)
-    lines = [v.line() for v in check_trajectory(moving, LIMITS, None, None, NotChecked("x")).violations]
+    checked = check_trajectory(moving, LIMITS, None, None, NotChecked("x"), margins=NO_MARGIN)
+    lines = [v.line() for v in checked.violations]
     assert lines == [
         "a: not at rest at t = 0 s: |qd| = 1e-05 > 1e-06",
         "b: not at rest at t = 0 s: |qd| = 1e-05 > 1e-06",
@@ -74,7 +122,7 @@ def test_not_at_rest_and_irregular_rate_are_violations():
     t = trajectory.t.copy()
     t[50:] += 0.004  # a 14 ms step where 10 ms are due
     jumpy = Trajectory(JOINTS, t, trajectory.q, trajectory.qd, trajectory.qdd)
-    (violation,) = check_trajectory(jumpy, LIMITS, None, None, NotChecked("x")).violations
+    (violation,) = check_trajectory(jumpy, LIMITS, None, None, NotChecked("x"), margins=NO_MARGIN).violations
     assert violation.line() == "t: step 0.014 s after t = 0.49 s, expected 0.01 s (±1e-06 relative)"
 
 
@@ -134,10 +182,24 @@ def test_command_line_exit_status_and_lines(arm_file, capsys, suffix):
     )
     assert main([str(write(1.0, suffix)), "--robot", urdf, "--acceleration-limit", "0.5"]) == 1
     lines = capsys.readouterr().out.splitlines()
-    assert lines[-7] == "6 violation(s)"
+    assert lines[-7] == "6 violation(s) (required margins: 5 % of each limit's half-range)"
     assert [line.split(": ")[0] for line in lines[-6:]] == ["j1", "j2", "j3", "j4", "arm–table", "hand–table"]
     assert all(" acceleration " in line and "beyond the limit -0.5" in line for line in lines[-6:-2])
     assert lines[-2].startswith("arm–table: in contact at t = ")
+
+
+def test_command_line_margin_option(arm_file, capsys):
+    write, urdf = arm_file
+    path = str(write(0.5))
+    assert main([path, "--robot", urdf, "--no-collision", "--margin", "0.9"]) == 1
+    out = capsys.readouterr().out
+    assert "within the 90 % safety margin" in out and "required margins: 90 %" in out
+    assert main([path, "--robot", urdf, "--no-collision", "--margin", "position=0", "effort=0.2"]) == 0
+    assert "position 0 %, velocity 5 %, acceleration 5 %, effort 20 %" in capsys.readouterr().out
+    for bad in (["2"], ["torque=0.1"], ["x"]):
+        assert main([path, "--robot", urdf, "--margin", *bad]) == 2
+        (line,) = capsys.readouterr().err.splitlines()
+        assert line.startswith("idkit: --margin")
 
 
 def test_command_line_refuses_unusable_input_in_one_line(arm_file, tmp_path, capsys):

@@ -12,6 +12,7 @@ from test_urdf_export import perturbed
 from urdf_cases import TREE_URDF
 
 from idkit.model import IdentifiedModel
+from idkit.reports import single as single_report
 from idkit.robots.mjcf import MJCFRobot
 from idkit.robots.mjcf_export import identified_mjcf, urdf_to_mjcf, write_identified_mjcf
 from idkit.robots.urdf import URDFRobot
@@ -153,7 +154,7 @@ def test_a_fit_writes_identified_xml_or_says_why_not(tmp_path):
     """single.run: an mjcf robot's fit writes identified.xml; a non-physical one warns in one line and
     the other outputs are still written; a urdf robot writes it only when asked."""
     result = single.run(robot=MJCFRobot(ARM, friction=True), estimator="ls", cost=None, n_samples=60)
-    written = result.save(tmp_path / "a", make_plots=False)
+    written = single_report.write(result, tmp_path / "a", plots=False)
     assert MJCFRobot(written["identified_mjcf"]).link_names == ("upper", "sleeve", "wrist", "side")
     assert result.urdf is None  # an mjcf robot has no identified.urdf
     bad = dict(result.estimate.params)

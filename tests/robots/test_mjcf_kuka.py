@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from idkit.reports import single as single_report
 from idkit.robots.mjcf_export import urdf_to_mjcf
 from idkit.studies import single
 
@@ -55,7 +56,7 @@ def test_kuka_as_mjcf_pcls_prior_predicts_measurements_3(kuka_dir, tmp_path):
         validate=[str(kuka_dir / "measurements_3.npz")],
     )
     held_out = result.validation[0].scores.rel_all
-    written = result.save(tmp_path / "run", make_plots=False)
+    written = single_report.write(result, tmp_path / "run", plots=False)
     alone, with_offsets = mj_inverse_error(
         written["identified_mjcf"], np.load(kuka_dir / "measurements_3.npz")
     )

@@ -55,7 +55,7 @@ def written(tmp_path_factory) -> tuple[study.ExcitationStudy, dict[str, str]]:
 
 def test_report_writes_the_documented_files(written):
     result, files = written
-    assert set(files) == {"excitation", "csv", "npz", "plot", "result"}
+    assert set(files) == {"excitation", "csv", "npz", "plot", "report", "result"}
     data = json.loads(Path(files["result"]).read_text())
     assert data["task"] == "excitation" and data["status"] == "complete" and data["seed"] == 2
     assert (
@@ -80,6 +80,34 @@ def test_report_writes_the_documented_files(written):
     text = report.text(result)
     assert f"cond = {result.result.before:.6g}" in text and f"cond = {result.result.after:.6g}" in text
     assert "| theta1 | " in text and "all checks passed" in text and "exported at 1000 Hz" in text
+
+
+def test_every_sample_keeps_the_configured_margin_and_the_report_says_against_what(written):
+    result, files = written
+    found = read_trajectory(files["csv"], ("theta1", "d2", "d3"))
+    for row, name in enumerate(("q", "qd", "qdd")):
+        low, high = EQ38[row, :, 0], EQ38[row, :, 1]
+        half = (high - low) / 2
+        values = getattr(found, name)
+        assert (np.minimum(values - low, high - values) >= 0.05 * half).all(), name
+    payload = json.loads(Path(files["result"]).read_text())["payload"]
+    assert payload["margins"] == dict.fromkeys(("position", "velocity", "acceleration", "effort"), 0.05)
+    assert payload["improved"] is True and payload["after"] < payload["start"]
+    text = report.text(result)
+    assert f"cond = {result.result.start:.6g}" in text and "than the start" in text
+    assert "all checks passed (every margin at least the required 5 % of each limit's half-range)" in text
+
+
+def test_a_search_that_does_not_beat_its_start_keeps_the_start_and_says_so(written):
+    """The start is an optimised motion; a one-candidate search cannot beat it."""
+    good = written[0].result.excitation.options()
+    kept = study.run("cylindrical", options=good, method="pso", swarms=1, particles=2, iterations=1, seed=0)
+    r = kept.result
+    assert not r.improved and r.after == r.start and r.details["search_result"] > r.start
+    assert torch.allclose(r.excitation.to_vector(), written[0].result.excitation.to_vector(), rtol=1e-9)
+    text = report.text(kept)
+    assert "no improvement found" in text and "optimised" not in text
+    assert f"the start is kept (cond = {r.after:.6g})" in text and kept.check.ok
 
 
 def test_yaml_loads_back_as_the_same_motion(written):
@@ -204,7 +232,7 @@ def test_without_rest_and_rate_the_old_motion_and_no_export(tmp_path):
     assert found.trajectory is None and found.check.samples == 10001
     assert found.result.excitation.options()["rest"] is False and found.result.excitation.period == 10.0
     files = report.write(found, tmp_path)
-    assert set(files) == {"excitation", "plot", "result"}
+    assert set(files) == {"excitation", "plot", "report", "result"}
 
 
 def test_the_ls_error_criterion_through_the_study():
@@ -241,6 +269,7 @@ def hydra_compose():
             "excitation.acceleration_limit=[1,2,3]",
         ),
         ("+experiment=excitation", "excitation.criterion=ls_error", "excitation.noise.state=0.1"),
+        ("+experiment=excitation", "excitation.margin={effort: 0.2, position: 0.1}"),
         ("+experiment=robustness", "scenario.excitation=excitation.yaml"),
         ("+experiment=paper", "scenario.excitation=fourier"),
         ("+scenario=outliers", "scenario.excitation=fourier", "estimator=ls"),
@@ -268,16 +297,16 @@ def _idkit(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 def test_the_command_writes_a_file_a_scenario_loads(tmp_path):
     out = _idkit("+experiment=excitation", "robot=cylindrical", *TINY, "hydra.run.dir=opt", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
-    assert (
-        "before (paper): cond = 36.1141" in out.stdout
-        and "after  (fourier, optimised): cond = " in out.stdout
-    )
+    assert "robot's default motion (paper): cond = 36.1141" in out.stdout
+    assert "after  (fourier, optimised): cond = " in out.stdout or "no improvement found" in out.stdout
+    assert "all checks passed (every margin at least the required 5 %" in out.stdout
     run = tmp_path / "opt"
     assert {p.name for p in run.iterdir()} >= {
         "excitation.yaml",
         "excitation.csv",
         "excitation.npz",
         "excitation.png",
+        "report.html",
         "result.json",
     }
     out = _idkit(
@@ -306,6 +335,14 @@ def test_the_command_writes_a_file_a_scenario_loads(tmp_path):
             "excitation.t_end=10.0005 s is not a whole number of 0.001 s steps",
         ),
         (("+experiment=excitation", "excitation.family=fourrier", *TINY), "unknown excitation 'fourrier'"),
+        (
+            ("+experiment=excitation", "excitation.margin=1.5", *TINY),
+            "excitation.margin must be a share of each limit's half-range in [0, 1)",
+        ),
+        (
+            ("+experiment=excitation", "excitation.margin={torque: 0.1}", *TINY),
+            "excitation.margin.torque is not a limit with a margin",
+        ),
     ],
 )
 def test_bad_inputs_give_one_line(tmp_path, args, message):
