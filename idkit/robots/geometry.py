@@ -110,19 +110,24 @@ _Found = dict[str, tuple[list[tuple[str, Solid]], list[str]]]
 _BUILT: weakref.WeakKeyDictionary[Robot, dict[tuple[str, ...], RobotGeometry]] = weakref.WeakKeyDictionary()
 
 
-def body_geometry(robot: Robot, package_dirs: Sequence[str | os.PathLike[str]] = ()) -> RobotGeometry:
+def body_geometry(
+    robot: Robot, package_dirs: Sequence[str | os.PathLike[str]] | None = None
+) -> RobotGeometry:
     """The bounding ellipsoid and box of each moving body of a ``urdf`` or ``mjcf`` robot (built once
     per robot and ``package_dirs``; the files are not read again).
 
     Args:
         robot: a :class:`~idkit.robots.urdf.URDFRobot` or :class:`~idkit.robots.mjcf.MJCFRobot`.
-        package_dirs: folders holding the packages that URDF ``package://`` mesh paths name.
+        package_dirs: folders holding the packages that URDF ``package://`` mesh paths name
+            (``None``: the robot's own ``package_dirs`` option).
 
     Raises:
         ValueError: any other robot (it has no geometry to read).
     """
     if not isinstance(robot, URDFRobot):
         raise ValueError(f"geometry: needs a urdf or mjcf robot, got {type(robot).__name__}")
+    if package_dirs is None:
+        package_dirs = tuple(getattr(robot, "package_dirs", ()) or ())
     built = _BUILT.setdefault(robot, {})
     key = tuple(str(d) for d in package_dirs)
     if key not in built:
@@ -247,7 +252,8 @@ def _mesh(filename: str, base: Path | None, package_dirs: list[Path]) -> np.ndar
     """``[n, 3]`` the vertices of the mesh file ``filename`` names."""
     path = mesh_file(filename, base, package_dirs)
     if path is None:
-        raise _Unusable("not found" + (": give package_dirs" if filename.startswith("package://") else ""))
+        hint = ": give robot.package_dirs" if filename.startswith("package://") else ""
+        raise _Unusable("not found" + hint)
     try:
         return mesh_vertices(path)
     except MeshError as error:

@@ -76,6 +76,8 @@ class URDFRobot(Robot):
         sigmoid_steepness, sigmoid_shift: reference ``phi2`` (s/rad) and ``phi3`` (rad/s) of the
             sigmoid model (one value or one per joint): the a-priori shape linear estimators use.
         steepness_range, max_shift: search box of ``phi2`` and ``phi3`` (``±max_shift``).
+        package_dirs: folders holding the ROS packages the URDF's ``package://`` mesh paths name
+            (the geometry that plausibility bounds read: :mod:`idkit.robots.geometry`).
 
     Search boxes (``bounds``), from the URDF's a-priori values ``m0, h0 = m0 c0, I0`` of a body
     (``L = max(|c0|, 0.1 m)``, ``m_hi`` the upper mass bound): mass ``[m0/2, 2 m0]`` (``[0, 1 kg]``
@@ -112,6 +114,7 @@ class URDFRobot(Robot):
         sigmoid_shift: float | Sequence[float] = 0.0,
         steepness_range: tuple[float, float] = (1.0, 100.0),
         max_shift: float = 0.2,
+        package_dirs: Sequence[str] = (),
     ) -> None:
         self.urdf = urdf
         self.friction = friction
@@ -131,6 +134,7 @@ class URDFRobot(Robot):
         self.sigmoid_shift = sigmoid_shift
         self.steepness_range = steepness_range
         self.max_shift = max_shift
+        self.package_dirs = package_dirs
         self.tree: KinematicTree = self._read_tree()
         self.joint_names = self.tree.joint_names
         self.stribeck_scales = self._check_stribeck(stribeck_velocity)

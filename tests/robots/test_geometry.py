@@ -400,7 +400,7 @@ def test_a_missing_or_unread_mesh_is_said_and_visual_geometry_stands_in(tmp_path
     assert geometry.bodies["b"].sources == ("b collision sphere",)  # the usable collision, not the visual
     assert geometry.bodies["c"] is None
     assert geometry.missing == (
-        "a: collision mesh package://nowhere/part.stl (not found: give package_dirs)",
+        "a: collision mesh package://nowhere/part.stl (not found: give robot.package_dirs)",
         "b: collision mesh part.dae (.dae is not read (STL and OBJ are))",
         "b: collision mesh broken.stl (is neither binary STL (its size disagrees with its triangle count) nor ASCII STL)",
         "c: visual mesh gone.obj (not found)",
@@ -504,8 +504,8 @@ def test_the_kuka_collision_primitives_are_bounded_and_its_missing_meshes_named(
     geometry = body_geometry(URDFRobot(urdf))
     assert [name for name, body in geometry.bodies.items() if body is None] == ["lwr_6_link"]
     assert geometry.missing == (
-        "lwr_6_link: collision mesh package://lwr_description/meshes/kuka/convex/arm_wrist_convex.stl (not found: give package_dirs)",
-        "lwr_6_link: visual mesh package://lwr_description/meshes/kuka/link_6.STL (not found: give package_dirs)",
+        "lwr_6_link: collision mesh package://lwr_description/meshes/kuka/convex/arm_wrist_convex.stl (not found: give robot.package_dirs)",
+        "lwr_6_link: visual mesh package://lwr_description/meshes/kuka/link_6.STL (not found: give robot.package_dirs)",
     )
     # lwr_1_link: spheres of 0.07 at the origin and at (0, 0.06, 0.2), a tilted cylinder between them
     first = geometry.bodies["lwr_1_link"]
