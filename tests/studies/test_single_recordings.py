@@ -619,10 +619,12 @@ def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
         scale = max(abs(v) for v in true.values())
         return max(abs(result.estimate.base_params[n] - v) for n, v in true.items()) / scale
 
-    # the floor: the same samples logged without delay (the 10 Hz filter rounds the Coulomb steps)
+    # the floor: the same samples logged without delay (the filtered states' own small error); the
+    # estimated delay is within 0.5 ms of 20, which leaves at most 1/40 of the ignored delay's error
     aligned = tmp_path / "aligned.csv"
     np.savetxt(aligned, np.column_stack([t, q, tau]), delimiter=",", header=",".join(header), comments="")
     floor = error(command(*robot_args(files), f"data={aligned}", *quiet, out=tmp_path / "e")[0])
-    assert error(given) < 1.1 * floor and error(found) < 1.1 * floor and error(ignored) > 5 * floor
+    assert error(given) < 1.1 * floor and error(ignored) > 5 * floor
+    assert error(found) < 1.1 * floor + error(ignored) / 40
     with pytest.raises(ValueError, match=r"recording\.delay must be 'auto' or seconds, got 'soon'"):
         command(*robot_args(files), f"data={late}", "recording.delay=soon", *quiet, out=tmp_path / "d")
