@@ -37,8 +37,9 @@ Steps of :func:`preprocess`, in order (options in :class:`PreprocessOptions`):
 4. **Trim** ``trim`` seconds at both ends (default ``3 / cutoff``: where the filter's start-up
    transient and the one-sided differences live; the impulse response of the order-4 Butterworth at
    10 Hz / 200 Hz falls below 1 % of its peak after 45 samples, 0.23 s).
-5. **Decimate** by keeping every ``decimate``-th sample (the filter is the anti-alias filter, so
-   ``cutoff`` must stay below the decimated Nyquist frequency).
+5. **Decimate** by keeping every ``decimate``-th sample (the filter is the states' anti-alias filter,
+   so ``cutoff`` must stay below the decimated Nyquist frequency; unfiltered torques are kept as
+   measured: white noise stays white, content above the decimated Nyquist frequency folds into it).
 6. **Drop near-rest samples** where any joint's ``|qd| < min_speed``: Coulomb friction
    ``sign(qd)`` is undefined there and stiction is not modelled (``0`` keeps all).
 
