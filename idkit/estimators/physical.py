@@ -319,7 +319,9 @@ class PhysicallyConsistentLS(Estimator):
             "equations": int(W.shape[0]),
             "data_scale": {"least_squares": np.sqrt(ls_scale2), "used": np.sqrt(scale2)},
             "cad_reference": {"thickened": list(reference.thickened), "replaced": list(reference.replaced)},
-            **base_uncertainty(W, tau, alpha, robot.base_param_names, robot.unidentifiable).to_details(),
+            **base_uncertainty(
+                W, tau, alpha, robot.base_param_names, robot.unidentifiable, joints=robot.n_joints
+            ).to_details(),
         }
         if solution.repaired:
             details["repaired"] = list(solution.repaired)

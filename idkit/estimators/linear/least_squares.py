@@ -191,6 +191,7 @@ class LinearEstimator(Estimator):
                     system.base_names,
                     conditioning,
                     robot.unidentifiable,
+                    joints=robot.n_joints,
                 )
         finally:  # every trial's warnings, also when a later trial fails
             log.reissue()

@@ -1,12 +1,22 @@
 """How well the data determine each base parameter: standard deviations, rank, conditioning.
 
-For a linear model ``tau = W alpha + e`` with independent errors of equal variance ``σ²``, the LS
-estimate has covariance ``σ² (WᵀW)⁻¹``; ``σ²`` is estimated by the residual sum of squares over the
-degrees of freedom, ``‖tau − W alpha‖² / (M − B)`` (Gautier & Khalil's classical "relative
-standard deviation" of each identified parameter, ``100 σ_k / |alpha_k|`` %). Real residuals are
-correlated in time and not of equal variance across joints, so these numbers are *optimistic*
-lower bounds; they are most useful to rank parameters (a base parameter at 50 % is not identified
-by this trajectory, whatever its value).
+For a linear model ``tau = W alpha + e`` the LS estimate's error is ``(WᵀW)⁻¹ Wᵀ e``. The textbook
+covariance ``σ² (WᵀW)⁻¹`` (``σ²`` the residual sum of squares over ``M − B``) holds only for
+independent errors of equal variance. A robot's are neither: the joints' torques differ in scale and
+noise, and the residuals of a recording are correlated in time (filtered states, unmodelled
+dynamics), which made the textbook σ a fraction of the real error. So the covariance here is the
+*sandwich*
+
+    Cov(alpha) = (WᵀW)⁻¹ · S · (WᵀW)⁻¹,    S = Σ_{|l| ≤ L} (1 − |l| / (L + 1)) Σ_i g_i g_{i+l}ᵀ,
+
+with ``g_i = W_iᵀ e_i`` the score of sample ``i`` (its ``n`` joint rows together, so any correlation
+between joints at one instant is kept), the Bartlett-weighted autocovariances of Newey & West (1987)
+summed over time lags as in Driscoll & Kraay (1998), and the bandwidth ``L`` chosen from the data by
+Andrews' (1991) AR(1) plug-in rule: ``L ≈ 0 `` for white residuals (then ``S`` is White's
+heteroscedasticity-consistent estimate), hundreds of samples for residuals correlated over a second.
+It is scaled by ``N / (N − B)`` (``N`` samples), the small-sample factor that makes it equal the
+textbook formula for white residuals of equal variance. Measured coverage on the README's tour:
+``docs/estimators.md``.
 
 ``(WᵀW)⁻¹`` is never formed: with ``W D⁻¹ = U S Vᵀ`` (``D`` the column norms, the same
 equilibration as :mod:`idkit.estimators.linear.observation`), ``(WᵀW)⁻¹ = D⁻¹ V S⁻² Vᵀ D⁻¹``. Directions of
@@ -26,6 +36,9 @@ from torch import Tensor
 
 from idkit.estimators.linear.observation import Conditioning, _null_directions
 
+#: The largest lag-1 correlation of a score column the bandwidth rule takes (``long_run_covariance``).
+MAX_LAG_CORRELATION = 0.99
+
 
 @dataclass(frozen=True)
 class BaseUncertainty:
@@ -37,6 +50,7 @@ class BaseUncertainty:
         relative_pct: ``100 std / |alpha|`` ``[B]`` (``inf`` where ``alpha = 0``).
         sigma2: residual variance ``‖tau − W alpha‖² / (M − B)``.
         dof: degrees of freedom ``M − B``.
+        bandwidth: the lags ``L`` of the sandwich's autocovariance sum (module doc).
         rank: numerical rank of the column-equilibrated ``W``.
         cond: its condition number ``σ_max / σ_min``.
         unidentifiable: the robot's structural statements (``Robot.unidentifiable``), then the
@@ -48,6 +62,7 @@ class BaseUncertainty:
     relative_pct: Tensor
     sigma2: float
     dof: int
+    bandwidth: int
     rank: int
     cond: float
     unidentifiable: tuple[str, ...]
@@ -60,6 +75,8 @@ class BaseUncertainty:
                 "std_rel_pct": dict(zip(self.names, self.relative_pct.tolist(), strict=True)),
                 "sigma2": self.sigma2,
                 "dof": self.dof,
+                "method": "hac",
+                "bandwidth": self.bandwidth,
                 "rank": self.rank,
                 "cond": self.cond,
                 "unidentifiable": list(self.unidentifiable),
@@ -84,19 +101,24 @@ def base_uncertainties(
     names: Sequence[str],
     conditioning: Conditioning | Spectrum | None = None,
     structural: Sequence[str] = (),
+    joints: int = 1,
 ) -> list[BaseUncertainty]:
-    """Standard deviations ``sqrt(diag(σ² (WᵀW)⁻¹))`` of each trial's ``alpha[T, B]`` fitted on
-    ``W[T, M, B]``, ``tau[T, M]``, in float64 whatever the input dtype.
+    """Standard deviations of each trial's ``alpha[T, B]`` fitted on ``W[T, M, B]``, ``tau[T, M]``: the
+    sandwich of the module doc, in float64 whatever the input dtype.
 
     Args:
-        W, tau, alpha: the (possibly relative) linear systems and their estimates.
+        W, tau, alpha: the (possibly relative) linear systems and their estimates; rows sample-major,
+            ``joints`` consecutive rows per sample (``M = N · joints``).
         names: base parameter names ``[B]``.
         conditioning: the SVD of the equilibrated ``W`` if already computed (the LS family has it,
             varpro assembles it from its QR).
         structural: what the robot says no data can identify (``Robot.unidentifiable``), listed first.
+        joints: rows per sample: the joints' rows of one instant share a score.
     """
     W, tau, alpha = W.detach().double(), tau.detach().double(), alpha.detach().to(W).double()
     M, B = W.shape[-2:]
+    if M % joints:
+        raise ValueError(f"base_uncertainties: {M} rows are not a whole number of samples of {joints} rows")
     if conditioning is None:
         scale = torch.linalg.vector_norm(W, dim=-2)
         scale = torch.where(scale > 0, scale, torch.ones_like(scale))
@@ -108,11 +130,16 @@ def base_uncertainties(
     ranks = kept.sum(-1).tolist()
     dof = M - B
     residual = tau - (W @ alpha[..., None])[..., 0]
-    sigma2 = residual.square().sum(-1) / dof if dof > 0 else torch.full_like(residual[..., 0], math.nan)
+    nan = torch.full_like(residual[..., 0], math.nan)
+    sigma2 = residual.square().sum(-1) / dof if dof > 0 else nan
+    scores = (W / scale[..., None, :] * residual[..., None]).reshape(*W.shape[:-2], M // joints, joints, B)
+    meat, bandwidth = long_run_covariance(scores.sum(-2))
     inverse = torch.where(kept, 1 / sigma, torch.zeros_like(sigma))  # 1/s_k on kept directions only
-    variance = sigma2[..., None] * (Vh.mT * inverse[..., None, :]).square().sum(-1) / scale.square()
+    bread = (Vh.mT * inverse[..., None, :].square()) @ Vh  # (W̃ᵀW̃)⁺ of the equilibrated W̃
+    correction = M / dof if dof > 0 else math.nan  # the textbook formula's M − B, for white residuals
+    variance = (bread @ meat @ bread).diagonal(dim1=-2, dim2=-1) * correction / scale.square()
     touched = ((Vh.abs() > 1e-8) & ~kept[..., None]).any(-2)  # parameters in a null direction
-    std = torch.where(touched, torch.full_like(variance, math.inf), variance.sqrt())
+    std = torch.where(touched, torch.full_like(variance, math.inf), variance.clamp_min(0).sqrt())
     relative = 100.0 * std / alpha.abs()
     cond = torch.where(sigma[..., -1] > 0, sigma[..., 0] / sigma[..., -1], math.inf).tolist()
     sigma2_list, std, relative = sigma2.tolist(), std.cpu(), relative.cpu()
@@ -124,6 +151,7 @@ def base_uncertainties(
             relative[t],
             sigma2_list[t],
             dof,
+            bandwidth[t],
             ranks[t],
             cond[t],
             (*structural, *(_null_directions(Vh[t], sigma[t], float(tol[t]), names) if ranks[t] < B else ())),
@@ -132,8 +160,38 @@ def base_uncertainties(
     ]
 
 
+def long_run_covariance(scores: Tensor) -> tuple[Tensor, list[int]]:
+    """``S[T, B, B]``, the Bartlett-weighted sum of the autocovariances of each trial's ``scores[T, N, B]``
+    (module doc), and the bandwidth ``L`` of each trial, from Andrews' AR(1) plug-in rule: each score
+    column's lag-1 correlation ``ρ`` and innovation variance ``s²`` give
+    ``a = Σ 4ρ²s⁴ / ((1 − ρ)⁶ (1 + ρ)²) / Σ s⁴ / (1 − ρ)⁴`` and ``L = ⌈1.1447 (a N)^⅓⌉``, at most
+    ``N / 4`` (``ρ`` is clipped at ±:data:`MAX_LAG_CORRELATION`: a score correlated to 1 would ask for
+    every lag)."""
+    N = scores.shape[-2]
+    before, after = scores[..., :-1, :], scores[..., 1:, :]
+    power = before.square().sum(-2)
+    rho = torch.where(power > 0, (before * after).sum(-2) / power.clamp_min(1e-300), torch.zeros_like(power))
+    rho = rho.clamp(-MAX_LAG_CORRELATION, MAX_LAG_CORRELATION)
+    s4 = (after - rho[..., None, :] * before).square().mean(-2).square()
+    numerator = (4 * rho.square() * s4 / ((1 - rho) ** 6 * (1 + rho) ** 2)).sum(-1)
+    denominator = (s4 / (1 - rho) ** 4).sum(-1)
+    a = torch.where(denominator > 0, numerator / denominator.clamp_min(1e-300), torch.zeros_like(numerator))
+    bandwidth = torch.ceil(1.1447 * (a * N) ** (1 / 3)).clamp(0, max(N // 4, 0)).long()
+    meat = scores.mT @ scores
+    for lag in range(1, int(bandwidth.max()) + 1 if bandwidth.numel() else 1):
+        weight = (1 - lag / (bandwidth + 1)).clamp_min(0).to(scores)  # [T]
+        product = scores[..., :-lag, :].mT @ scores[..., lag:, :]
+        meat = meat + weight[..., None, None] * (product + product.mT)
+    return meat, bandwidth.tolist()
+
+
 def base_uncertainty(
-    W: Tensor, tau: Tensor, alpha: Tensor, names: Sequence[str], structural: Sequence[str] = ()
+    W: Tensor,
+    tau: Tensor,
+    alpha: Tensor,
+    names: Sequence[str],
+    structural: Sequence[str] = (),
+    joints: int = 1,
 ) -> BaseUncertainty:
     """``base_uncertainties`` of one system ``W[M, B]``, ``tau[M]`` and its ``alpha[B]``."""
-    return base_uncertainties(W[None], tau[None], alpha[None], names, structural=structural)[0]
+    return base_uncertainties(W[None], tau[None], alpha[None], names, structural=structural, joints=joints)[0]
