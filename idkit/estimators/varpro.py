@@ -314,11 +314,12 @@ class VariableProjection(Estimator):
                 predicted = (solved.w @ solved.alpha).reshape(n, -1).T  # rows joint-major
                 order = data.fixed + data.scaled
                 names = [robot.base_param_names[k] for k in order]
+                # rows sample-major: a sample's joints share a score
                 w = solved.w.reshape(n, -1, solved.w.shape[-1]).transpose(0, 1).reshape(solved.w.shape)
                 details = base_uncertainties(
                     w[None], data.tau.T.reshape(1, -1), solved.alpha[None], names, solved.spectrum,
                     robot.unidentifiable, joints=n,
-                )[0].to_details()  # fmt: skip  (rows sample-major: a sample's joints share a score)
+                )[0].to_details()  # fmt: skip
         residual = float(torch.linalg.vector_norm(s.tau - predicted))
         cost = residual if problem.cost is None else float(problem.evaluate(params))
         details = {
