@@ -208,7 +208,8 @@ class PhysicallyConsistentLS(Estimator):
     ``"auto"``, ``prior_weight_cv`` (candidates, pooled and per-fold scores, the reason, its time),
     ``plausibility`` (masses beside CAD, the implausible links, what was enforced, the links at a
     bound), ``cad_reference`` (CAD bodies the prior thickened or replaced), and the base-parameter
-    uncertainty of :func:`idkit.estimators.linear.uncertainty.base_uncertainty`.
+    uncertainty of :func:`idkit.estimators.linear.uncertainty.base_uncertainty` (the data's scatter at
+    the pcls estimate, plus the prior's and the constraints' pull from least squares as a bias).
     """
 
     #: The conformance suite's problem: pcls needs a ``urdf`` robot (the cylindrical one from its URDF).
@@ -320,7 +321,7 @@ class PhysicallyConsistentLS(Estimator):
             "data_scale": {"least_squares": np.sqrt(ls_scale2), "used": np.sqrt(scale2)},
             "cad_reference": {"thickened": list(reference.thickened), "replaced": list(reference.replaced)},
             **base_uncertainty(
-                W, tau, alpha, robot.base_param_names, robot.unidentifiable, joints=robot.n_joints
+                W, tau, alpha, robot.base_param_names, robot.unidentifiable, robot.n_joints, pulled=True
             ).to_details(),
         }
         if solution.repaired:

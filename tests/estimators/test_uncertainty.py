@@ -129,3 +129,20 @@ def test_ls_reports_the_uncertainty_of_its_fit():
     np.testing.assert_allclose(list(estimate.base_params.values()), beta, rtol=1e-8)
     np.testing.assert_allclose(list(reported["std"].values()), std, rtol=1e-8)
     assert reported["rank"] == 4 and reported["unidentifiable"] == [] and reported["method"] == "hac"
+
+
+def test_a_pulled_estimate_adds_its_distance_from_least_squares():
+    """An estimate moved off least squares by δ (a prior's pull) reports δ and std = sqrt(std_data² + δ²),
+    std_data being the sandwich of its own residuals."""
+    rng = np.random.default_rng(3)
+    W = rng.normal(size=(600, 3)) * np.array([1.0, 1e2, 1e-2])
+    tau = W @ np.array([1.0, 0.01, 100.0]) + 0.1 * rng.normal(size=600)
+    beta, _, _ = textbook(W, tau)
+    shift = np.array([0.0, 1e-4, -3.0])
+    args = (torch.as_tensor(W), torch.as_tensor(tau), torch.as_tensor(beta + shift), list("abc"))
+    data = base_uncertainty(*args, joints=2)
+    pulled = base_uncertainty(*args, joints=2, pulled=True)
+    np.testing.assert_allclose(pulled.pull.numpy(), shift, atol=1e-9)
+    np.testing.assert_allclose(pulled.std.numpy(), np.hypot(data.std.numpy(), shift), rtol=1e-9)
+    assert pulled.to_details()["uncertainty"]["pull"]["c"] == pytest.approx(-3.0)
+    assert "pull" not in data.to_details()["uncertainty"]

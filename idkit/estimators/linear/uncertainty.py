@@ -18,6 +18,13 @@ It is scaled by ``N / (N − B)`` (``N`` samples), the small-sample factor that 
 textbook formula for white residuals of equal variance. Measured coverage on the README's tour:
 ``docs/estimators.md``.
 
+An estimate pulled away from least squares — ``pcls``'s, by its prior towards the CAD model and by its
+constraints — is biased by the pull, which the sandwich (the scatter of the data) does not see. With
+``pulled=True`` the difference from the least-squares solution of the same system, ``α − α_LS``, is
+added in quadrature: ``std = sqrt(std_data² + pull²)``, a root-mean-square error that counts the pull
+as a bias. It is conservative: the prior also narrows the scatter, which the sandwich of the
+unconstrained fit does not credit.
+
 ``(WᵀW)⁻¹`` is never formed: with ``W D⁻¹ = U S Vᵀ`` (``D`` the column norms, the same
 equilibration as :mod:`idkit.estimators.linear.observation`), ``(WᵀW)⁻¹ = D⁻¹ V S⁻² Vᵀ D⁻¹``. Directions of
 ``V`` with singular value below the rank tolerance are the combinations the data cannot separate;
@@ -51,6 +58,8 @@ class BaseUncertainty:
         sigma2: residual variance ``‖tau − W alpha‖² / (M − B)``.
         dof: degrees of freedom ``M − B``.
         bandwidth: the lags ``L`` of the sandwich's autocovariance sum (module doc).
+        pull: ``α − α_LS`` ``[B]`` of an estimate pulled away from least squares (``None``: not one);
+            ``std`` includes it (module doc).
         rank: numerical rank of the column-equilibrated ``W``.
         cond: its condition number ``σ_max / σ_min``.
         unidentifiable: the robot's structural statements (``Robot.unidentifiable``), then the
@@ -66,9 +75,11 @@ class BaseUncertainty:
     rank: int
     cond: float
     unidentifiable: tuple[str, ...]
+    pull: Tensor | None = None
 
     def to_details(self) -> dict[str, Any]:
         """``{"uncertainty": {...}}`` for an estimate's ``details`` (name-keyed maps)."""
+        pull = {} if self.pull is None else {"pull": dict(zip(self.names, self.pull.tolist(), strict=True))}
         return {
             "uncertainty": {
                 "std": dict(zip(self.names, self.std.tolist(), strict=True)),
@@ -80,6 +91,7 @@ class BaseUncertainty:
                 "rank": self.rank,
                 "cond": self.cond,
                 "unidentifiable": list(self.unidentifiable),
+                **pull,
             }
         }
 
@@ -102,6 +114,7 @@ def base_uncertainties(
     conditioning: Conditioning | Spectrum | None = None,
     structural: Sequence[str] = (),
     joints: int = 1,
+    pulled: bool = False,
 ) -> list[BaseUncertainty]:
     """Standard deviations of each trial's ``alpha[T, B]`` fitted on ``W[T, M, B]``, ``tau[T, M]``: the
     sandwich of the module doc, in float64 whatever the input dtype.
@@ -114,16 +127,19 @@ def base_uncertainties(
             varpro assembles it from its QR).
         structural: what the robot says no data can identify (``Robot.unidentifiable``), listed first.
         joints: rows per sample: the joints' rows of one instant share a score.
+        pulled: ``alpha`` is not the least-squares solution but pulled from it (a prior, constraints):
+            the pull is added in quadrature (module doc).
     """
     W, tau, alpha = W.detach().double(), tau.detach().double(), alpha.detach().to(W).double()
     M, B = W.shape[-2:]
     if M % joints:
         raise ValueError(f"base_uncertainties: {M} rows are not a whole number of samples of {joints} rows")
-    if conditioning is None:
+    if conditioning is None or (pulled and not isinstance(conditioning, Conditioning)):
         scale = torch.linalg.vector_norm(W, dim=-2)
         scale = torch.where(scale > 0, scale, torch.ones_like(scale))
-        _, sigma, Vh = torch.linalg.svd(W / scale[..., None, :], full_matrices=False)
+        U, sigma, Vh = torch.linalg.svd(W / scale[..., None, :], full_matrices=False)
     else:
+        U = conditioning.U.double() if isinstance(conditioning, Conditioning) else None
         scale, sigma, Vh = conditioning.scale.double(), conditioning.sigma.double(), conditioning.Vh.double()
     tol = max(M, B) * torch.finfo(torch.float64).eps * sigma[..., :1]  # [T, 1]; 0 if sigma_max is 0
     kept = sigma > tol  # [T, B]
@@ -138,6 +154,12 @@ def base_uncertainties(
     bread = (Vh.mT * inverse[..., None, :].square()) @ Vh  # (W̃ᵀW̃)⁺ of the equilibrated W̃
     correction = M / dof if dof > 0 else math.nan  # the textbook formula's M − B, for white residuals
     variance = (bread @ meat @ bread).diagonal(dim1=-2, dim2=-1) * correction / scale.square()
+    pull = None
+    if pulled:
+        assert U is not None
+        least_squares = (Vh.mT @ (inverse * (U.mT @ tau[..., None])[..., 0])[..., None])[..., 0] / scale
+        pull = alpha - least_squares
+        variance = variance + pull.square()
     touched = ((Vh.abs() > 1e-8) & ~kept[..., None]).any(-2)  # parameters in a null direction
     std = torch.where(touched, torch.full_like(variance, math.inf), variance.clamp_min(0).sqrt())
     relative = 100.0 * std / alpha.abs()
@@ -155,6 +177,7 @@ def base_uncertainties(
             ranks[t],
             cond[t],
             (*structural, *(_null_directions(Vh[t], sigma[t], float(tol[t]), names) if ranks[t] < B else ())),
+            None if pull is None else pull[t].cpu(),
         )
         for t in range(len(ranks))
     ]
@@ -192,6 +215,9 @@ def base_uncertainty(
     names: Sequence[str],
     structural: Sequence[str] = (),
     joints: int = 1,
+    pulled: bool = False,
 ) -> BaseUncertainty:
     """``base_uncertainties`` of one system ``W[M, B]``, ``tau[M]`` and its ``alpha[B]``."""
-    return base_uncertainties(W[None], tau[None], alpha[None], names, structural=structural, joints=joints)[0]
+    return base_uncertainties(
+        W[None], tau[None], alpha[None], names, structural=structural, joints=joints, pulled=pulled
+    )[0]
