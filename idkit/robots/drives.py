@@ -225,6 +225,18 @@ def _child_number(
     return None
 
 
+#: The robot options that set each sigmoid shape's reference value and its search box.
+SHAPE_OPTIONS = {"phi2": ("sigmoid_steepness", "steepness_range"), "phi3": ("sigmoid_shift", "max_shift")}
+
+
+def _listed(values: np.ndarray) -> str:
+    """One value if all joints share it, else the list: as the user most likely wrote it."""
+    values = np.asarray(values, dtype=float)
+    if np.all(values == values[0]):
+        return f"{values[0]:g}"
+    return "[" + ", ".join(f"{v:g}" for v in values) + "]"
+
+
 class DriveModel:
     """The drive terms of an ``n``-joint robot: parameter names, boxes, regressor columns, torques.
 
@@ -297,9 +309,11 @@ class DriveModel:
         self._nominal = np.concatenate([np.zeros(0)] + [prior.get(t.suffix, np.zeros(n)) for t in self.terms])
         for t in self.terms:
             if t.shape and ((prior[t.suffix] < t.lower) | (prior[t.suffix] > t.upper)).any():
+                given, box = SHAPE_OPTIONS[t.suffix]
                 raise ValueError(
-                    f"{who}: the reference sigmoid {t.suffix} {prior[t.suffix].tolist()} leaves its box "
-                    f"[{t.lower:g}, {t.upper:g}] (steepness_range, max_shift)"
+                    f"{who}: {given}={_listed(prior[t.suffix])} (the reference sigmoid {t.suffix}) leaves "
+                    f"its search box [{t.lower:g}, {t.upper:g}] ({box}); give {given} inside it, or widen "
+                    f"{box}"
                 )
 
     @property

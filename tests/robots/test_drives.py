@@ -214,6 +214,15 @@ def test_other_friction_options_are_refused():
         URDFRobot("cylindrical", friction="asymmetric", stribeck_velocity=0.1)
     with pytest.raises(ValueError, match=r"sigmoid_steepness=\[1.0, 2.0\] needs one finite value or 3"):
         URDFRobot("cylindrical", friction="sigmoid", sigmoid_steepness=[1.0, 2.0])
+    # a reference shape outside its box names the option given and the box's own option
+    with pytest.raises(
+        ValueError,
+        match=r"^urdf: sigmoid_steepness=0 \(the reference sigmoid phi2\) leaves its search box \[1, 100\] "
+        r"\(steepness_range\); give sigmoid_steepness inside it, or widen steepness_range$",
+    ):
+        URDFRobot("cylindrical", friction="sigmoid", sigmoid_steepness=0)
+    with pytest.raises(ValueError, match=r"sigmoid_shift=\[0, 0.5, 0\] .* \(max_shift\); give sigmoid_shift"):
+        URDFRobot("cylindrical", friction="sigmoid", sigmoid_shift=[0, 0.5, 0])
 
 
 def simulated_current_recording(robot: URDFRobot, truth: torch.Tensor, scale: np.ndarray, path, n: int):
