@@ -45,11 +45,12 @@ def text(result: RunResult) -> str:
         f"{est.estimator} · robot {robot} · data {_source(result.data)} · seed {result.seed}",
         f"{'parameter':<12}{'estimate':>12}{'true':>12}{'rel. error':>12}",
     ]
+    held = set(est.details.get("held") or ())  # kept at the robot's reference, not fitted
     for name, value in est.params.items():
         true = "" if result.truth is None else f"{result.truth[name]:12.4f}"
         r = rel.get(name)
         rtext = "" if r is None else f"{100 * r:+10.2f} %"
-        lines.append(f"{name:<12}{value:12.4f}{true:>12}{rtext:>12}")
+        lines.append(f"{name:<12}{value:12.4f}{true:>12}{rtext:>12}" + ("  held" if name in held else ""))
     cost = "n/a" if est.cost is None else f"{est.cost:.6g}"
     tail = f"cost ({result.cost_name}) {cost} · wall time {est.wall_time_s:.3f} s"
     if result.parameter_error is not None:

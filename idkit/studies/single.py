@@ -34,6 +34,7 @@ from idkit.model import IdentifiedModel
 from idkit.notes import Note
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
+from idkit.studies.held import say_held
 from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
 from idkit.studies.plausibility import PlausibleAlternative, plausible_alternative
@@ -399,6 +400,7 @@ def run(
     fitted = estimator_obj.fit(problem)
     label = estimator_label(estimator, cost, with_cost=isinstance(estimator_obj, CostSearcher))
     refuse_meaningless(fitted, robot_obj.param_names, label)
+    fitted = say_held(robot_obj, fitted, label)
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
     provenance = Provenance(
         task="single",
