@@ -40,7 +40,7 @@ import torch
 from idkit.estimate import Estimate
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective
-from idkit.estimators.search_result import common_details, per_cost_estimates
+from idkit.estimators.search_result import common_details, per_cost_estimates, warn_search_bounds
 from idkit.estimators.trials import criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.optim import sizes
@@ -145,7 +145,7 @@ class AdamMultiStart(Estimator):
 
     def fit_costs(self, problem: Problem, costs: Sequence[Cost]) -> list[Estimate]:
         """One estimate per cost; all costs' starts are one batched computation."""
-        return self.fit_trials([problem], costs)[0]
+        return warn_search_bounds(problem, self.fit_trials([problem], costs)[0])
 
     def fit_trials(
         self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None

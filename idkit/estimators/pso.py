@@ -64,7 +64,7 @@ from torch import Tensor
 from idkit.estimate import Estimate
 from idkit.estimators.aggregate import KeepRule, aggregate
 from idkit.estimators.objective import Objective, fast_structure
-from idkit.estimators.search_result import common_details, per_cost_estimates
+from idkit.estimators.search_result import common_details, per_cost_estimates, warn_search_bounds
 from idkit.estimators.trials import CHUNK_ELEMENTS, check_chunk, criteria, fit_in_batches, trial_chunk
 from idkit.interfaces import Cost, Estimator
 from idkit.optim import fast, sizes, swarm
@@ -272,7 +272,7 @@ class ParticleSwarm(Estimator):
         same cost list → identical estimates). ``wall_time_s`` is the call's time divided by the
         number of costs; the total is in ``details["batch_wall_time_s"]``.
         """
-        return self.fit_trials([problem], costs)[0]
+        return warn_search_bounds(problem, self.fit_trials([problem], costs)[0])
 
     def fit_trials(
         self, problems: Sequence[Problem], costs: Sequence[Cost] | None = None, chunk: int | None = None

@@ -15,8 +15,9 @@ from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
 from idkit.estimators.aggregate import KeepRule
+from idkit.estimators.bounds import at_bounds, warn_at_bounds
 from idkit.estimators.objective import Objective, cost_label
-from idkit.interfaces import Cost
+from idkit.interfaces import Cost, Robot
 from idkit.problem import Problem
 
 
@@ -91,6 +92,8 @@ def make_estimate(
     """An ``Estimate`` from a search position ``[D]``: physical and (where defined) base params."""
     robot = problem.robot
     params = objective.params(position)
+    names = search_names(robot, objective.space)
+    details = {**details, "at_bound": at_bounds(names, position, objective.lower, objective.upper)}
     base = None
     if robot.has_regressor:
         alpha = objective.base(position)
@@ -103,3 +106,22 @@ def make_estimate(
         base_params=base,
         details=to_python(details),
     )
+
+
+def search_names(robot: Robot, space: str) -> tuple[str, ...]:
+    """The names of the searched coordinates: base parameters or the robot's own."""
+    return tuple(robot.base_param_names if space == "base" else robot.param_names)
+
+
+def warn_search_bounds(problem: Problem, estimates: Sequence[Estimate]) -> list[Estimate]:
+    """Say, one line per estimate, which searched parameters ended at a bound (``details["at_bound"]``,
+    :mod:`idkit.estimators.bounds`); the estimates are returned unchanged."""
+    robot = problem.robot
+    for estimate in estimates:
+        space = estimate.details["space"]
+        lower, upper = robot.base_bounds() if space == "base" else robot.bounds()
+        names = search_names(robot, space)
+        warn_at_bounds(
+            estimate.estimator, estimate.details["at_bound"], names, lower, upper, "the robot's bounds"
+        )
+    return list(estimates)

@@ -33,11 +33,12 @@ import torch
 from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
+from idkit.estimators.bounds import at_bounds, warn_at_bounds
 from idkit.estimators.linear.observation import IdentificationError
-from idkit.estimators.linear.uncertainty import Spectrum, base_uncertainties
+from idkit.estimators.linear.uncertainty import base_uncertainties
 from idkit.interfaces import Estimator, Robot
 from idkit.model import IdentifiedModel
-from idkit.optim import swarm
+from idkit.optim import sizes, swarm
 from idkit.problem import Problem
 from idkit.robots.drives import sigmoid_friction
 from idkit.runtime import resolve_threads, torch_threads
@@ -51,6 +52,10 @@ CONVERGED = 1e-10
 #: subsampled data it stops at a looser fraction: the steps on every sample finish the descent.
 STEP_TOLERANCE = 1e-12
 COARSE_CONVERGED = 1e-2
+#: Nanoseconds of one core per residual (sample × joint) of one shape's evaluation: about the fewest
+#: measured (16–85 ns on the README's drive recording, 213–3,401 samples, 16–256 shapes at once), so
+#: the long-search notice's estimate is a lower bound.
+VARPRO_RESIDUAL_NS = 15.0
 
 
 @dataclass(frozen=True)
@@ -109,6 +114,16 @@ class Projection:
         gain = (b * torch.linalg.solve(a, b[..., None])[..., 0]).sum(-1)
         return (self.tau_perp.square().sum() - gain).clamp_min(0.0).reshape(theta.shape[:-1])
 
+    def shape_derivatives(self, theta: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """``S(θ)``, ``∂S/∂φ2`` and ``∂S/∂φ3`` of one shape ``theta[2n]``, each ``[n, N]`` (joint ``j``'s
+        column on its own rows; not yet times ``φ1``)."""
+        n = self.qd.shape[0]
+        steepness, shift = theta[:n, None], theta[n:, None]  # [n, 1]
+        moved = self.qd + shift
+        sigma, rest = torch.sigmoid(steepness * moved), torch.sigmoid(steepness * shift)
+        slope, slope_rest = sigma * (1 - sigma), rest * (1 - rest)
+        return sigma - rest, slope * moved - slope_rest * shift, (slope - slope_rest) * steepness
+
     def linearised(self, theta: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         """What a Gauss–Newton step at one shape ``theta[2n]`` needs: ``JᵀJ`` ``[2n, 2n]``, ``Jᵀr``
         ``[2n]`` and ``‖r‖²``, with ``r`` the projected residual and ``J`` Kaufman's Jacobian
@@ -121,20 +136,8 @@ class Projection:
         ``‖r‖²`` has no cancellation.
         """
         n, width = self.qd.shape[0], self.q0.shape[-1]
-        steepness, shift = theta[:n, None], theta[n:, None]  # [n, 1]
-        moved = self.qd + shift
-        sigma, rest = torch.sigmoid(steepness * moved), torch.sigmoid(steepness * shift)
-        slope, slope_rest = sigma * (1 - sigma), rest * (1 - rest)
         # per joint: S and ∂S/∂φ2, ∂S/∂φ3 (not yet times φ1), and τ⊥ beside them for the Gram matrix
-        columns = torch.stack(
-            [
-                sigma - rest,
-                slope * moved - slope_rest * shift,
-                (slope - slope_rest) * steepness,
-                self.tau_perp,
-            ],
-            -1,
-        )  # [n, N, 4]
+        columns = torch.stack([*self.shape_derivatives(theta), self.tau_perp], -1)  # [n, N, 4]
         gram = columns.mT @ columns  # [n, 4, 4]: every product of two columns of one joint
         products = torch.bmm(self.q0.mT, columns[..., :3])  # Q₀ᵀ[S, ∂S] [n, L, 3] (Q₀ᵀτ⊥ = 0)
         g = products[..., 0]  # Gᵀ [n, L]
@@ -208,8 +211,8 @@ class VariableProjection(Estimator):
 
     ``details``: ``shape`` (``φ2``, ``φ3`` per joint), ``criterion_value`` (‖τ − Wα‖), ``history``
     (the swarm's best residual per iteration), ``evaluations``, ``rel_error_train``,
-    ``search_time_s`` and the base-parameter ``uncertainty`` at the final shape (the shapes taken as
-    known, so it is optimistic).
+    ``search_time_s``, ``at_bound`` (the shapes the box stopped, said in a ``warning:`` line) and the
+    ``uncertainty`` of the base parameters and the shapes not at a bound (``_uncertainty``).
     """
 
     #: The conformance suite's problem: a robot with sigmoid friction (the cylindrical one from its URDF).
@@ -244,11 +247,17 @@ class VariableProjection(Estimator):
         """Check the options (``ValueError`` naming the one at fault); a fit reads them as they are."""
         from idkit.conic.program import ConsistentSettings  # cvxpy stays unimported until a fit
 
-        if self.particles < 1 or self.iterations < 1 or self.polish < 0 or self.search_samples < 1:
-            raise ValueError(
-                f"varpro: need particles >= 1, iterations >= 1, polish >= 0 and search_samples >= 1, got "
-                f"{self.particles}, {self.iterations}, {self.polish}, {self.search_samples}"
-            )
+        for option, value, least in (
+            ("particles", self.particles, 1),
+            ("iterations", self.iterations, 1),
+            ("polish", self.polish, 0),
+            ("search_samples", self.search_samples, 1),
+        ):
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ValueError(f"varpro option {option} must be an integer >= {least}, got {value!r}")
+        # before a search whose time or history would have no bound
+        budget = {"particles": self.particles, "iterations": self.iterations}
+        sizes.check_evaluations("varpro", budget, "iterations", sizes.PSO_STEP_EVALUATIONS)
         if self.refine not in ("none", "pcls"):
             raise ValueError(f"varpro: refine must be 'none' or 'pcls', got {self.refine!r}")
         if self.threads is not None and (isinstance(self.threads, bool) or self.threads < 1):
@@ -272,6 +281,16 @@ class VariableProjection(Estimator):
         s = problem.tensors()
         n = robot.n_joints
         searched = min(s.tau.shape[0], self.search_samples) * n  # the swarm's error-tensor size per particle
+        sizes.announce_long_search(
+            "varpro", self.particles * self.iterations, 1, [searched], VARPRO_RESIDUAL_NS
+        )
+        width = len(robot.base_param_names)
+        sizes.check_memory(
+            f"varpro: particles={self.particles} shapes evaluated at once on {searched} residuals of "
+            f"{width} columns",
+            sizes.FLOAT * self.particles * searched * (width + 4),
+            "lower estimator.particles or estimator.search_samples",
+        )
         threads = resolve_threads(self.threads, self.particles * searched)
         with torch_threads(threads), torch.no_grad():
             regressor = robot.regressor(s.q, s.qd, s.qdd)
@@ -289,9 +308,10 @@ class VariableProjection(Estimator):
             lower, upper = lower[box].to(s.tau), upper[box].to(s.tau)
             draws = swarm.Draws([swarm.Uniform(problem.generator(), s.tau)])
             reference = robot.nominal_params()[box].to(s.tau)  # one particle starts at the robot's shape
+            kept = sizes.history_stride(self.iterations)  # at most HISTORY_ROWS + 1 rows of history
             state, history = swarm.run(
                 coarse.residual, lower, upper, (), self.particles, self.iterations, swarm.SwarmRules(), draws,
-                start=reference[None],
+                kept, start=reference[None],
             )  # fmt: skip
             theta = state.global_position
             if coarse is not data:  # most steps where they are cheap; the last ones on every sample
@@ -301,6 +321,11 @@ class VariableProjection(Estimator):
                 theta = _polish(data, theta, lower, upper, self.polish)
         search_time = time.perf_counter() - start
         steepness, shift = theta[:n], theta[n:]
+        shape_names = [robot.param_names[k] for k in box]
+        ended = at_bounds(shape_names, theta, lower, upper)
+        warn_at_bounds(
+            self.name, ended, shape_names, lower, upper, "robot.steepness_range or robot.max_shift"
+        )
         with torch_threads(threads), torch.no_grad():
             if self.refine == "pcls":
                 refined, details = self._pcls(robot, problem, steepness, shift)
@@ -312,14 +337,8 @@ class VariableProjection(Estimator):
                 params = _standard(robot, data, theta, solved.alpha)
                 alpha = robot.base_params(params)
                 predicted = (solved.w @ solved.alpha).reshape(n, -1).T  # rows joint-major
-                order = data.fixed + data.scaled
-                names = [robot.base_param_names[k] for k in order]
-                # rows sample-major: a sample's joints share a score
-                w = solved.w.reshape(n, -1, solved.w.shape[-1]).transpose(0, 1).reshape(solved.w.shape)
-                details = base_uncertainties(
-                    w[None], data.tau.T.reshape(1, -1), solved.alpha[None], names, solved.spectrum,
-                    robot.unidentifiable, joints=n,
-                )[0].to_details()  # fmt: skip
+                free = [k for k, name in enumerate(shape_names) if name not in ended]
+                details = _uncertainty(robot, data, solved, theta, free, shape_names)
         residual = float(torch.linalg.vector_norm(s.tau - predicted))
         cost = residual if problem.cost is None else float(problem.evaluate(params))
         details = {
@@ -331,7 +350,9 @@ class VariableProjection(Estimator):
                 for j, joint in enumerate(robot.joint_names)
             },
             "history": [float(h) for h in history.sqrt().tolist()],
+            "at_bound": ended,
             "search_stride": stride,
+            "history_stride": kept,
             "evaluations": self.particles * self.iterations,
             "search_time_s": search_time,
             "threads": threads,
@@ -428,14 +449,10 @@ class Solved:
     Attributes:
         w: ``W`` ``[n·N, L + n]`` (rows joint-major, as ``Projection``).
         alpha: its least-squares solution ``[L + n]`` (``fixed`` then ``scaled`` columns).
-        spectrum: singular values and right vectors of the column-equilibrated ``W``: those of the
-            equilibrated ``R`` (``W = QR`` with orthonormal ``Q``; ``Q``'s product with ``R``'s left
-            vectors, ``W``'s own, is never needed).
     """
 
     w: Tensor
     alpha: Tensor
-    spectrum: Spectrum
 
 
 def _solve(data: Projection, theta: Tensor) -> Solved:
@@ -464,8 +481,35 @@ def _solve(data: Projection, theta: Tensor) -> Solved:
     kept = sigma > tol
     inverse = torch.where(kept, 1 / sigma, torch.zeros_like(sigma))
     alpha = (vh.T @ (inverse * (u.T @ rhs))) / scale
-    spectrum = Spectrum(scale[None], sigma[None], vh[None])  # W's singular values are R's
-    return Solved(torch.cat([data.w_fixed.reshape(-1, width), s], 1), alpha, spectrum)
+    return Solved(torch.cat([data.w_fixed.reshape(-1, width), s], 1), alpha)
+
+
+def _uncertainty(
+    robot: Robot, data: Projection, solved: Solved, theta: Tensor, free: list[int], shape_names: list[str]
+) -> dict[str, Any]:
+    """``{"uncertainty": …}`` of the linear parameters and of the shapes ``theta[free]`` (those not at a
+    bound): the sandwich of :mod:`idkit.estimators.linear.uncertainty` on the model linearised at
+    ``θ``, ``τ ≈ W α + D (θ' − θ)`` with ``D = ∂(S φ1)/∂θ``, so that the shapes' scatter widens the
+    linear parameters' (at a fixed shape their std would be optimistic). A shape at a bound is held
+    there (the box set it, and the fit says so)."""
+    n, samples = data.qd.shape
+    amplitude = solved.alpha[len(data.fixed) :]  # φ1, joint order
+    _, steepness, shift = data.shape_derivatives(theta)
+    d = theta.new_zeros(n, samples, 2 * n)
+    d[..., :n].diagonal(dim1=0, dim2=2).copy_((steepness * amplitude[:, None]).T)
+    d[..., n:].diagonal(dim1=0, dim2=2).copy_((shift * amplitude[:, None]).T)
+    d = d.reshape(-1, 2 * n)[:, free]
+    jacobian = torch.cat([solved.w, d], 1)
+    target = data.tau.reshape(-1) + d @ theta[free]  # J [α; θ] = τ + D θ: the residual stays τ − Wα
+    # rows sample-major: a sample's joints share a score
+    jacobian = jacobian.reshape(n, samples, -1).transpose(0, 1).reshape(jacobian.shape)
+    target = target.reshape(n, samples).T.reshape(-1)
+    names = [robot.base_param_names[k] for k in data.fixed + data.scaled] + [shape_names[k] for k in free]
+    estimate = torch.cat([solved.alpha, theta[free]])
+    uncertainty = base_uncertainties(
+        jacobian[None], target[None], estimate[None], names, structural=robot.unidentifiable, joints=n
+    )
+    return uncertainty[0].to_details()
 
 
 def _standard(robot: Robot, data: Projection, theta: Tensor, solution: Tensor) -> Tensor:

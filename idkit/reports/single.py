@@ -56,7 +56,7 @@ def text(result: RunResult) -> str:
     if result.parameter_error is not None:
         tail += f" · mean |rel. error| {100 * result.parameter_error:.2f} %"
     lines.append(tail)
-    lines += _uncertainty_lines(est.details.get("uncertainty"), est.base_params or {})
+    lines += _uncertainty_lines(est.details.get("uncertainty"), {**est.params, **(est.base_params or {})})
     lines += payload_report.lines(est.details)
     lines += _validation_lines(result)
     lines += _plausibility_lines(result)
@@ -114,7 +114,8 @@ def _plausibility_lines(result: RunResult) -> list[str]:
 
 
 def _uncertainty_lines(uncertainty: Mapping[str, Any] | None, base: Mapping[str, float]) -> list[str]:
-    """Base parameters with their relative standard deviation, rank, condition, unidentifiable part."""
+    """Base parameters (and any other parameter the uncertainty covers, such as varpro's shapes) with
+    their relative standard deviation, rank, condition, unidentifiable part."""
     if not uncertainty:
         return []
     rel = uncertainty.get("std_rel_pct") or {}

@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import torch
 from torch import Tensor
@@ -96,22 +96,12 @@ class BaseUncertainty:
         }
 
 
-class Spectrum(NamedTuple):
-    """What the report reads of the SVD of each trial's column-equilibrated ``W``: ``scale[T, B]``
-    (the column norms), ``sigma[T, B]``, ``Vh[T, B, B]``. A ``Conditioning`` has them too (and ``U``,
-    which a caller that factored ``W`` another way need not form)."""
-
-    scale: Tensor
-    sigma: Tensor
-    Vh: Tensor
-
-
 def base_uncertainties(
     W: Tensor,
     tau: Tensor,
     alpha: Tensor,
     names: Sequence[str],
-    conditioning: Conditioning | Spectrum | None = None,
+    conditioning: Conditioning | None = None,
     structural: Sequence[str] = (),
     joints: int = 1,
     pulled: bool = False,
@@ -123,8 +113,7 @@ def base_uncertainties(
         W, tau, alpha: the (possibly relative) linear systems and their estimates; rows sample-major,
             ``joints`` consecutive rows per sample (``M = N · joints``).
         names: base parameter names ``[B]``.
-        conditioning: the SVD of the equilibrated ``W`` if already computed (the LS family has it,
-            varpro assembles it from its QR).
+        conditioning: the SVD of the equilibrated ``W`` if already computed (the LS family has it).
         structural: what the robot says no data can identify (``Robot.unidentifiable``), listed first.
         joints: rows per sample: the joints' rows of one instant share a score.
         pulled: ``alpha`` is not the least-squares solution but pulled from it (a prior, constraints):
@@ -134,13 +123,13 @@ def base_uncertainties(
     M, B = W.shape[-2:]
     if M % joints:
         raise ValueError(f"base_uncertainties: {M} rows are not a whole number of samples of {joints} rows")
-    if conditioning is None or (pulled and not isinstance(conditioning, Conditioning)):
+    if conditioning is None:
         scale = torch.linalg.vector_norm(W, dim=-2)
         scale = torch.where(scale > 0, scale, torch.ones_like(scale))
         U, sigma, Vh = torch.linalg.svd(W / scale[..., None, :], full_matrices=False)
     else:
-        U = conditioning.U.double() if isinstance(conditioning, Conditioning) else None
-        scale, sigma, Vh = conditioning.scale.double(), conditioning.sigma.double(), conditioning.Vh.double()
+        U, sigma, Vh = (getattr(conditioning, k).double() for k in ("U", "sigma", "Vh"))
+        scale = conditioning.scale.double()
     tol = max(M, B) * torch.finfo(torch.float64).eps * sigma[..., :1]  # [T, 1]; 0 if sigma_max is 0
     kept = sigma > tol  # [T, B]
     ranks = kept.sum(-1).tolist()
@@ -156,7 +145,6 @@ def base_uncertainties(
     variance = (bread @ meat @ bread).diagonal(dim1=-2, dim2=-1) * correction / scale.square()
     pull = None
     if pulled:
-        assert U is not None
         least_squares = (Vh.mT @ (inverse * (U.mT @ tau[..., None])[..., 0])[..., None])[..., 0] / scale
         pull = alpha - least_squares
         variance = variance + pull.square()
