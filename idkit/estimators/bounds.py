@@ -30,11 +30,22 @@ def at_bounds(
 ) -> dict[str, str]:
     """``{name: "lower" | "upper"}`` of the ``values[D]`` within ``tolerance`` × the box width of
     ``lower[D]`` or ``upper[D]``, in the order of ``names``."""
+    low, high = near_bounds(values, lower, upper, tolerance)
+    return sides(names, low.tolist(), high.tolist())
+
+
+def near_bounds(
+    values: Tensor, lower: Tensor, upper: Tensor, tolerance: float = AT_BOUND
+) -> tuple[Tensor, Tensor]:
+    """Masks ``[..., D]`` of the ``values[..., D]`` at the lower and at the upper bound (``at_bounds``)."""
     margin = tolerance * (upper - lower)
-    low = (values <= lower + margin).tolist()
-    high = (values >= upper - margin).tolist()
-    sides = zip(names, low, high, strict=True)
-    return {name: "lower" if lo else "upper" for name, lo, hi in sides if lo or hi}
+    return values <= lower + margin, values >= upper - margin
+
+
+def sides(names: Sequence[str], low: Sequence[bool], high: Sequence[bool]) -> dict[str, str]:
+    """``{name: "lower" | "upper"}`` of the parameters flagged in ``low`` or ``high``."""
+    flagged = zip(names, low, high, strict=True)
+    return {name: "lower" if lo else "upper" for name, lo, hi in flagged if lo or hi}
 
 
 def warn_at_bounds(

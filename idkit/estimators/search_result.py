@@ -15,7 +15,7 @@ from torch import Tensor
 
 from idkit.estimate import Estimate, to_python
 from idkit.estimators.aggregate import KeepRule
-from idkit.estimators.bounds import at_bounds, warn_at_bounds
+from idkit.estimators.bounds import at_bounds, near_bounds, sides, warn_at_bounds
 from idkit.estimators.objective import Objective, cost_label
 from idkit.interfaces import Cost, Robot
 from idkit.problem import Problem
@@ -64,6 +64,7 @@ def per_cost_estimates(
     # Python lists for all costs at once: a study makes tens of thousands of estimates, and a
     # tensor per field and estimate costs more in conversions than the fit itself.
     all_costs, all_params, all_kept = (t.tolist() for t in (run_costs, objective.params(position), kept))
+    runs_at = runs_at_bounds(search_names(problem.robot, objective.space), position, kept, objective)
     estimates = []
     for c, cost in enumerate(costs):
         details = dict(common)
@@ -76,8 +77,19 @@ def per_cost_estimates(
         if history is not None:
             details["history"] = history[:, c].T  # [R, T]
         name = label.format(cost=cost_label(cost))
-        estimates.append(make_estimate(problem, objective, name, mean[c], float(values[c]), wall, details))
+        estimate = make_estimate(problem, objective, name, mean[c], float(values[c]), wall, details)
+        estimate.details["at_bound"] = {**runs_at[c], **estimate.details["at_bound"]}
+        estimates.append(estimate)
     return estimates
+
+
+def runs_at_bounds(names: Sequence[str], position: Tensor, kept: Tensor, objective: Objective) -> list[dict]:
+    """Per cost, ``{name: side}`` of the parameters at which any kept run of ``position[C, R, D]``
+    (``kept[C, R]``) ended at a bound: the reported mean of runs some of which the box stopped is
+    the box's doing too, though it may lie inside."""
+    low, high = near_bounds(position, objective.lower, objective.upper)
+    low, high = ((mask & kept[..., None]).any(-2).tolist() for mask in (low, high))  # [C, D]
+    return [sides(names, lows, highs) for lows, highs in zip(low, high, strict=True)]
 
 
 def make_estimate(
