@@ -15,6 +15,7 @@ import torch
 from scipy.optimize import least_squares
 
 from idkit.data.scenarios import simulate
+from idkit.estimators.bounds import BoundWarning
 from idkit.estimators.varpro import VariableProjection, _solve, projection
 from idkit.problem import IdentificationError, Problem, Samples
 from idkit.robots.drives import GAZ_PANDA_FRICTION, with_drive_values
@@ -256,3 +257,75 @@ def test_the_assembled_qr_solve_equals_lstsq(tree):
     w = data.matrix(theta).numpy()
     expected, *_ = np.linalg.lstsq(w, data.tau.reshape(-1).numpy(), rcond=None)
     np.testing.assert_allclose(solved.alpha.numpy(), expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+
+
+def noisy_tree(tree, level: float = 0.01, seed: int = 1) -> Samples:
+    robot, _, samples = tree
+    generator = torch.Generator().manual_seed(seed)
+    rms = samples.tau.square().mean(0).sqrt()
+    noise = level * rms * torch.randn(samples.tau.shape, generator=generator, dtype=torch.float64)
+    return Samples(samples.q, samples.qd, samples.qdd, samples.tau + noise)
+
+
+def test_the_uncertainty_is_the_sandwich_of_the_whole_jacobian(tree):
+    """The std of every linear parameter and shape is the HAC sandwich of the Jacobian of
+    ``τ = [W_fixed | S(θ)] α`` in ``(α, θ)`` — formed here densely by autograd, in an independent
+    implementation of the sandwich — not the std at a fixed shape, which is smaller for ``φ1``."""
+    from tests.estimators.test_uncertainty import driscoll_kraay
+
+    robot, _, _ = tree
+    noisy = noisy_tree(tree)
+    estimate = VariableProjection().fit(Problem(robot, noisy))
+    data = projection(robot, noisy.q, noisy.qd, noisy.qdd, noisy.tau)
+    n, samples = data.qd.shape
+    shapes = [estimate.params[robot.param_names[k]] for k in phi_index(robot, "phi2", "phi3")]
+    linear = [estimate.base_params[robot.base_param_names[k]] for k in data.fixed + data.scaled]
+    theta, alpha = (torch.tensor(v, dtype=torch.float64) for v in (shapes, linear))
+
+    def model(x: torch.Tensor) -> torch.Tensor:
+        return data.matrix(x[: 2 * n]) @ x[2 * n :]
+
+    x = torch.cat([theta, alpha])
+    jacobian = torch.autograd.functional.jacobian(model, x)  # [n·N, 2n + B], rows joint-major
+    jacobian = jacobian.reshape(n, samples, -1).transpose(0, 1).reshape(n * samples, -1).numpy()
+    measured = data.tau.T.reshape(-1).numpy()  # sample-major
+    target = measured - model(x).reshape(n, samples).T.reshape(-1).numpy() + jacobian @ x.numpy()
+    reported = estimate.details["uncertainty"]
+    assert estimate.details["at_bound"] == {}
+    _, std = driscoll_kraay(jacobian, target, n, reported["bandwidth"])
+    names = [robot.param_names[k] for k in phi_index(robot, "phi2", "phi3")]
+    names += [robot.base_param_names[k] for k in data.fixed + data.scaled]
+    assert set(reported["std"]) == set(names)
+    np.testing.assert_allclose([reported["std"][name] for name in names], std, rtol=1e-5)
+    # at the found shape held fixed, phi1 would look better determined than it is
+    fixed = driscoll_kraay(jacobian[:, 2 * n :], target - jacobian[:, : 2 * n] @ theta.numpy(), n, 1)[1]
+    amplitudes = [names.index(f"{j}.phi1") - 2 * n for j in robot.joint_names]
+    assert (std[2 * n :][amplitudes] > 1.2 * fixed[amplitudes]).any()
+
+
+def test_a_shape_at_its_bound_is_flagged_said_and_held_out_of_the_uncertainty(tree):
+    """The box of phi2 below two joints' true steepness (9.07 and 10.1): the search stops at 8 there."""
+    _, truth, samples = tree
+    robot = sigmoid_robot(TREE_URDF, steepness_range=(1.0, 8.0), sigmoid_steepness=5.0)
+    with pytest.warns(
+        BoundWarning, match=r"^VarPro: \d parameter\(s\) ended at a bound .*j2\.phi2 at its upper"
+    ):
+        estimate = VariableProjection().fit(Problem(robot, samples))
+    assert {"j2.phi2": "upper", "j3.phi2": "upper"}.items() <= estimate.details["at_bound"].items()
+    assert estimate.params["j2.phi2"] == pytest.approx(8.0)
+    assert not set(estimate.details["at_bound"]) & set(estimate.details["uncertainty"]["std"])
+    assert "j1.phi2" in estimate.details["uncertainty"]["std"]
+
+
+def test_the_search_is_sized_before_it_starts(tree):
+    with pytest.raises(
+        ValueError, match=r"^varpro: particles × iterations = 16 × 1000000000 = 1\.6e\+10 cost"
+    ):
+        VariableProjection(iterations=10**9)
+    with pytest.raises(ValueError, match=r"^varpro option iterations must be an integer >= 1, got 1000000000\.0"):
+        VariableProjection(iterations=1e9)
+    with pytest.raises(ValueError, match=r"^varpro option polish must be an integer >= 0, got -1"):
+        VariableProjection(polish=-1)
+    robot, _, samples = tree
+    estimate = VariableProjection(particles=2, iterations=2500, polish=0).fit(Problem(robot, samples))
+    assert len(estimate.details["history"]) <= 1001 and estimate.details["history_stride"] == 3
