@@ -4,6 +4,7 @@ made inside the test's folder — and nothing lands outside that scratch folder.
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 import re
@@ -20,6 +21,33 @@ def tour_blocks() -> list[str]:
     text = README.read_text()
     tour = text[text.index("## A short tour") : text.index("\n## ", text.index("## A short tour"))]
     return re.findall(r"```bash\n(.*?)```", tour, re.S)
+
+
+def tour_truths() -> tuple[dict[str, float], dict[str, float]]:
+    """The values the tour's log-writing script sets: the arm's (``truth = {...}``) and the drive's
+    (``log("current.csv", drive, {...}``), read from the README so that the test follows it."""
+    script = next(block for block in tour_blocks() if "def log(" in block)
+    arm = re.search(r"^truth = (\{.*?\})$", script, re.S | re.M)
+    drive = re.search(r'log\("current\.csv", drive, (\{.*?\})', script, re.S)
+    assert arm and drive, "the tour's script no longer sets the truths this test reads"
+    return ast.literal_eval(arm.group(1)), ast.literal_eval(drive.group(1))
+
+
+def within_three_sigma(result: dict, truth: dict[str, float]) -> list[str]:
+    """The parameters of ``truth`` farther than 3 standard deviations from a run's estimate."""
+    estimate = result["payload"]["estimate"]
+    values = {**estimate["params"], **(estimate["base_params"] or {})}
+    std = estimate["details"]["uncertainty"]["std"]
+    return [
+        f"{name}: {values[name]:.5g} ± {std.get(name)} against {value}"
+        for name, value in truth.items()
+        if not abs(values[name] - value) <= 3 * std.get(name, 0.0)
+    ]
+
+
+def test_the_tour_sets_truths_for_the_arm_and_the_drive():
+    arm, drive = tour_truths()
+    assert arm["d2.fv"] == 1.0 and drive["d2.phi2"] == 30.0
 
 
 def test_the_tour_starts_in_a_scratch_folder_with_the_venv_activated():
@@ -69,3 +97,8 @@ def test_the_readme_tour_runs_as_written_in_a_scratch_folder(tmp_path):
     assert drive["d2.armature"] == pytest.approx(2.0, rel=0.02)
     validation = json.loads((scratch / "arm/result.json").read_text())["payload"]["validation"]
     assert list(validation) == ["test.csv"]
+    # every parameter the tour sets a truth for lies within 3 standard deviations of its estimate
+    arm, drive = tour_truths()
+    for run, truth in (("arm", arm), ("mj", arm), ("drive", drive)):
+        result = json.loads((scratch / run / "result.json").read_text())
+        assert not within_three_sigma(result, truth), (run, within_three_sigma(result, truth))
