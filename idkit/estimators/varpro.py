@@ -210,7 +210,7 @@ class VariableProjection(Estimator):
         threads: torch intra-op threads; ``None`` = ``idkit.runtime``'s size rule.
 
     ``details``: ``shape`` (``φ2``, ``φ3`` per joint), ``criterion_value`` (‖τ − Wα‖), ``history``
-    (the swarm's best residual per iteration), ``evaluations``, ``rel_error_train``,
+    (the swarm's best residual per kept iteration), ``evaluations``, ``rel_error_train``,
     ``search_time_s``, ``at_bound`` (the shapes the box stopped, said in a ``warning:`` line) and the
     ``uncertainty`` of the base parameters and the shapes not at a bound (``_uncertainty``).
     """

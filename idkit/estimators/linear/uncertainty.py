@@ -12,11 +12,10 @@ dynamics), which made the textbook σ a fraction of the real error. So the covar
 with ``g_i = W_iᵀ e_i`` the score of sample ``i`` (its ``n`` joint rows together, so any correlation
 between joints at one instant is kept), the Bartlett-weighted autocovariances of Newey & West (1987)
 summed over time lags as in Driscoll & Kraay (1998), and the bandwidth ``L`` chosen from the data by
-Andrews' (1991) AR(1) plug-in rule: ``L ≈ 0 `` for white residuals (then ``S`` is White's
+Andrews' (1991) AR(1) plug-in rule: a few lags for white residuals (``L = 0`` is White's
 heteroscedasticity-consistent estimate), hundreds of samples for residuals correlated over a second.
-It is scaled by ``N / (N − B)`` (``N`` samples), the small-sample factor that makes it equal the
-textbook formula for white residuals of equal variance. Measured coverage on the README's tour:
-``docs/estimators.md``.
+It is scaled by ``M / (M − B)``, the factor that makes it the textbook formula for white residuals
+of equal variance. Measured coverage on the README's tour: ``docs/uncertainty.md``.
 
 An estimate pulled away from least squares — ``pcls``'s, by its prior towards the CAD model and by its
 constraints — is biased by the pull, which the sandwich (the scatter of the data) does not see. With
@@ -135,8 +134,7 @@ def base_uncertainties(
     ranks = kept.sum(-1).tolist()
     dof = M - B
     residual = tau - (W @ alpha[..., None])[..., 0]
-    nan = torch.full_like(residual[..., 0], math.nan)
-    sigma2 = residual.square().sum(-1) / dof if dof > 0 else nan
+    sigma2 = residual.square().sum(-1) / dof if dof > 0 else torch.full_like(residual[..., 0], math.nan)
     scores = (W / scale[..., None, :] * residual[..., None]).reshape(*W.shape[:-2], M // joints, joints, B)
     meat, bandwidth = long_run_covariance(scores.sum(-2))
     inverse = torch.where(kept, 1 / sigma, torch.zeros_like(sigma))  # 1/s_k on kept directions only
@@ -189,7 +187,7 @@ def long_run_covariance(scores: Tensor) -> tuple[Tensor, list[int]]:
     a = torch.where(denominator > 0, numerator / denominator.clamp_min(1e-300), torch.zeros_like(numerator))
     bandwidth = torch.ceil(1.1447 * (a * N) ** (1 / 3)).clamp(0, max(N // 4, 0)).long()
     meat = scores.mT @ scores
-    for lag in range(1, int(bandwidth.max()) + 1 if bandwidth.numel() else 1):
+    for lag in range(1, int(bandwidth.max()) + 1):
         weight = (1 - lag / (bandwidth + 1)).clamp_min(0).to(scores)  # [T]
         product = scores[..., :-lag, :].mT @ scores[..., lag:, :]
         meat = meat + weight[..., None, None] * (product + product.mT)
