@@ -51,7 +51,8 @@ def test_95_percent_intervals_cover_the_truth_on_the_tours_recording(tour, tmp_p
     cross-validation, torques unfiltered) and fitted by ``pcls`` (``prior_weight=auto``) and ``ls``;
     every base parameter of each fit is scored: 100 × 14 = 1,400 parameter-draws per estimator.
 
-    Measured (``docs/estimators.md``): 94.4 % (pcls) and 94.7 % (ls). Asserted: ≥ 90 % overall and
+    Measured on other draws (``bench/uncertainty_coverage.py``, ``docs/uncertainty.md``): 95.0 % (pcls)
+    and 94.8 % (ls). Asserted: ≥ 90 % overall and
     ≥ 80 % for every parameter. If the intervals covered 95 % as they claim, the overall share of
     1,400 draws (binomial, sd 0.58 %) falls below 90 % with probability < 1e-15, and one parameter's
     share of 100 (sd 2.2 %) below 80 % with probability < 1e-9 — each draw's 14 parameters are
@@ -88,9 +89,9 @@ def test_95_percent_intervals_of_the_drive_cover_the_truth_shapes_included(tour,
     efforts in amps), fitted by ``varpro``: every base parameter and every shape it gives a std for
     (those the box did not stop), 100 × 17–18 parameter-draws.
 
-    Measured (``docs/estimators.md``): see the coverage table there. Asserted as for the arm: ≥ 90 %
-    overall, ≥ 80 % per parameter (same binomial margins). With the shapes held at the found values
-    the std of ``d3.phi1`` covered far less (the table's last row)."""
+    Measured on other draws (``docs/uncertainty.md``): 94.4 %. Asserted as for the arm: ≥ 90 % overall,
+    ≥ 80 % per parameter (same binomial margins). With the shapes held at the found values the std of
+    ``d3.phi1`` covered 30 %."""
     urdf, motion = tour
     robot = drive_robot(urdf)
     params = true_params(robot, DRIVE_TRUTH)
