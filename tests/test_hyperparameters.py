@@ -59,7 +59,7 @@ def test_a_bad_value_is_refused_at_construction_and_when_assigned_at_the_fit():
     swarm.particles = 0
     with pytest.raises(ValueError, match="pso option particles must be an integer >= 1, got 0"):
         swarm.fit(make_problem())
-    with pytest.raises(ValueError, match="varpro option particles must be an integer >= 1, got 0"):  # was: fit
+    with pytest.raises(ValueError, match="varpro option particles must be an integer >= 1, got 0"):
         registry.create("estimator", "varpro", particles=0)
     least_squares = registry.create("estimator", "ls")
     least_squares.floor = -1.0
