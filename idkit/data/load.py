@@ -167,8 +167,7 @@ def read_source(
         _refuse_zero_torques(path, samples.tau.numpy())
         times = None
         if kind.timestamps:
-            t = table.vector(FLOBAROID_RECORDING_KEYS["t"] if kind.flobaroid else "t")
-            times = t - t[0]
+            times = table.times(FLOBAROID_RECORDING_KEYS["t"] if kind.flobaroid else "t")
         return Source(str(path), None, samples, times)
     if not kind.timestamps:
         found = ", ".join(table.names()[:12]) + (" …" if len(table.names()) > 12 else "")

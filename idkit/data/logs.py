@@ -105,12 +105,12 @@ def read_log(
             )
         tau = _values(path, states, "effort", wanted)
         origin = int(t[0])
-        seconds = (t - origin) * 1e-9
+        seconds = _seconds(t, origin)
         dropped = 0
     else:
         origin = int(min(t[0], efforts.stamps[0]))
         seconds, tau, rows = _onto(
-            path, efforts, wanted, (t - origin) * 1e-9, (efforts.stamps - origin) * 1e-9
+            path, efforts, wanted, _seconds(t, origin), _seconds(efforts.stamps, origin)
         )
         q, qd = q[rows], (None if qd is None else qd[rows])
         dropped = int(t.size - rows.size)
@@ -131,6 +131,12 @@ def read_log(
         }
     recording = Recording(seconds, q, tau, qd, source=str(path), joint_names=tuple(wanted))
     return recording, description
+
+
+def _seconds(stamps: np.ndarray, origin: int) -> np.ndarray:
+    """Nanosecond stamps ``[M]`` (int64, since the epoch) as seconds after ``origin`` (ns): subtracted in
+    integers, then divided (one rounding), so no digit of a stamp is lost to float64's 16."""
+    return (stamps - np.int64(origin)) / 1e9
 
 
 def _rosbags(path: Path) -> Any:

@@ -144,7 +144,7 @@ def recording_from_table(
         table, {k: names[k] for k in ("q", "tau", "qd")}, joints, optional=("qd",)
     )
     return Recording(
-        table.vector(names["t"]), arrays["q"], arrays["tau"], arrays.get("qd"), str(table.path), found
+        table.times(names["t"]), arrays["q"], arrays["tau"], arrays.get("qd"), str(table.path), found
     )
 
 

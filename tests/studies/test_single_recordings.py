@@ -547,6 +547,33 @@ def test_a_bag_gives_the_estimate_of_the_csv_of_the_same_samples(files, tmp_path
         assert data["data"]["logs"][str(path)]["ignored_topics"] == ["/status"]
 
 
+def test_epoch_stamps_of_a_bag_and_of_a_csv_give_one_estimate_to_1e_9(files, tmp_path):
+    """Nanosecond stamps since the epoch, jittered by up to 0.2 ms (as a real logger's): as float64
+    seconds they keep ~0.2 µs, which moved an estimate by ~1e-4. Subtracting the first stamp exactly
+    (integers in the bag, decimal text in the CSV) leaves the bag, its storage file and the CSV of
+    the same samples one estimate."""
+    pytest.importorskip("rosbags")
+    from bag_cases import Stream, storage_file, write_ros2
+
+    table = np.loadtxt(files["train"], delimiter=",", skiprows=1)
+    jitter = np.random.default_rng(5).integers(0, 200_000, table.shape[0])
+    stamps = 1_700_000_000_123_456_789 + np.round(table[:, 0] * 1e9).astype(np.int64) + jitter
+    stream = Stream("/joint_states", stamps, ["theta1", "d2", "d3"], table[:, 1:4], None, table[:, 4:7])
+    bag = write_ros2(tmp_path / "bag", [stream])
+    csv = tmp_path / "epoch.csv"
+    lines = ["t,q1,q2,q3,tau1,tau2,tau3"] + [
+        f"{s // 10**9}.{s % 10**9:09d}," + ",".join(f"{v:.17g}" for v in row[1:])
+        for s, row in zip(stamps.tolist(), table, strict=True)
+    ]
+    csv.write_text("\n".join(lines) + "\n")
+    quiet = ["estimator=ls", "~cost", "plots=false", "identified_urdf=false", "preprocess.cutoff=5"]
+    reference, _ = command(*robot_args(files), f"data={csv}", *quiet, out=tmp_path / "csv")
+    for name, path in (("folder", bag), ("file", storage_file(bag))):
+        result, _ = command(*robot_args(files), f"data={path}", *quiet, out=tmp_path / name)
+        for key, value in reference.estimate.params.items():
+            assert result.estimate.params[key] == pytest.approx(value, rel=1e-9, abs=1e-12), (name, key)
+
+
 def test_a_bag_without_a_robot_joint_is_one_line_naming_it(files, tmp_path, monkeypatch, capsys):
     pytest.importorskip("rosbags")
     bag = bag_of(files["train"], tmp_path / "bag", drop="d2")
