@@ -61,7 +61,8 @@ class Recording:
     """A raw recording of an ``n``-joint robot (float64 numpy arrays).
 
     Attributes:
-        t: ``[N]`` timestamps (s), strictly increasing.
+        t: ``[N]`` timestamps (s), strictly increasing; read from a file, they count from its first
+            stamp (subtracted exactly: :meth:`idkit.data.table.Table.times`).
         q: ``[N, n]`` joint positions.
         tau: ``[N, n]`` joint torques (or forces).
         qd: ``[N, n]`` measured joint velocities, or ``None``.
