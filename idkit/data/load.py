@@ -29,8 +29,10 @@ import numpy as np
 from idkit.data.delay import shift_torques
 from idkit.data.io import FLOBAROID_KEYS, samples_from_table
 from idkit.data.logs import is_log, read_log
+from idkit.data.options import RecordingOptions
 from idkit.data.preprocess import PreprocessOptions, preprocess_recording
-from idkit.data.recording import FLOBAROID_RECORDING_KEYS, Recording, RecordingOptions, recording_from_table
+from idkit.data.raw import Recording
+from idkit.data.recording import FLOBAROID_RECORDING_KEYS, recording_from_table
 from idkit.data.table import Table, read_table
 from idkit.problem import SAMPLE_ARRAYS, Samples
 

@@ -32,7 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from idkit.data.recording import Recording, RecordingOptions
+from idkit.data.options import RecordingOptions
+from idkit.data.raw import Recording
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 #: Single-file logs: ROS 2 storage files and ROS 1 bags (a ROS 2 bag folder holds ``metadata.yaml``).

@@ -13,7 +13,8 @@ from bag_cases import Stream, storage_file, write_ros1, write_ros2
 
 from idkit.data.load import load_data_file
 from idkit.data.logs import LogWarning, read_log
-from idkit.data.recording import RecordingOptions, load_recording, main
+from idkit.data.options import RecordingOptions
+from idkit.data.recording import load_recording, main
 
 pytest.importorskip("rosbags")
 

@@ -18,12 +18,13 @@ from omegaconf import OmegaConf
 
 from idkit.cli.app import setup
 from idkit.cli.tasks import arguments
-from idkit.data.preprocess import GapWarning, PreprocessOptions
+from idkit.data.options import DataOptions, Preprocessing
+from idkit.data.pipeline import DelayWarning
+from idkit.data.preprocess import GapWarning
 from idkit.estimators.linear.observation import IdentificationError
 from idkit.reports import single as report
 from idkit.robots.urdf import URDFRobot
 from idkit.studies import single
-from idkit.studies.recordings import DelayWarning, preprocess_options
 
 ASSET = Path(__file__).resolve().parents[2] / "idkit" / "robots" / "assets" / "cylindrical.urdf"
 RATE = 200.0
@@ -218,15 +219,16 @@ def test_the_preprocess_group_is_the_options_dataclass(files):
         }
     GlobalHydra.instance().clear()
     for name, node in groups.items():
-        options, apply = preprocess_options(node)
-        assert (options, apply) == (PreprocessOptions(cutoff="auto"), name)
+        assert DataOptions.of(node).preprocess == Preprocessing(apply=name)
+        checked = arguments("single", {"preprocess": node}, single.run)["preprocess"]
+        assert checked == Preprocessing(apply=name)
 
 
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
         (["preprocess.cutoff=150"], r"cutoff 150 Hz is not below the Nyquist frequency 100 Hz"),
-        (["preprocess.cutoff=soon"], r"^preprocess\.cutoff must be 'auto' or a number of Hz, got 'soon'$"),
+        (["preprocess.cutoff=soon"], r"^setting 'preprocess\.cutoff' must be a float or 'auto', got 'soon'"),
         (["preprocess=off"], r"train\.csv: a raw recording \(no accelerations qdd\); preprocess it"),
         (["preprocess.cutof=5"], None),  # Hydra refuses the unknown key itself
     ],
@@ -651,5 +653,5 @@ def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
     np.savetxt(aligned, np.column_stack([t, q, tau]), delimiter=",", header=",".join(header), comments="")
     floor = error(command(*robot_args(files), f"data={aligned}", *quiet, out=tmp_path / "e")[0])
     assert error(given) < 1.1 * floor and error(found) < 1.1 * floor and error(ignored) > 5 * floor
-    with pytest.raises(ValueError, match=r"recording\.delay must be 'auto' or seconds, got 'soon'"):
+    with pytest.raises(ValueError, match=r"setting 'recording\.delay' must be a float or 'auto', got 'soon'"):
         command(*robot_args(files), f"data={late}", "recording.delay=soon", *quiet, out=tmp_path / "d")
