@@ -6,11 +6,12 @@ robot stops at its limits, so a recording far beyond them is in another unit, or
 Every file is compared with the robot's limits (``Robot.motion_limits``: a URDF's ``<limit>``;
 ``Robot.effort_limits``), per joint, where the robot declares one:
 
-* **positions**: beyond a limit by more than the joint's whole range, or by 5 % of it where the
-  values divided by a unit factor — 180/π (degrees for radians), 1000 (millimetres for metres) —
-  lie within it, is refused in one line naming the file, the joint, the value, the limit and the
-  likely cause. Beyond it by less is said in one line (a :class:`LimitWarning`): another zero, a
-  calibration offset, or a URDF whose limits are not the robot's;
+* **positions**: beyond a limit by more than 5 % of the joint's range where the values divided by
+  a unit factor — 180/π (degrees for radians), 1000 (millimetres for metres) — lie within it is
+  refused in one line naming the file, the joint, the value, the limit and that likely cause. Any
+  other excursion is said in one line (a :class:`LimitWarning`): far beyond, another unit (motor-side
+  positions?), joint order or robot; a little beyond, another zero, a calibration offset, or a URDF
+  whose limits are not the robot's (the dynamics do not need the limits, so the fit goes on);
 * **velocities**, where the fit uses the file's own (a samples file, or
   ``preprocess.velocities=measured``): beyond a limit is said, with the unit mistake that would
   explain it. Only said: URDF velocity limits are often nominal, and velocities in another unit than
@@ -105,12 +106,12 @@ def _check_box(
                 f"{said}: logged in {units[0]}? (divided by the factor it lies within them); convert the "
                 "file, or correct the robot's limits if they are wrong"
             )
-        if refuse and beyond > hi - lo:
-            raise ValueError(
-                f"{said}, by more than the range itself: another unit, another joint order or another robot? "
-                "A robot stops at its limits; correct the file or the limits"
-            )
-        cause = f"{units[0]}?" if units else "another zero, a calibration offset, or limits not the robot's?"
+        if units:
+            cause = f"{units[0]}?"
+        elif beyond > hi - lo:
+            cause = "far beyond: another unit (motor-side positions?), joint order or robot?"
+        else:
+            cause = "another zero, a calibration offset, or limits not the robot's?"
         warnings.warn(f"{said} by {beyond:.3g}: {cause}", LimitWarning, stacklevel=4)
 
 

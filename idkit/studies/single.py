@@ -217,9 +217,10 @@ def _load(
     import torch
 
     from idkit.data.scenarios import get_scenario, simulate
+    from idkit.excitation.spec import scenario_excitation
 
     sc = get_scenario(_scenario_spec(scenario if scenario is not None else "clean"), n_samples=n_samples)
-    samples = simulate(robot, sc, seed=seed, params=params)
+    samples = simulate(robot, sc, seed=seed, params=params, excitation=scenario_excitation(sc, robot))
     true = torch.as_tensor(params, dtype=torch.float64) if params is not None else robot.nominal_params()
     truth = dict(zip(robot.param_names, true.tolist(), strict=True))
     return samples, truth, {"scenario": sc.as_dict()}, simulated(robot, options)
