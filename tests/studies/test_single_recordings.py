@@ -655,3 +655,62 @@ def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
     assert error(given) < 1.1 * floor and error(found) < 1.1 * floor and error(ignored) > 5 * floor
     with pytest.raises(ValueError, match=r"setting 'recording\.delay' must be a float or 'auto', got 'soon'"):
         command(*robot_args(files), f"data={late}", "recording.delay=soon", *quiet, out=tmp_path / "d")
+
+
+def test_a_current_recording_with_its_effort_scale_is_the_recording_in_newton_metres(files, tmp_path):
+    """``robot.effort_scale`` applies to every torque idkit reads — the training file, the held-out one
+    (their measured torques, scored and plotted), the automatic cut-off's choice: motor currents with
+    their scale give the model and the held-out figures of the same recordings converted to N·m first
+    (held-out ‖E‖/‖T‖ was ~900 % when the held-out currents went unscaled)."""
+    scale = np.array([20.0, 50.0, 35.0])  # joint torque (N·m, N) per ampere
+
+    def in_amperes(path: Path) -> Path:
+        header = path.read_text().splitlines()[0]
+        table = np.loadtxt(path, delimiter=",", skiprows=1)
+        table[:, 4:7] /= scale
+        out = tmp_path / f"amperes_{path.name}"
+        np.savetxt(out, table, delimiter=",", header=header, comments="", fmt="%.17g")
+        return out
+
+    quiet = ["estimator=ls", "~cost", "plots=false", "identified_urdf=false"]
+    newton, newton_json = command(
+        *robot_args(files),
+        f"data={files['train']}",
+        f"validate=[{files['test']}]",
+        *quiet,
+        out=tmp_path / "nm",
+    )
+    amperes, amperes_json = command(
+        *robot_args(files),
+        "robot.effort_scale=[20,50,35]",
+        f"data={in_amperes(files['train'])}",
+        f"validate=[{in_amperes(files['test'])}]",
+        *quiet,
+        out=tmp_path / "a",
+    )
+    robot = URDFRobot(str(ASSET), friction=True, offset=True)
+    _, q, qd, qdd = (torch.from_numpy(x) for x in motion(10.0, 0.3, 2))
+    predicted = [
+        robot.inverse_dynamics(
+            torch.tensor([r.estimate.params[p] for p in robot.param_names], dtype=torch.float64), q, qd, qdd
+        )
+        for r in (newton, amperes)
+    ]
+    torch.testing.assert_close(
+        predicted[1], predicted[0], rtol=1e-6, atol=1e-6 * float(predicted[0].abs().max())
+    )
+    held = [r.validation[0].scores for r in (newton, amperes)]
+    np.testing.assert_allclose(held[1].measured, held[0].measured, rtol=1e-12)  # what the plot shows
+    scores = [
+        j["payload"]["validation"][str(p)]
+        for j, p in ((newton_json, files["test"]), (amperes_json, tmp_path / "amperes_test.csv"))
+    ]
+    for key in ("rel_all", "rel_all_raw", "rms", "relative"):
+        np.testing.assert_allclose(scores[1][key], scores[0][key], rtol=1e-6, err_msg=key)
+    assert scores[0]["rel_all"] < 0.01
+    torques = amperes_json["data"]["torques"]
+    assert torques["effort_scale"] == [20.0, 50.0, 35.0] and torques["fitted"].startswith("joint torque (N·m")
+    assert (
+        "effort_scale" in torques["recorded"]
+        and newton_json["data"]["torques"]["recorded"] == torques["fitted"]
+    )
