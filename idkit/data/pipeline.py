@@ -6,8 +6,9 @@ reference) goes through the same steps, in order:
 1. **read** (:func:`idkit.data.load.read_source`): a CSV or npz table, or a ROS log with its topics
    chosen, its joints matched by name and its clocks aligned (:mod:`idkit.data.logs`); samples files
    are used as they are, raw recordings preprocessed (``preprocess.apply``);
-2. **checked against the robot**: its number of joints, then its positions and velocities against
-   the robot's limits (:mod:`idkit.data.plausible`: degrees where radians are due are refused);
+2. **checked against the robot**: its number of joints, then its timestamps, its positions and
+   velocities against the robot's limits, its torques (:mod:`idkit.data.plausible`: degrees where
+   radians are due, milliseconds where seconds are due, angles wrapped at ±π are refused);
 3. **unit scaling**: the recorded efforts become joint torques (``robot.joint_torques``: a URDF
    robot's ``effort_scale``). From here on every torque — fitted, held out, plotted, in
    ``result.json`` — is a joint torque (N·m, N on a prismatic joint);
@@ -40,7 +41,7 @@ from idkit.data.delay import shift_torques, torque_delay
 from idkit.data.files import as_paths, refuse_data_file, refuse_data_samples, refuse_repeated_files
 from idkit.data.load import DataFile, Source, from_source, read_source, refuse_delay_on_samples
 from idkit.data.options import DataOptions
-from idkit.data.plausible import check_motion
+from idkit.data.plausible import check_recording
 from idkit.data.preprocess import BAND_OF_RATE, FILTER_CUTOFF_HZ, SCORE_BAND_HZ, PreprocessOptions
 from idkit.data.raw import Recording
 from idkit.data.recording import stack_samples
@@ -224,7 +225,8 @@ def _read(robot: Robot, path: Any, options: DataOptions, role: str) -> Source:
     if source.recording is None:
         refuse_delay_on_samples(source.path, options.recording.delay)
     source = _in_joint_torques(robot, source)
-    check_motion(robot, source, role, measured_velocities=options.preprocess.velocities == "measured")
+    measured = options.preprocess.velocities == "measured"
+    check_recording(robot, source, role, measured_velocities=measured, max_gap=options.preprocess.max_gap)
     return source
 
 

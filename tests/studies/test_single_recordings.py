@@ -231,6 +231,18 @@ def test_the_preprocess_group_is_the_options_dataclass(files):
         (["preprocess.cutoff=soon"], r"^setting 'preprocess\.cutoff' must be a float or 'auto', got 'soon'"),
         (["preprocess=off"], r"train\.csv: a raw recording \(no accelerations qdd\); preprocess it"),
         (["preprocess.cutof=5"], None),  # Hydra refuses the unknown key itself
+        (
+            ["+preprocess.velocitiez=measured"],
+            r"^preprocess has no option 'velocitiez'; its options \(closest",
+        ),
+        (["preprocess.trim=-1"], r"^preprocess\.trim must be seconds >= 0, or null \(3 / cutoff\), got -1"),
+        (["preprocess.decimate=0"], r"^preprocess\.decimate must be a whole number >= 1, got 0$"),
+        (["preprocess.max_gap=0.5"], r"^preprocess\.max_gap must be a number of median steps > 1, got 0\.5$"),
+        (["preprocess.apply=sometimes"], r"^setting 'preprocess\.apply' must be 'auto' or 'on' or 'off'"),
+        (
+            ["+recording.topics=/joint_states"],
+            r"^recording has no option 'topics'; its options \(closest first\): topic",
+        ),
     ],
 )
 def test_bad_preprocessing_is_one_clear_line(files, tmp_path, overrides, message):
@@ -244,6 +256,18 @@ def test_bad_preprocessing_is_one_clear_line(files, tmp_path, overrides, message
     with pytest.raises(ValueError, match=message) as caught:
         command(*args, out=tmp_path)
     assert "\n" not in str(caught.value)
+
+
+def test_a_typo_in_a_section_from_python_is_named_as_that_key(files):
+    """``idkit.run(preprocess={...})`` is checked as the command line checks it: a misspelt option is
+    refused as that key, with the options closest first — not reported later as whatever it changed."""
+    robot = {"_name_": "urdf", "urdf": str(files["urdf"])}
+    with pytest.raises(
+        ValueError, match=r"^preprocess has no option 'velocitiez'; its options \(closest first\): velocities"
+    ):
+        single.run(robot, "ls", None, data=str(files["train"]), preprocess={"velocitiez": "measured"})
+    with pytest.raises(ValueError, match=r"^setting 'recording\.delay' must be a float or 'auto'"):
+        single.run(robot, "ls", None, data=str(files["train"]), recording={"delay": "late"})
 
 
 def test_recording_with_other_joints_is_named(files, tmp_path):
