@@ -17,6 +17,8 @@ from typing import Any, Literal, get_args
 from idkit.data.preprocess import PreprocessOptions
 from idkit.options import check_section
 
+#: The largest torque delay (s) ``recording.delay`` takes: more is a unit mistake, not a lag.
+MAX_DELAY_S = 1.0
 #: When preprocessing runs (``preprocess.apply``, :mod:`idkit.data.load`).
 Apply = Literal["auto", "on", "off"]
 
@@ -56,8 +58,8 @@ class RecordingOptions:
             log's only one (:mod:`idkit.data.logs`), or with ``effort_topic`` the only other one.
         effort_topic: a ``JointState`` topic carrying the efforts, if not ``topic``.
         delay: seconds by which the torques trail the states (the torque at ``t`` is read at
-            ``t + delay``), or ``"auto"``: the lag at which the robot's regressor explains the
-            shifted torques best (:mod:`idkit.data.delay`). ``0``: none.
+            ``t + delay``; at most :data:`MAX_DELAY_S`), or ``"auto"``: the lag at which the robot's
+            regressor explains the shifted torques best (:mod:`idkit.data.delay`). ``0``: none.
     """
 
     topic: str | None = None
@@ -78,6 +80,12 @@ class RecordingOptions:
                 raise ValueError(f"recording.delay must be 'auto' or seconds, got {self.delay!r}")
             if not math.isfinite(self.delay):
                 raise ValueError(f"recording.delay must be 'auto' or finite seconds, got {self.delay!r}")
+            if abs(self.delay) > MAX_DELAY_S:
+                raise ValueError(
+                    f"recording.delay={self.delay:g} s: a torque delay is a filter's or a bus's, "
+                    f"milliseconds (at most ±{MAX_DELAY_S:g} s here); milliseconds given as seconds? "
+                    f"({self.delay:g} ms is {self.delay / 1000:g})"
+                )
             object.__setattr__(self, "delay", float(self.delay))
 
 

@@ -153,3 +153,15 @@ def test_torques_beyond_the_effort_limits_or_all_zero_are_said(robot, tmp_path):
         "joint d3's torques are all exactly zero: an effort column or topic left empty?" in line
         for line in lines
     )
+
+
+def test_a_delay_in_milliseconds_given_as_seconds_is_refused():
+    from idkit.data.options import RecordingOptions
+
+    with pytest.raises(ValueError) as caught:
+        RecordingOptions(delay=20)
+    assert str(caught.value) == (
+        "recording.delay=20 s: a torque delay is a filter's or a bus's, milliseconds (at most ±1 s here); "
+        "milliseconds given as seconds? (20 ms is 0.02)"
+    )
+    assert RecordingOptions(delay=-0.02).delay == -0.02
