@@ -732,6 +732,11 @@ def test_a_current_recording_with_its_effort_scale_is_the_recording_in_newton_me
     for key in ("rel_all", "rel_all_raw", "rms", "relative"):
         np.testing.assert_allclose(scores[1][key], scores[0][key], rtol=1e-6, err_msg=key)
     assert scores[0]["rel_all"] < 0.01
+    assert (
+        "torques: efforts as logged (e.g. motor currents), times robot.effort_scale per joint [20, 50, 35] → "
+        "fitted and scored in joint torque (N·m; N on a prismatic joint)"
+    ) in report.text(amperes).splitlines()
+    assert "torques:" not in report.text(newton)
     torques = amperes_json["data"]["torques"]
     assert torques["effort_scale"] == [20.0, 50.0, 35.0] and torques["fitted"].startswith("joint torque (N·m")
     assert (
