@@ -68,7 +68,8 @@ class DataFile:
 
     @property
     def measured_tau(self) -> np.ndarray:
-        """The measured torques ``[N, n]`` as recorded (resampled, never filtered), float64."""
+        """The measured torques ``[N, n]`` as recorded (resampled, never filtered), float64; joint
+        torques when the data pipeline read the file (:mod:`idkit.data.pipeline`: ``effort_scale``)."""
         if self.raw_tau is not None:
             return self.raw_tau
         return self.samples.tau.detach().cpu().double().numpy()

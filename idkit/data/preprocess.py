@@ -94,7 +94,7 @@ class PreprocessOptions:
     trim: float | None = None
     decimate: int = 1
     min_speed: float = 0.0
-    velocities: str = "differentiate"
+    velocities: Literal["differentiate", "measured"] = "differentiate"
     filter_torques: bool = True
     max_gap: float = 5.0
 
