@@ -238,7 +238,8 @@ class Estimator(Hyperparameters, ABC):
     def files_needed(self) -> dict[str, str]:
         """Data files besides the problem's samples that ``fit`` needs, by what they are in messages
         (``{"payload: reference": path}``). An estimator reads no file: a study reads each as it read
-        the data and hands it over in ``Problem.recordings[path]``."""
+        the data and hands it over in ``Problem.recordings[path]``. Optional for a plugin that does not
+        subclass ``Estimator``: without it, none."""
         return {}
 
 

@@ -340,7 +340,7 @@ def run(
         source = describe_data(held_out, training, source)
     recordings = {
         path: recorded(read_other(robot_obj, path, role, training, data))
-        for role, path in estimator_obj.files_needed().items()
+        for role, path in getattr(estimator_obj, "files_needed", dict)().items()  # a duck-typed plugin: none
     }
     problem = Problem(
         robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype, recordings=recordings
