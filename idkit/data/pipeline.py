@@ -220,8 +220,9 @@ def _read(robot: Robot, path: Any, options: DataOptions, role: str) -> Source:
         source = Source("<Samples>", None, path)
     else:
         source = read_source(os.fspath(path), options.apply, list(robot.joint_names), options.recording)
-    joints = source.recording.n_joints if source.recording is not None else source.samples.n_joints
-    _check_joints(robot, source.path, joints, role)
+    held = source.recording if source.recording is not None else source.samples
+    assert held is not None  # a Source holds one of them
+    _check_joints(robot, source.path, held.n_joints, role)
     if source.recording is None:
         refuse_delay_on_samples(source.path, options.recording.delay)
     source = _in_joint_torques(robot, source)
@@ -306,6 +307,7 @@ def _estimated_delay(robot: Robot, item: DataFile) -> tuple[float, float]:
     """``(delay, explained)``: the lag (s) at which the robot's regressor explains ``item``'s torques
     best, and the share it explains there (:func:`idkit.data.delay.torque_delay`)."""
     samples = item.samples
+    assert item.times is not None  # a preprocessed recording has its times
     if not robot.has_regressor:
         raise ValueError(
             f"{item.path}: recording.delay=auto needs a robot with a linear regressor; give the delay in s"

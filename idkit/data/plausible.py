@@ -38,6 +38,7 @@ import warnings
 from collections.abc import Sequence
 
 import numpy as np
+from torch import Tensor
 
 from idkit.data.load import Source
 from idkit.interfaces import Robot
@@ -73,13 +74,13 @@ def check_recording(
     except NotImplementedError:
         limits = None
     where = f"{role} file {source.path}"
+    qd: np.ndarray | None
     if source.recording is not None:
         recording = source.recording
         q, qd, tau = recording.q, recording.qd if measured_velocities else None, recording.tau
     else:
         assert source.samples is not None
-        q, qd, tau = (source.samples.q, source.samples.qd, source.samples.tau)
-        q, qd, tau = (x.detach().cpu().double().numpy() for x in (q, qd, tau))
+        q, qd, tau = (_numpy(x) for x in (source.samples.q, source.samples.qd, source.samples.tau))
     joints = robot.joint_names
     times = source.recording.t if source.recording is not None else source.times
     if times is not None:
@@ -101,6 +102,10 @@ def check_recording(
             LimitWarning,
             stacklevel=3,
         )
+
+
+def _numpy(values: Tensor) -> np.ndarray:
+    return values.detach().cpu().double().numpy()
 
 
 def _check_times(where: str, times: np.ndarray) -> None:
@@ -125,7 +130,7 @@ def _check_jumps(where: str, t: np.ndarray, q: np.ndarray, joints: Sequence[str]
     steps = np.abs(np.diff(q, axis=0)) * (dt <= max_gap * np.median(dt))[:, None]
     if not steps.size or steps.max() <= math.pi:
         return
-    k, j = np.unravel_index(int(steps.argmax()), steps.shape)
+    k, j = (int(i) for i in np.unravel_index(int(steps.argmax()), steps.shape))
     raise ValueError(
         f"{where}: joint {joints[j]}'s position jumps by {float(q[k + 1, j] - q[k, j]):.4g} between "
         f"samples {k} and {k + 1} (t = {float(t[k]):.6g} s): an angle wrapped at ±π (unwrap it, e.g. "
@@ -182,7 +187,7 @@ def _check_effort(where: str, tau: np.ndarray, effort: np.ndarray, joints: Seque
     """Say joint torques ``[N, n]`` beyond :data:`EFFORT_FACTOR` × the effort limits ``[n]``."""
     peak = np.abs(tau).max(0)
     known = np.isfinite(effort) & (effort > 0)
-    for j in np.flatnonzero(known & (peak > EFFORT_FACTOR * np.where(known, effort, 0.0))):
+    for j in np.flatnonzero(known & (peak > EFFORT_FACTOR * np.where(known, effort, 0.0))).tolist():
         warnings.warn(
             f"{where}: joint {joints[j]}'s torque reaches {peak[j]:.4g}, {peak[j] / effort[j]:.3g} times its "
             f"effort limit {effort[j]:.4g}: is robot.effort_scale right, or are the efforts in another unit?",
