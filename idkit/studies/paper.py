@@ -217,8 +217,8 @@ def run(
     result = PaperTables([], provenance, columns, compare=(final, "RLS-rel"))
     try:
         for name in tqdm(scenarios, desc="paper tables", unit="table", disable=not progress):
-            motion = scenario_excitation(get_scenario(name, **common), robot_obj)
-            samples = simulate(robot_obj, name, seed=seed, excitation=motion, **common)
+            sc = get_scenario(name, **common)
+            samples = simulate(robot_obj, sc, seed=seed, excitation=scenario_excitation(sc, robot_obj))
             problem = Problem(robot_obj, samples, None, seed=seed, device=device, dtype=dtype)
             fitted = [e.fit(problem) for e in linear_objs] + search.fit_costs(problem, cost_objs)
             estimates = [replace(e, estimator=label) for e, label in zip(fitted, labels, strict=True)]

@@ -484,16 +484,12 @@ def run(
     found: dict[str, dict[str, list]] = {scenario: {} for scenario in scenarios}
     fit_time: dict[str, float] = {}
     # Trial i's draws depend only on (seed, i): draw up to the shard's end, keep its slice.
+    resolved = {s: get_scenario(s, **common) for s in scenarios}
     batches = {
         s: simulate_batch(
-            robot_obj,
-            s,
-            trials=mine.stop,
-            seed=seed,
-            excitation=scenario_excitation(get_scenario(s, **common), robot_obj),
-            **common,
+            robot_obj, sc, trials=mine.stop, seed=seed, excitation=scenario_excitation(sc, robot_obj)
         )
-        for s in scenarios
+        for s, sc in resolved.items()
     }
     provenance = Provenance(
         task="robustness",
