@@ -53,7 +53,7 @@ def test_the_command_prints_and_writes_the_payload(files, run_idkit, capsys):
     assert block["mass"] == pytest.approx(MASS, rel=1e-8)
     assert block["sdk"]["ur"]["cog"] == pytest.approx(COM, abs=1e-9)
     assert '<link name="payload">' in (run / "identified.urdf").read_text()
-    back = URDFRobot(str(run / "identified.urdf"))
+    back = URDFRobot(str(run / "identified.urdf"), friction=True, offset=True)  # the real-robot defaults
     assert back.nominal_params().tolist() == pytest.approx(
         list(result["payload"]["estimate"]["params"].values())
     )
