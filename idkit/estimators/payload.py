@@ -615,12 +615,13 @@ class PayloadIdentification(Estimator):
                 system.reference, solution.x[10:], robot.base_param_names
             )
         body = slice(10 * where.body, 10 * where.body + 10)
+        s = problem.tensors()
         recordings = {"data_motion_share": motion_share(robot, s.q, s.qd, s.qdd, body)}
         reference = details.get("reference") or {}
         recordings.update(
             reference_motion_share=reference.get("motion_share"), reference_cond=reference.get("cond")
         )
-        notes, unusable = recording_notes(recordings, settings.reference)
+        notes, unusable = recording_notes(recordings, reference.get("file"))  # its path, or <Samples>
         block = payload_block(
             phi, solution.covariance[:10, :10], where.link, tree.bodies[where.body].link, lowest[0], unusable
         )
@@ -636,8 +637,7 @@ class PayloadIdentification(Estimator):
             rel_error_arm_only=float(before.norm()) / norm,
             rel_error=float(after.norm()) / norm,
         )
-        like = problem.tensors().q
-        p = torch.as_tensor(params, dtype=like.dtype, device=like.device)
+        p = torch.as_tensor(params, dtype=s.q.dtype, device=s.q.device)
         cost = float(after.norm()) if problem.cost is None else float(problem.evaluate(p))
         details.update(
             payload=block,

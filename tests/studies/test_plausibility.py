@@ -59,7 +59,8 @@ def test_the_study_prints_what_plausibility_costs_on_the_held_out_file():
     (reported,), (bounded,) = [h.scores for h in result.validation], result.plausible.scores
     assert bounded.rel_all > reported.rel_all  # the truth is implausible: bounding it costs accuracy
     shown = text(result)
-    assert "with estimator.plausible=true (masses within [0.5, 2] x CAD, inside each link's geometry)" in shown
+    said = "with estimator.plausible=true (masses within [0.5, 2] x CAD, inside each link's geometry)"
+    assert said in shown
     assert f"{100 * bounded.rel_all:.2f} %" in shown
     payload = result.payload()["plausible_alternative"]
     assert payload["option"] == "estimator.plausible=true" and "b" in payload["at_bound"]
