@@ -14,12 +14,13 @@ from pathlib import Path
 
 import torch
 
+from idkit.data.options import DataOptions
+from idkit.data.pipeline import read_training
 from idkit.estimators.physical import PhysicallyConsistentLS
 from idkit.model import IdentifiedModel
 from idkit.problem import Problem
 from idkit.robots.inertia import min_pseudo_inertia_eigenvalues
 from idkit.robots.urdf import URDFRobot
-from idkit.studies.recordings import load_files
 from idkit.studies.validation import validate
 
 KUKA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kuka-lwr4"
@@ -29,7 +30,7 @@ FILES = [KUKA / f"measurements_{k}.npz" for k in (1, 2, 3)]
 def main() -> None:
     torch.set_num_threads(1)
     rigid = URDFRobot(str(KUKA / "kuka_lwr4.urdf"))
-    own = [f.samples for f in load_files(rigid, FILES)]
+    own = [f.samples for f in read_training(rigid, FILES, DataOptions.of()).files]
     columns = "meas. 1 | meas. 2 | meas. 3 | meas. 2 / 3 (same filter) | min eig"
     print(f"| training derivatives | low-speed term | prior | {columns} |")
     print("|---|---|---:|---:|---:|---:|---:|---:|")
@@ -37,7 +38,7 @@ def main() -> None:
         if cutoff is None:
             train, filtered, source = own[0], None, "files' own"
         else:
-            loaded = load_files(rigid, FILES, {"apply": "on", "cutoff": cutoff})
+            loaded = read_training(rigid, FILES, DataOptions.of({"apply": "on", "cutoff": cutoff})).files
             train, filtered, source = (
                 loaded[0].samples,
                 [f.samples for f in loaded],

@@ -235,6 +235,13 @@ class Estimator(Hyperparameters, ABC):
     def fit(self, problem: Problem) -> Estimate:
         """Estimate the physical parameters (and base parameters where defined)."""
 
+    def files_needed(self) -> dict[str, str]:
+        """Data files besides the problem's samples that ``fit`` needs, by what they are in messages
+        (``{"payload: reference": path}``). An estimator reads no file: a study reads each as it read
+        the data and hands it over in ``Problem.recordings[path]``. Optional for a plugin that does not
+        subclass ``Estimator``: without it, none."""
+        return {}
+
 
 @runtime_checkable
 class BatchedEstimator(Protocol):

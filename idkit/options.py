@@ -45,6 +45,7 @@ its annotation: ``particles: Annotated[int, annotated_types.Ge(1)]`` is enforced
 from __future__ import annotations
 
 import collections.abc
+import dataclasses
 import difflib
 import functools
 import inspect
@@ -110,9 +111,49 @@ def check_setting(name: str, value: Any, annotation: Any, default: Any = inspect
     Example: ``check_setting("seed", "7", int)`` returns ``7``; ``check_setting("plots", "maybe",
     bool)`` raises ``OptionError: setting 'plots' must be a bool (true/false, yes/no, on/off or
     1/0), got 'maybe' (str); input should be a valid boolean, unable to interpret input``.
-    ``default``: a ``None`` default also accepts ``None``.
+    ``default``: a ``None`` default also accepts ``None``. A setting annotated with a dataclass (a
+    config section such as ``preprocess``) given as a mapping is checked field by field
+    (:func:`check_section`).
     """
+    section = _dataclass_in(annotation)
+    if section is not None and isinstance(value, Mapping):
+        return check_section(name, section, value)
     return _check(f"setting {name!r}", value, annotation, default)
+
+
+def check_section(name: str, cls: type, values: Mapping[str, Any]) -> Any:
+    """The dataclass ``cls`` (a config section: ``preprocess``, ``recording``) from a mapping.
+
+    Each key must be a field — a typo is named as ``name.key`` with the fields closest first, not
+    reported later as whatever the misspelt value would have changed — and each value is checked
+    against its field's annotation by the rule of the module docstring; the class's own
+    ``__post_init__`` then checks ranges.
+
+    Raises:
+        OptionError: an unknown key or a value its annotation rejects.
+        ValueError: what the class refuses.
+    """
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    hints = typing.get_type_hints(cls)
+    checked = {}
+    for key, value in values.items():
+        if key not in fields:
+            listed = ", ".join(closest_first(str(key), fields))
+            raise OptionError(f"{name} has no option {key!r}; its options (closest first): {listed}")
+        default = fields[key].default
+        checked[key] = _check(f"setting '{name}.{key}'", value, hints.get(key, Any), default)
+    return cls(**checked)
+
+
+def _dataclass_in(annotation: Any) -> type | None:
+    """The dataclass ``annotation`` is, or the one member of a union (``Section | None``) that is one."""
+    members = (
+        typing.get_args(annotation)
+        if typing.get_origin(annotation) in (typing.Union, types.UnionType)
+        else (annotation,)
+    )
+    found = [m for m in members if isinstance(m, type) and dataclasses.is_dataclass(m)]
+    return found[0] if len(found) == 1 else None
 
 
 def positive_number(value: Any) -> bool:

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import torch
 from torch import Tensor
@@ -14,7 +14,6 @@ from torch import Tensor
 from idkit.seeds import check_seed, torch_generator
 
 if TYPE_CHECKING:
-    from idkit.data.load import DataFile
     from idkit.interfaces import Cost, Robot
 
 SAMPLE_ARRAYS = ("q", "qd", "qdd", "tau")
@@ -147,15 +146,29 @@ class Samples:
 
 
 @dataclass(frozen=True)
+class Recorded:
+    """Another recording an estimator names (a payload's reference), read for it by whoever read the
+    problem's samples — a study reads it exactly as the ``data=`` files (the resolved cut-off, torque
+    delay, log topics, effort scale), so that its rows and the data's are made alike.
+
+    Attributes:
+        samples: its samples ``[N', n]``, torques in joint torque.
+        about: how it was read, for the estimator's ``details`` (``preprocessed``, ``preprocess``,
+            ``delay``).
+    """
+
+    samples: Samples
+    about: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class Problem:
     """Everything an estimator needs: robot, samples, cost, seed and where to compute.
 
     ``cost`` may be ``None`` for estimators that fix their own criterion (the least-squares family).
-    ``read_like_data(path, role)`` reads another recording (a payload's reference) exactly as the
-    study read the ``data=`` files (the resolved cut-off, torque delay, log topics, effort scale), and
-    refuses a data file given again; ``None`` when the samples were not read from files by a study.
-    Frozen, so that the samples moved to ``device``/``dtype`` can be cached; derive variants with
-    ``dataclasses.replace``.
+    ``recordings``: the other recordings the estimator names (``Estimator.files_needed``), by path,
+    read as the samples were: an estimator reads no file. Frozen, so that the samples moved to
+    ``device``/``dtype`` can be cached; derive variants with ``dataclasses.replace``.
     """
 
     robot: Robot
@@ -164,7 +177,7 @@ class Problem:
     seed: int = 0
     device: str = "cpu"
     dtype: str | torch.dtype = "float64"
-    read_like_data: Callable[[str, str], DataFile] | None = None
+    recordings: Mapping[str, Recorded] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.samples.n_joints != self.robot.n_joints:

@@ -101,3 +101,28 @@ def storage_file(folder: Path) -> Path:
     """The ``.mcap`` or ``.db3`` file inside a ROS 2 bag folder."""
     (found,) = [p for p in folder.iterdir() if p.suffix in (".mcap", ".db3")]
     return found
+
+
+def with_chunk_checksums(mcap: Path) -> Path:
+    """``mcap`` with the CRC-32 of every uncompressed chunk filled in, as ROS 2's own recorder writes
+    them (rosbags' writer leaves them 0, "not computed"), so that a damaged chunk can be told."""
+    import struct
+    from binascii import crc32
+
+    data = bytearray(mcap.read_bytes())
+    offset = 8  # the magic
+    while offset < len(data) - 8:
+        opcode = data[offset]
+        (length,) = struct.unpack_from("<Q", data, offset + 1)
+        content = offset + 9
+        if opcode == 0x06:  # chunk: start, end, uncompressed size, crc, compression, records
+            (size,) = struct.unpack_from("<Q", data, content + 16)
+            (name_length,) = struct.unpack_from("<I", data, content + 28)
+            assert not name_length, "an uncompressed chunk"
+            records = content + 32 + name_length + 8
+            struct.pack_into("<I", data, content + 24, crc32(data[records : records + size]))
+        if opcode == 0x02:  # the footer
+            break
+        offset = content + length
+    mcap.write_bytes(data)
+    return mcap

@@ -78,3 +78,76 @@ def test_the_conic_toolbox_imports_no_estimator_study_or_report(path):
     """``idkit.conic`` is what ``pcls``, ``payload`` and ``varpro`` share: it sits below all of them."""
     above = ("idkit.estimators", "idkit.studies", "idkit.reports", "idkit.cli")
     assert not {name for name in _imports(path) if name.startswith(above)}
+
+
+#: What reads files: idkit's readers of data files, and the standard library's and others' file formats.
+FILE_READERS = (
+    "idkit.data.load",
+    "idkit.data.io",
+    "idkit.data.table",
+    "idkit.data.recording",
+    "idkit.data.logs",
+    "idkit.data.pipeline",
+    "idkit.data.files",
+    "csv",
+    "pathlib",
+    "shutil",
+    "glob",
+    "yaml",
+    "rosbags",
+)
+#: Calls that open or load a file whatever module they come from (``open``, ``np.load``, ...).
+FILE_CALLS = {"open", "load", "loadtxt", "genfromtxt", "read_text", "read_bytes", "read_csv", "fromfile"}
+
+
+def _calls(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            func = node.func
+            found.add(func.id if isinstance(func, ast.Name) else getattr(func, "attr", ""))
+    return found
+
+
+@pytest.mark.parametrize("path", _modules("estimators"))
+def test_no_estimator_reads_files(path):
+    """An estimator gets samples (``Problem.samples``, ``Problem.recordings``): a payload's reference is
+    read by the data pipeline as the data were, never by the estimator."""
+    imported = {name for name in _imports(path) if name.startswith(FILE_READERS)}
+    assert not imported and not _calls(path) & FILE_CALLS
+
+
+def test_the_problem_imports_no_loader():
+    """``Problem`` is core: it carries samples, and reads nothing (no callback into the loaders)."""
+    assert not {name for name in _imports(PACKAGE / "problem.py") if name.startswith("idkit.data")}
+
+
+@pytest.mark.parametrize("path", _modules("data"))
+def test_data_imports_no_excitation(path):
+    """The data floor lies below the excitation room (whose files it would otherwise read): a scenario's
+    motion is built by ``idkit.excitation.spec.scenario_excitation`` and handed to the simulation."""
+    assert not {name for name in _imports(path) if name.startswith(("idkit.excitation", "idkit.studies"))}
+
+
+def test_the_data_modules_import_one_another_without_a_circle():
+    """Within ``idkit.data`` (nested imports included) the imports form no cycle: each module can be read
+    knowing only those below it (the recording <-> logs circle is gone)."""
+    modules = {f"idkit.data.{p.stem}": p for p in _modules("data") if p.stem != "__init__"}
+    edges = {
+        name: {
+            m for m in modules if m != name and any(i == m or i.startswith(m + ".") for i in _imports(path))
+        }
+        for name, path in modules.items()
+    }
+    done: set[str] = set()
+
+    def visit(name: str, trail: tuple[str, ...]) -> None:
+        assert name not in trail, " -> ".join((*trail[trail.index(name) :], name))
+        if name not in done:
+            for other in sorted(edges[name]):
+                visit(other, (*trail, name))
+            done.add(name)
+
+    for name in sorted(modules):
+        visit(name, ())

@@ -24,9 +24,19 @@ from idkit import registry
 from idkit.cli.output import single_line
 from idkit.options import closest_first
 from idkit.registry import NAME_KEY
+from idkit.reports.files import WriteError
 
-#: Errors caused by what the user asked for (a study's or plugin's refusal of its input).
-USER_ERRORS = (registry.PluginError, ValueError, TypeError, FileNotFoundError, FileExistsError, LookupError)
+#: Errors caused by what the user asked for (a study's or plugin's refusal of its input), or by the
+#: place the results go (a full disk: :class:`idkit.reports.files.WriteError`, naming the file).
+USER_ERRORS = (
+    registry.PluginError,
+    ValueError,
+    TypeError,
+    FileNotFoundError,
+    FileExistsError,
+    LookupError,
+    WriteError,
+)
 
 #: Config groups whose options are named like the group (``robot`` → "available robots").
 NAMED_GROUPS = ("robot", "estimator", "cost", "scenario", "experiment")

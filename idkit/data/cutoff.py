@@ -38,7 +38,7 @@ import numpy as np
 from torch import Tensor
 
 from idkit.data.preprocess import GapWarning, PreprocessOptions, band_limit, preprocess_recording
-from idkit.data.recording import Recording
+from idkit.data.raw import Recording
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
 #: Cut-offs tried (Hz), log-spaced: identification motion lives below ~2 Hz, and a cut-off above

@@ -4,7 +4,7 @@ Drives and loggers often stamp the measured effort later than the positions it b
 filter, a second topic, a bus cycle). With ``recording.delay=<seconds>`` the torque at time ``t`` is
 read at ``t + delay`` (:func:`shift_torques`); with ``recording.delay=auto`` the delay is the lag at
 which the robot's regressor explains the shifted torques best (:func:`torque_delay`, called by
-:mod:`idkit.studies.recordings` with the robot's regressor). Why not the plain cross-correlation
+:mod:`idkit.data.pipeline` with the robot's regressor). Why not the plain cross-correlation
 with the a-priori (CAD) model's torques: on a 0.2 Hz trajectory of the cylindrical test arm whose
 torques trail by 20 ms, the friction the CAD model lacks (~12 % of the torque) moved that peak to
 41–59 ms per joint; fitting the regressor (friction included) at each lag finds 20 ms.
@@ -16,7 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from idkit.data.recording import Recording
+from idkit.data.raw import Recording
 
 #: Lags searched by :func:`torque_delay` (s, either sign).
 MAX_LAG = 0.25

@@ -29,8 +29,10 @@ import numpy as np
 from idkit.data.delay import shift_torques
 from idkit.data.io import FLOBAROID_KEYS, samples_from_table
 from idkit.data.logs import is_log, read_log
+from idkit.data.options import RecordingOptions
 from idkit.data.preprocess import PreprocessOptions, preprocess_recording
-from idkit.data.recording import FLOBAROID_RECORDING_KEYS, Recording, RecordingOptions, recording_from_table
+from idkit.data.raw import Recording
+from idkit.data.recording import FLOBAROID_RECORDING_KEYS, recording_from_table
 from idkit.data.table import Table, read_table
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
@@ -66,7 +68,8 @@ class DataFile:
 
     @property
     def measured_tau(self) -> np.ndarray:
-        """The measured torques ``[N, n]`` as recorded (resampled, never filtered), float64."""
+        """The measured torques ``[N, n]`` as recorded (resampled, never filtered), float64; joint
+        torques when the data pipeline read the file (:mod:`idkit.data.pipeline`: ``effort_scale``)."""
         if self.raw_tau is not None:
             return self.raw_tau
         return self.samples.tau.detach().cpu().double().numpy()
@@ -167,8 +170,7 @@ def read_source(
         _refuse_zero_torques(path, samples.tau.numpy())
         times = None
         if kind.timestamps:
-            t = table.vector(FLOBAROID_RECORDING_KEYS["t"] if kind.flobaroid else "t")
-            times = t - t[0]
+            times = table.times(FLOBAROID_RECORDING_KEYS["t"] if kind.flobaroid else "t")
         return Source(str(path), None, samples, times)
     if not kind.timestamps:
         found = ", ".join(table.names()[:12]) + (" …" if len(table.names()) > 12 else "")

@@ -16,14 +16,16 @@ when a log is read. What :func:`read_log` does, in order:
    :class:`LogWarning`); stamps zero in only some messages, all-zero receive times, and stamps that
    repeat or go back are refused naming the message. A separate effort stream is interpolated
    linearly onto the state stream's times; state samples outside the effort stream, or inside a gap
-   of it (a step over 5 of its median steps), are dropped, so that the gap reaches preprocessing
-   (:mod:`idkit.data.preprocess`), which splits there.
+   of it (a step over 5 of its median steps), are dropped — said in one line (a :class:`LogWarning`)
+   with how many and where — so that the gap reaches preprocessing (:mod:`idkit.data.preprocess`),
+   which splits there.
 4. The result is the :class:`~idkit.data.recording.Recording` a CSV gives (``t`` from the first
    stamp, ``q``, ``tau``, ``qd`` when every message has velocities), with ``joint_names``.
 """
 
 from __future__ import annotations
 
+import struct
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -32,11 +34,15 @@ from typing import Any
 
 import numpy as np
 
-from idkit.data.recording import Recording, RecordingOptions
+from idkit.data.options import RecordingOptions
+from idkit.data.raw import Recording
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 #: Single-file logs: ROS 2 storage files and ROS 1 bags (a ROS 2 bag folder holds ``metadata.yaml``).
 LOG_SUFFIXES = (".mcap", ".db3", ".bag")
+#: What a log reader raises on garbage inside a file it opened (a length or count read from damaged
+#: bytes), beside its own errors.
+DAMAGE = (OverflowError, MemoryError, IndexError, EOFError, UnicodeDecodeError, struct.error)
 #: A step of the effort stream longer than this many of its median steps is a gap (as
 #: ``preprocess.max_gap`` for the state stream).
 EFFORT_GAP = 5.0
@@ -44,7 +50,8 @@ INSTALL = "pip install robot-idkit[logs]"
 
 
 class LogWarning(UserWarning):
-    """Something a log reader chose that changes the data: receive time instead of header stamps."""
+    """Something a log reader chose that changes the data: receive time instead of header stamps, state
+    samples dropped for want of an effort."""
 
 
 def is_log(path: str | Path) -> bool:
@@ -105,12 +112,12 @@ def read_log(
             )
         tau = _values(path, states, "effort", wanted)
         origin = int(t[0])
-        seconds = (t - origin) * 1e-9
+        seconds = _seconds(t, origin)
         dropped = 0
     else:
         origin = int(min(t[0], efforts.stamps[0]))
         seconds, tau, rows = _onto(
-            path, efforts, wanted, (t - origin) * 1e-9, (efforts.stamps - origin) * 1e-9
+            path, efforts, wanted, _seconds(t, origin), _seconds(efforts.stamps, origin)
         )
         q, qd = q[rows], (None if qd is None else qd[rows])
         dropped = int(t.size - rows.size)
@@ -131,6 +138,12 @@ def read_log(
         }
     recording = Recording(seconds, q, tau, qd, source=str(path), joint_names=tuple(wanted))
     return recording, description
+
+
+def _seconds(stamps: np.ndarray, origin: int) -> np.ndarray:
+    """Nanosecond stamps ``[M]`` (int64, since the epoch) as seconds after ``origin`` (ns): subtracted in
+    integers, then divided (one rounding), so no digit of a stamp is lost to float64's 16."""
+    return (stamps - np.int64(origin)) / 1e9
 
 
 def _rosbags(path: Path) -> Any:
@@ -155,10 +168,12 @@ def _read_streams(path: Path, options: RecordingOptions) -> tuple[Stream, Stream
         with any_reader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
             connections = list(reader.connections)
             types = {c.topic: c.msgtype for c in connections}
-            state = _choose(path, types, options.topic, "recording.topic")
             effort = None
             if options.effort_topic is not None:
                 effort = _choose(path, types, options.effort_topic, "recording.effort_topic")
+            state = _choose(path, types, options.topic, "recording.topic", besides=effort)
+            if effort == state:  # the efforts are on the state messages themselves
+                effort = None
             streams = {}
             for topic in dict.fromkeys(t for t in (state, effort) if t is not None):
                 chosen = [c for c in connections if c.topic == topic]
@@ -170,18 +185,26 @@ def _read_streams(path: Path, options: RecordingOptions) -> tuple[Stream, Stream
     return streams[state], (streams[effort] if effort is not None else None), sorted(types)
 
 
-def _choose(path: Path, types: dict[str, str], topic: str | None, option: str) -> str:
-    """The ``JointState`` topic to read: ``topic``, or the log's only one."""
+def _choose(
+    path: Path, types: dict[str, str], topic: str | None, option: str, besides: str | None = None
+) -> str:
+    """The ``JointState`` topic to read: ``topic``, or the log's only one (``besides`` the effort topic,
+    when the efforts come from another)."""
     joint_states = sorted(t for t, kind in types.items() if kind == JOINT_STATE)
     listing = ", ".join(f"{t} ({kind})" for t, kind in sorted(types.items())) or "none"
     if topic is None:
+        others = [t for t in joint_states if t != besides]
         if not joint_states:
             raise ValueError(f"{path}: no sensor_msgs/JointState topic; the log's topics: {listing}")
-        if len(joint_states) > 1:
+        if not others:  # the effort topic is the only one: it carries the positions too
+            return joint_states[0]
+        if len(others) > 1:
+            apart = f" besides the effort topic {besides}" if besides else ""
             raise ValueError(
-                f"{path}: several JointState topics: {', '.join(joint_states)}; choose one with {option}=…"
+                f"{path}: several JointState topics{apart}: {', '.join(others)}; choose the one of the "
+                f"positions with {option}=…"
             )
-        return joint_states[0]
+        return others[0]
     if topic not in types:
         raise ValueError(f"{path}: no topic {topic!r} ({option}); the log's topics: {listing}")
     if types[topic] != JOINT_STATE:
@@ -191,14 +214,25 @@ def _choose(path: Path, types: dict[str, str], topic: str | None, option: str) -
 
 def _stream(path: Path, reader: Any, connections: list[Any], topic: str) -> Stream:
     stamps, received, names, position, velocity, effort = [], [], [], [], [], []
-    for connection, receive_time, raw in reader.messages(connections=connections):
-        message = reader.deserialize(raw, connection.msgtype)
-        stamps.append(int(message.header.stamp.sec) * 1_000_000_000 + int(message.header.stamp.nanosec))
-        received.append(int(receive_time))
-        names.append(tuple(message.name))
-        position.append(np.asarray(message.position, dtype=np.float64))
-        velocity.append(np.asarray(message.velocity, dtype=np.float64))
-        effort.append(np.asarray(message.effort, dtype=np.float64))
+    try:
+        for connection, receive_time, raw in reader.messages(connections=connections):
+            message = reader.deserialize(raw, connection.msgtype)
+            stamps.append(_stamp(path, topic, len(stamps), message.header.stamp))
+            received.append(int(receive_time))
+            names.append(tuple(message.name))
+            position.append(np.asarray(message.position, dtype=np.float64))
+            velocity.append(np.asarray(message.velocity, dtype=np.float64))
+            effort.append(np.asarray(message.effort, dtype=np.float64))
+    except DAMAGE as exc:  # a reader meeting garbage past the header: not one of its own errors
+        raise ValueError(
+            f"{path}: damaged: reading {topic} failed after {len(stamps)} messages ({type(exc).__name__}: "
+            f"{exc}); the log cannot be read past there"
+        ) from None
+    listed = sum(int(getattr(c, "msgcount", 0) or 0) for c in connections)
+    if listed and listed != len(stamps):
+        raise ValueError(
+            f"{path}: damaged: {len(stamps)} messages of {topic} read where the log's index lists {listed}"
+        )
     if not stamps:
         raise ValueError(f"{path}: topic {topic} has no messages")
     header, receive = np.array(stamps, dtype=np.int64), np.array(received, dtype=np.int64)
@@ -229,6 +263,17 @@ def _stream(path: Path, reader: Any, connections: list[Any], topic: str) -> Stre
             f"{k - 1} (t = {seconds[k - 1]:.9g} s) ({clock})"
         )
     return Stream(topic, header, names, position, velocity, effort, clock)
+
+
+def _stamp(path: Path, topic: str, k: int, stamp: Any) -> int:
+    """A header stamp in ns since the epoch, or a ``ValueError`` naming a stamp no clock writes."""
+    sec, nanosec = int(stamp.sec), int(stamp.nanosec)
+    if not (0 <= sec < 2**33 and 0 <= nanosec < 1_000_000_000):
+        raise ValueError(
+            f"{path}: damaged: message {k} of {topic} has the stamp sec={sec}, nanosec={nanosec}, which no "
+            "clock writes"
+        )
+    return sec * 1_000_000_000 + nanosec
 
 
 def _complete(values: list[np.ndarray], names: list[tuple[str, ...]]) -> bool:
@@ -278,7 +323,8 @@ def _onto(
     if not _complete(efforts.effort, efforts.names):
         raise ValueError(f"{path}: effort topic {efforts.topic} has messages without an effort per joint")
     tau_e = _values(path, efforts, "effort", joints)
-    inside = (t >= te[0]) & (t <= te[-1])
+    covered = (t >= te[0]) & (t <= te[-1])
+    inside = covered.copy()
     steps = np.diff(te)
     for k in np.flatnonzero(steps > EFFORT_GAP * np.median(steps)):
         inside &= ~((t > te[k]) & (t < te[k + 1]))
@@ -288,5 +334,31 @@ def _onto(
             f"{path}: the effort topic {efforts.topic} does not overlap the state topic in time "
             "(different clocks?)"
         )
+    if rows.size < t.size:
+        _say_dropped(path, efforts.topic, t, covered, inside)
     tau = np.stack([np.interp(t[rows], te, column) for column in tau_e.T], axis=1)
     return t[rows], tau, rows
+
+
+def _say_dropped(path: Path, topic: str, t: np.ndarray, covered: np.ndarray, inside: np.ndarray) -> None:
+    """Say in one line how many state samples have no effort (outside the effort stream's span, or in
+    its gaps) and are dropped: a topic recorded over part of the log must not halve the data silently."""
+    before, after = int((t < t[covered][0]).sum()), int((t > t[covered][-1]).sum())
+    gaps = int((covered & ~inside).sum())
+    where = [
+        f"{n} {what}"
+        for n, what in (
+            (before, "before its first message"),
+            (after, "after its last"),
+            (gaps, "in its gaps"),
+        )
+        if n
+    ]
+    dropped = before + after + gaps
+    warnings.warn(
+        f"{path}: the effort topic {topic} covers {t[inside][0]:.4g}–{t[inside][-1]:.4g} s of the state "
+        f"topic's {t[0]:.4g}–{t[-1]:.4g} s: {dropped} of {t.size} state samples "
+        f"({100 * dropped / t.size:.3g} %) have no effort and are dropped ({', '.join(where)})",
+        LogWarning,
+        stacklevel=4,
+    )

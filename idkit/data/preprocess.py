@@ -49,6 +49,7 @@ read back at the timestamps): held-out validation compares torques with it in on
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 from typing import Literal
@@ -56,12 +57,18 @@ from typing import Literal
 import numpy as np
 import torch
 
-from idkit.data.recording import Recording
+from idkit.data.raw import Recording
 from idkit.memory import check_memory
 from idkit.problem import Samples
 
 #: The cut-off of :class:`PreprocessOptions` when no robot model is there to choose one (module doc).
 FILTER_CUTOFF_HZ = 10.0
+#: The band (Hz) torques are compared in, by held-out validation (:mod:`idkit.studies.validation`) and
+#: by the cut-off's cross-validation (:mod:`idkit.data.cutoff`); lowered to ``BAND_OF_RATE ×`` the
+#: sampling rate for recordings slower than 15 Hz.
+SCORE_BAND_HZ = 6.0
+#: The scoring band never exceeds this fraction of the sampling rate (0.8 × the Nyquist frequency).
+BAND_OF_RATE = 0.4
 #: Arrays of ``[grid points, joints]`` float64 one segment holds at once (q, qd, qdd, tau, raw tau):
 #: with the grid itself, a lower bound of what resampling at ``rate`` allocates.
 SEGMENT_ARRAYS = 5
@@ -94,12 +101,41 @@ class PreprocessOptions:
     trim: float | None = None
     decimate: int = 1
     min_speed: float = 0.0
-    velocities: str = "differentiate"
+    velocities: Literal["differentiate", "measured"] = "differentiate"
     filter_torques: bool = False
     max_gap: float = 5.0
 
+    def __post_init__(self) -> None:
+        """Refuse a value no recording can use, naming the option (``preprocess.trim=-1``)."""
+        checks = {
+            "rate": (self.rate is None or _number(self.rate) > 0, "a rate in Hz > 0, or null"),
+            "cutoff": (self.cutoff == "auto" or _number(self.cutoff) > 0, "'auto' or a cut-off in Hz > 0"),
+            "order": (_whole(self.order) and self.order >= 1, "a whole number >= 1"),
+            "trim": (self.trim is None or _number(self.trim) >= 0, "seconds >= 0, or null (3 / cutoff)"),
+            "decimate": (_whole(self.decimate) and self.decimate >= 1, "a whole number >= 1"),
+            "min_speed": (_number(self.min_speed) >= 0, "a speed >= 0 (0 keeps every sample)"),
+            "velocities": (self.velocities in ("differentiate", "measured"), "'differentiate' or 'measured'"),
+            "filter_torques": (isinstance(self.filter_torques, bool), "true or false"),
+            "max_gap": (_number(self.max_gap) > 1, "a number of median steps > 1"),
+        }
+        for name, (ok, expected) in checks.items():
+            if not ok:
+                raise ValueError(f"preprocess.{name} must be {expected}, got {getattr(self, name)!r}")
+
+
+def _number(value: object) -> float:
+    """``value`` as a finite float, or NaN (failing every comparison) for anything else."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return math.nan
+    return float(value)
+
+
+def _whole(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
 
 def _check(options: PreprocessOptions, rate: float, recording: Recording) -> None:
+    """What the options' own check cannot know: the cut-off against this recording's rate."""
     where = f"preprocess ({recording.source})"
     nyquist = rate / 2
     if options.cutoff == "auto":
@@ -107,23 +143,15 @@ def _check(options: PreprocessOptions, rate: float, recording: Recording) -> Non
             f"{where}: cutoff='auto' is chosen with the robot's model (idkit.data.cutoff.choose_cutoff, as "
             "the idkit command does); preprocess() needs a number of Hz"
         )
-    if isinstance(options.cutoff, str) or not options.cutoff > 0:
-        raise ValueError(f"{where}: cutoff must be > 0 Hz, got {options.cutoff}")
     if options.cutoff >= nyquist:
         raise ValueError(
             f"{where}: cutoff {options.cutoff:g} Hz is not below the Nyquist frequency {nyquist:g} Hz of "
             f"the {rate:g} Hz sampling rate; lower preprocess.cutoff or raise preprocess.rate"
         )
-    if options.decimate < 1 or options.cutoff >= nyquist / options.decimate:
+    if options.cutoff >= nyquist / options.decimate:
         raise ValueError(
-            f"{where}: decimate={options.decimate} needs an integer >= 1 with cutoff {options.cutoff:g} Hz "
-            f"below the decimated Nyquist frequency {nyquist / max(options.decimate, 1):g} Hz"
-        )
-    if options.order < 1:
-        raise ValueError(f"{where}: order must be >= 1, got {options.order}")
-    if options.velocities not in ("differentiate", "measured"):
-        raise ValueError(
-            f"{where}: velocities must be 'differentiate' or 'measured', got {options.velocities!r}"
+            f"{where}: decimate={options.decimate} needs cutoff {options.cutoff:g} Hz below the decimated "
+            f"Nyquist frequency {nyquist / options.decimate:g} Hz"
         )
     if options.velocities == "measured" and recording.qd is None:
         raise ValueError(f"{where}: velocities='measured' but the recording has no qd columns")
@@ -193,14 +221,8 @@ def preprocess_recording(recording: Recording, options: PreprocessOptions | None
     """
     options = options or PreprocessOptions()
     t = recording.t - recording.t[0]
-    if not options.max_gap > 1:
-        raise ValueError(
-            f"preprocess ({recording.source}): max_gap must be > 1 median step, got {options.max_gap}"
-        )
     stretches, median = split_at_gaps(t, options.max_gap)
     rate = 1.0 / median if options.rate is None else float(options.rate)
-    if not rate > 0:
-        raise ValueError(f"preprocess ({recording.source}): rate must be > 0 Hz, got {rate}")
     _check(options, rate, recording)
     _check_grid_memory(recording, [t[rows] for rows in stretches], rate, median)
     from scipy import signal  # ~1 s of import: only for recordings, not for every command

@@ -19,12 +19,14 @@ Timestamps must increase strictly: a repeated or earlier timestamp is refused na
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from idkit.data.logs import is_log, read_log
+from idkit.data.options import RecordingOptions
+from idkit.data.raw import Recording
 from idkit.data.table import Table, names_hint, read_quantities, read_table
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
@@ -36,78 +38,6 @@ FLOBAROID_RECORDING_KEYS: Mapping[str, str] = {
     "tau": "torques",
     "qd": "velocities",
 }
-
-
-@dataclass(frozen=True)
-class RecordingOptions:
-    """How raw recordings are read (the ``recording`` config section).
-
-    Attributes:
-        topic: a ROS log's ``sensor_msgs/JointState`` topic of positions (and efforts); ``None``: the
-            log's only one (:mod:`idkit.data.logs`).
-        effort_topic: a ``JointState`` topic carrying the efforts, if not ``topic``.
-        delay: seconds by which the torques trail the states (the torque at ``t`` is read at
-            ``t + delay``), or ``"auto"``: the lag at which the robot's regressor explains the
-            shifted torques best (:mod:`idkit.data.delay`). ``0``: none.
-    """
-
-    topic: str | None = None
-    effort_topic: str | None = None
-    delay: float | str = 0.0
-
-
-@dataclass(frozen=True)
-class Recording:
-    """A raw recording of an ``n``-joint robot (float64 numpy arrays).
-
-    Attributes:
-        t: ``[N]`` timestamps (s), strictly increasing.
-        q: ``[N, n]`` joint positions.
-        tau: ``[N, n]`` joint torques (or forces).
-        qd: ``[N, n]`` measured joint velocities, or ``None``.
-        source: where it came from, for error messages.
-        joint_names: the ``n`` joints' names when the file names them (per-joint CSV columns, a log),
-            else ``None`` (joints by position).
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    tau: np.ndarray
-    qd: np.ndarray | None = None
-    source: str = "<recording>"
-    joint_names: tuple[str, ...] | None = None
-
-    def __post_init__(self) -> None:
-        t = np.asarray(self.t, dtype=np.float64)
-        object.__setattr__(self, "t", t)
-        if t.ndim != 1 or t.size < 2:
-            raise ValueError(f"{self.source}: timestamps 't' must be 1-D with >= 2 samples, got {t.shape}")
-        for name in ("q", "tau", "qd"):
-            value = getattr(self, name)
-            if value is None:
-                continue
-            value = np.asarray(value, dtype=np.float64)
-            object.__setattr__(self, name, value)
-            if value.ndim != 2 or value.shape[0] != t.size or value.shape[1] != np.shape(self.q)[-1]:
-                raise ValueError(
-                    f"{self.source}: array {name!r} must be [N={t.size}, n] like 'q', got {value.shape}"
-                )
-        for name in ("t", "q", "tau", "qd"):
-            value = getattr(self, name)
-            if value is not None and not np.isfinite(value).all():
-                index = np.argwhere(~np.isfinite(value))[0]
-                raise ValueError(f"{self.source}: array {name!r} has a non-finite value at sample {index[0]}")
-        steps = np.diff(t)
-        if (steps <= 0).any():
-            i = int(np.flatnonzero(steps <= 0)[0])
-            raise ValueError(
-                f"{self.source}: timestamps must increase strictly; t[{i + 1}] = {float(t[i + 1])!r} follows "
-                f"t[{i}] = {float(t[i])!r}"
-            )
-
-    @property
-    def n_joints(self) -> int:
-        return self.q.shape[1]
 
 
 def load_recording(
@@ -144,7 +74,7 @@ def recording_from_table(
         table, {k: names[k] for k in ("q", "tau", "qd")}, joints, optional=("qd",)
     )
     return Recording(
-        table.vector(names["t"]), arrays["q"], arrays["tau"], arrays.get("qd"), str(table.path), found
+        table.times(names["t"]), arrays["q"], arrays["tau"], arrays.get("qd"), str(table.path), found
     )
 
 
@@ -200,8 +130,6 @@ def main(argv: Sequence[str] | None = None) -> None:
     positions and torques (per-joint columns ``<joint>.q`` for a log). Bad input: one line, exit 1."""
     import argparse
     import sys
-
-    from idkit.data.logs import is_log, read_log
 
     parser = argparse.ArgumentParser(prog="python -m idkit.data.recording", description=main.__doc__)
     parser.add_argument(

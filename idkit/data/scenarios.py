@@ -1,8 +1,10 @@
 """Simulated measurement scenarios reproducing the paper's Tables II–V.
 
 A scenario samples ``robot.excitation`` (eq. (39) for the cylindrical robot), or any other
-``Excitation`` given as ``excitation=`` or named by the scenario's ``excitation`` field (a family
-name or an excitation file, e.g. an optimised one from ``idkit +experiment=excitation``), at
+``Excitation`` given as ``excitation=`` — the motion the scenario's ``excitation`` field names (a
+family name or an excitation file, e.g. an optimised one from ``idkit +experiment=excitation``) is
+built by :func:`idkit.excitation.spec.scenario_excitation` and given so (data reads no excitation
+file: that is the excitation package's), at
 ``sample_times(n_samples, t_end)``, computes the true torques from the *clean* states with
 ``robot.inverse_dynamics(params or robot.nominal_params(), ...)`` — so state noise never leaks
 into the torques — and then corrupts the four arrays.
@@ -32,7 +34,6 @@ depend on the noise levels, so scenarios with the same ``N`` and seed share thei
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -42,7 +43,6 @@ from torch import Tensor
 
 from idkit.data.presets import SCENARIOS, Scenario, UnknownScenarioError
 from idkit.data.trajectory import sample_times
-from idkit.excitation.spec import excitation_of
 from idkit.interfaces import Excitation, Robot
 from idkit.memory import check_memory
 from idkit.problem import SAMPLE_ARRAYS, Samples
@@ -181,7 +181,7 @@ def simulate_batch(
     seed: int = 0,
     n_samples: int | None = None,
     params: Tensor | None = None,
-    excitation: Excitation | str | os.PathLike[str] | None = None,
+    excitation: Excitation | None = None,
     **overrides: Any,
 ) -> SampleBatch:
     """``trials`` independent noisy copies of one scenario, drawn in one vectorised call.
@@ -193,17 +193,20 @@ def simulate_batch(
         seed: seeds the ``torch.Generator`` that draws every random number.
         n_samples: overrides ``scenario.n_samples``.
         params: true physical parameters ``[P]`` (default ``robot.nominal_params()``).
-        excitation: the motion to sample instead of the robot's default one: an ``Excitation``,
-            or a family name or excitation file (then it is the scenario's ``excitation`` field,
-            resolved by ``idkit.excitation.spec.excitation_of``).
+        excitation: the motion to sample instead of the robot's default one; required when the
+            scenario's ``excitation`` field names one (build it with
+            :func:`idkit.excitation.spec.scenario_excitation`).
         **overrides: any other ``Scenario`` field, e.g. ``torque_noise=0.1``.
 
     Returns:
         A ``SampleBatch`` with noisy arrays ``[T, N, n]`` (CPU, float64).
     """
-    if isinstance(excitation, (str, os.PathLike)):  # a name or file: the scenario's field
-        overrides["excitation"], excitation = os.fspath(excitation), None
     sc = get_scenario(scenario, n_samples=n_samples, **overrides)
+    if excitation is not None and not isinstance(excitation, Excitation):
+        raise ValueError(
+            f"simulate: excitation={excitation!r} is not an Excitation; build the motion a name or file "
+            "means with idkit.excitation.spec.excitation_of(name_or_file, robot)"
+        )
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
         raise ValueError(f"simulate_batch: trials must be an integer >= 1, got {trials!r}")
     check_memory(
@@ -212,7 +215,10 @@ def simulate_batch(
         "fewer n_samples need less",
     )
     if excitation is None and sc.excitation is not None:
-        excitation = excitation_of(sc.excitation, robot)
+        raise ValueError(
+            f"scenario {sc.name!r} names the excitation {sc.excitation!r}: give the motion as well, "
+            "excitation=idkit.excitation.spec.scenario_excitation(scenario, robot)"
+        )
     t, clean = clean_samples(robot, sc.n_samples, params, sc.t_end, excitation)
     n = clean.n_joints
     shape = (trials, len(SAMPLE_ARRAYS), sc.n_samples, n)
@@ -245,7 +251,7 @@ def simulate(
     seed: int = 0,
     n_samples: int | None = None,
     params: Tensor | None = None,
-    excitation: Excitation | str | os.PathLike[str] | None = None,
+    excitation: Excitation | None = None,
     **overrides: Any,
 ) -> Samples:
     """One noisy sample set of a scenario: trial 0 of ``simulate_batch`` with the same arguments.

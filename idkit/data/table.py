@@ -34,6 +34,7 @@ import zipfile
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from decimal import Decimal, localcontext
 from pathlib import Path
 
 import numpy as np
@@ -111,6 +112,16 @@ class Table(ABC):
     @abstractmethod
     def vector(self, name: str) -> np.ndarray:
         """The finite ``[N]`` values of column/array ``name``."""
+
+    @abstractmethod
+    def times(self, name: str) -> np.ndarray:
+        """Column/array ``name`` as seconds from its first value ``[N]``, the subtraction done exactly.
+
+        Stamps since the epoch written as decimal text (``1700000000.123456789``) hold more digits
+        than a float64: converted first and subtracted after, they keep ~0.2 µs, enough to move an
+        estimate through differentiation. So a CSV's first stamp is subtracted in exact decimal
+        arithmetic and only the difference becomes a float (an ``.npz`` holds float64 already).
+        """
 
     @abstractmethod
     def matrix(self, name: str, joints: Sequence[str] | None = None, label: str | None = None) -> Column:
@@ -252,8 +263,18 @@ class CsvTable(Table):
         return f"{self.path}: header must have columns {'; '.join(wanted)}; found {self.header}"
 
     def vector(self, name: str) -> np.ndarray:
-        col = [_key(label) for label in self.header].index(name.casefold())
-        return self._parse(col, name, None)
+        return self._parse(self._column(name), name, None)
+
+    def times(self, name: str) -> np.ndarray:
+        col = self._column(name)
+        self._parse(col, name, None)  # refuses what is not a finite number, naming the line
+        cells = [row[col].strip() for row in self.rows]
+        with localcontext(prec=60):  # wider than any stamp's digits: the difference is exact
+            first = Decimal(cells[0])
+            return np.array([float(Decimal(cell) - first) for cell in cells], dtype=np.float64)
+
+    def _column(self, name: str) -> int:
+        return [_key(label) for label in self.header].index(name.casefold())
 
     def matrix(self, name: str, joints: Sequence[str] | None = None, label: str | None = None) -> Column:
         numbered, named = self._columns(name)
@@ -430,6 +451,10 @@ class NpzTable(Table):
         if array.ndim != 1:
             raise ValueError(f"{self.path}: array {name!r} must be 1-D [N], got shape {array.shape}")
         return array
+
+    def times(self, name: str) -> np.ndarray:
+        values = self.vector(name)  # float64 in the file: what it holds is what it has
+        return values - values[0]
 
     def matrix(self, name: str, joints: Sequence[str] | None = None, label: str | None = None) -> Column:
         return Column(self._array(name, label), None)

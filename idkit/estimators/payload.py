@@ -72,9 +72,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, ClassVar, Literal, get_args
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal, get_args
 
 import numpy as np
 import torch
@@ -103,9 +103,6 @@ from idkit.problem import Problem, Samples
 from idkit.robots.inertia import centroidal, frame_change, pseudo_inertia
 from idkit.robots.joint_terms import recorded_joint_terms
 from idkit.robots.urdf_model import INERTIAL_NAMES
-
-if TYPE_CHECKING:
-    from idkit.data.load import DataFile
 
 #: Weight of the pull towards the unconstrained LS solution, relative to the data term of a
 #: unit-norm column (module doc): negligible wherever the data determine a direction.
@@ -136,28 +133,35 @@ class PayloadSettings:
 
     Attributes:
         link: the link the payload is fixed to and reported in (``None``: the tree's end link).
-        reference: a recording of the arm without the payload, or ``None``.
+        reference: a recording of the arm without the payload (a path or ``Samples``), or ``None``.
         correction: how the reference is used (``"model"`` or ``"samples"``).
         min_mass: lower bound on the payload mass (kg, ``>= 0``).
         conic_solvers: the cvxpy solvers ``solver`` stands for, tried in order.
     """
 
     link: str | None
-    reference: str | None
+    reference: str | Samples | None
     correction: Correction
     min_mass: float
     conic_solvers: tuple[str, ...]
 
     @classmethod
     def checked(
-        cls, link: str | None, reference: str | None, correction: Correction, min_mass: float, solver: Solver
+        cls,
+        link: str | None,
+        reference: str | Samples | None,
+        correction: Correction,
+        min_mass: float,
+        solver: Solver,
     ) -> PayloadSettings:
         """The settings; ``min_mass`` and ``solver`` checked as ``pcls`` checks them (``ValueError``)."""
         conic = ConsistentSettings.checked("payload", min_mass=min_mass, solver=solver)
         if correction not in get_args(Correction):
             choices = ", ".join(map(repr, get_args(Correction)))
             raise ValueError(f"payload: correction must be one of {choices}, got {correction!r}")
-        return cls(link or None, reference or None, correction, float(min_mass), conic.conic_solvers)
+        if isinstance(reference, str) and not reference.strip():
+            reference = None  # estimator.reference= on a command line: none
+        return cls(link or None, reference, correction, float(min_mass), conic.conic_solvers)
 
 
 @dataclass(frozen=True)
@@ -401,38 +405,39 @@ def base_units(robot: Any) -> np.ndarray:
     return np.abs(robot.base_map.double().numpy()) @ standard
 
 
-def load_reference(
-    robot: Any, path: str, like: Samples, read: Callable[[str, str], DataFile] | None = None
-) -> tuple[Samples, dict[str, Any]]:
-    """The reference recording as samples on ``like``'s device and dtype, and how it was made
-    (``preprocessed``, ``preprocess``: ``"as data="`` or ``"defaults"``, ``delay`` if any).
+def reference_samples(
+    robot: Any, reference: str | Samples, problem: Problem
+) -> tuple[Samples, str, dict[str, Any]]:
+    """The reference recording as samples on the problem's device and dtype, what to call it in
+    messages, and how it was made (``preprocessed``, ``preprocess``, ``delay`` if any).
 
-    ``read`` (``Problem.read_like_data``, given by a study) reads it as the ``data=`` files were read
-    — the same cut-off, torque delay and effort scale — so the reference rows and the data rows are
-    filtered alike, and refuses a data file given again. Without it (a ``Problem`` built by hand) a
-    raw recording is preprocessed with the default options; its columns and log joints are matched
-    by the robot's joint names, and its efforts become joint torques (``robot.joint_torques``).
+    A path is read by the study as the ``data=`` files were — the same cut-off, torque delay and
+    effort scale — and handed over in ``problem.recordings`` (an estimator reads no file); samples are
+    taken as they are (joint torques).
 
     Raises:
-        ValueError: unreadable file, another number of joints than the robot's, the data itself.
+        ValueError: a path the problem holds no recording for (a ``Problem`` built by hand), another
+            number of joints than the robot's.
     """
-    if read is not None:
-        item = read(path, "payload: reference")
-        samples, how = item.samples, "as data="
+    if isinstance(reference, Samples):
+        samples, name, about = reference, "<Samples>", {"preprocessed": False, "preprocess": "none"}
     else:
-        from idkit.data.load import load_data_file
-
-        item = load_data_file(path, joints=list(robot.joint_names))
-        if item.samples.n_joints != robot.n_joints:
+        read = problem.recordings.get(reference)
+        if read is None:
             raise ValueError(
-                f"payload: reference file {path} has {item.samples.n_joints} joints but the robot has "
-                f"{robot.n_joints}: {', '.join(robot.joint_names)}"
+                f"payload: the reference file {reference} was not read: an estimator reads no file. Run "
+                "the fit through idkit.run or the idkit command (they read it as the data), or give the "
+                "samples: reference=Samples(...) (joint torques), or Problem(..., recordings={path: "
+                "Recorded(samples)})"
             )
-        samples, how = replace(item.samples, tau=robot.joint_torques(item.samples.tau)), "defaults"
-    about = {"preprocessed": item.preprocessed, "preprocess": how if item.preprocessed else "none"}
-    if item.delay:
-        about["delay"] = item.delay
-    return samples.to(device=like.q.device, dtype=like.q.dtype), about
+        samples, name, about = read.samples, reference, dict(read.about)
+    if samples.n_joints != robot.n_joints:
+        raise ValueError(
+            f"payload: reference file {name} has {samples.n_joints} joints but the robot has "
+            f"{robot.n_joints}: {', '.join(robot.joint_names)}"
+        )
+    like = problem.tensors().q
+    return samples.to(device=like.device, dtype=like.dtype), name, about
 
 
 @dataclass(frozen=True)
@@ -491,8 +496,9 @@ class PayloadIdentification(Estimator):
         link: the link the payload is fixed to; its frame is the one the payload is reported in
             and written to ``identified.urdf`` on. A moving link or a link welded to one (e.g. a
             flange, URDF only). ``None``: the tree's end link (refused if it has several).
-        reference: a data file of the arm without the payload (same joints; raw recordings are
-            preprocessed with the default options), so that the arm's model errors cancel.
+        reference: a recording of the arm without the payload (same joints), so that the arm's model
+            errors cancel: a data file, which the study reads as it reads ``data=`` (the estimator
+            reads no file: :meth:`files_needed`), or ``Samples`` (joint torques).
         correction: how the reference is used (module doc): ``"model"`` fits a correction of the
             arm's base parameters together with the payload (any trajectory); ``"samples"``
             subtracts the reference's residual sample by sample (the same trajectory, time-aligned).
@@ -508,7 +514,7 @@ class PayloadIdentification(Estimator):
     def __init__(
         self,
         link: str | None = None,
-        reference: str | None = None,
+        reference: str | Samples | None = None,
         correction: Correction = "model",
         min_mass: float = 0.0,
         solver: Solver = "auto",
@@ -527,18 +533,17 @@ class PayloadIdentification(Estimator):
     @property
     def name(self) -> str:
         settings = self.resolve()
-        return "payload" + (f"+reference-{settings.correction}" if settings.reference else "")
+        return "payload" + (f"+reference-{settings.correction}" if settings.reference is not None else "")
 
-    def system(
-        self,
-        robot: Any,
-        samples: Samples,
-        arm: ArmModel,
-        where: Attachment,
-        read: Callable[[str, str], DataFile] | None = None,
-    ) -> System:
-        """The equations of the fit on ``samples`` (the problem's), with the reference if any, read by
-        ``read`` (``Problem.read_like_data``: :func:`load_reference`)."""
+    def files_needed(self) -> dict[str, str]:
+        """The reference, when it is a file: the study reads it as the data (``Problem.recordings``)."""
+        reference = self.resolve().reference
+        return {"payload: reference": reference} if isinstance(reference, str) else {}
+
+    def system(self, problem: Problem, arm: ArmModel, where: Attachment) -> System:
+        """The equations of the fit on the problem's samples, with the reference if any
+        (:func:`reference_samples`)."""
+        robot, samples = problem.robot, problem.tensors()
         settings = self.resolve()
         model = settings.reference is not None and settings.correction == "model"
         rows = _rows(robot, samples, base=model)
@@ -552,12 +557,12 @@ class PayloadIdentification(Estimator):
         plain = System(A, b, rows.tau, groups, names, units, len(b), None)
         if settings.reference is None:
             return plain
-        ref_samples, made = load_reference(robot, settings.reference, samples, read)
+        ref_samples, ref_name, made = reference_samples(robot, settings.reference, problem)
         ref = _rows(robot, ref_samples, base=model)
         ref_residual = ref.tau - ref.Y @ arm_params
         inertials = slice(0, 10 * len(robot.tree.bodies))
         about = {
-            "file": settings.reference,
+            "file": ref_name,
             "samples": ref_samples.n_samples,
             **made,
             "correction": settings.correction,
@@ -566,9 +571,7 @@ class PayloadIdentification(Estimator):
             **({"cond": equilibrated_cond(ref.W)} if ref.W is not None else {}),
         }
         if settings.correction == "samples":
-            about["max_mismatch"] = same_trajectory(
-                samples, ref_samples, settings.reference, robot.joint_names
-            )
+            about["max_mismatch"] = same_trajectory(samples, ref_samples, ref_name, robot.joint_names)
             return System(A, b - ref_residual, rows.tau, groups, names, units, len(b), about)
         top = torch.cat([A, rows.W], 1)
         bottom = torch.cat([torch.zeros(ref.W.shape[0], 10, dtype=torch.float64), ref.W], 1)
@@ -591,8 +594,7 @@ class PayloadIdentification(Estimator):
         settings = self.resolve()
         where = attachment(robot, settings.link)
         arm = arm_model(robot)
-        s = problem.tensors()
-        system = self.system(robot, s, arm, where, problem.read_like_data)
+        system = self.system(problem, arm, where)
         solution = _solve(system, settings)
         phi = solution.x[:10]
         lowest, outside = cone_violations(["payload"], pseudo_inertia(torch.as_tensor(phi)[None]).numpy())
@@ -613,12 +615,13 @@ class PayloadIdentification(Estimator):
                 system.reference, solution.x[10:], robot.base_param_names
             )
         body = slice(10 * where.body, 10 * where.body + 10)
+        s = problem.tensors()
         recordings = {"data_motion_share": motion_share(robot, s.q, s.qd, s.qdd, body)}
         reference = details.get("reference") or {}
         recordings.update(
             reference_motion_share=reference.get("motion_share"), reference_cond=reference.get("cond")
         )
-        notes, unusable = recording_notes(recordings, settings.reference)
+        notes, unusable = recording_notes(recordings, reference.get("file"))  # its path, or <Samples>
         block = payload_block(
             phi, solution.covariance[:10, :10], where.link, tree.bodies[where.body].link, lowest[0], unusable
         )

@@ -10,7 +10,8 @@ What is checked, on every sample of the file (``.csv`` or ``.npz``, joints by na
 * the nominal model's torques (the URDF's CAD parameters) within each joint's ``<limit effort>``,
   by the same margin;
 * at rest at both ends: ``|qd|``, ``|qdd| <= --rest-tolerance`` (1e-6) at the first and last sample;
-* a regular sample rate: every step within 1e-6 of the median step (``t`` increasing);
+* time that moves forwards (a repeated or earlier time is named with its sample) and a regular sample
+  rate: every step within 1e-6 of the median step;
 * no self-collision, where pinocchio + coal are installed and the URDF has collision geometry
   (``idkit.excitation.collision``; otherwise the report says it was not checked, and why).
 
@@ -54,12 +55,13 @@ class Violation:
     Attributes:
         subject: a joint name, a pair of links (``a–b``), or ``t``.
         quantity: ``position``, ``velocity``, ``acceleration``, ``effort``, ``qd at rest``,
-            ``qdd at rest``, ``sample rate`` or ``self-collision``.
+            ``qdd at rest``, ``time order``, ``sample rate`` or ``self-collision``.
         time: the (first or worst) offending instant, seconds.
         value, limit: the offending value and the limit it breaks (``None`` for a contact).
         samples: how many samples break it.
         margin: for a sample inside the limit but within its safety margin, the margin it misses
             (a share of the half-range); ``None`` for a sample beyond the limit.
+        index: the (first) offending sample, where its time alone does not find it (time order).
     """
 
     subject: str
@@ -69,6 +71,7 @@ class Violation:
     limit: float | None = None
     samples: int = 1
     margin: float | None = None
+    index: int | None = None
 
     def line(self) -> str:
         """``lwr_1_joint: effort 180.2 at t = 3.21 s beyond the limit ±176 (41 samples)``."""
@@ -79,6 +82,12 @@ class Violation:
             return (
                 f"{self.subject}: not at rest at t = {self.time:.6g} s: |{self.quantity.split()[0]}| = "
                 f"{self.value:.3g} > {self.limit:.3g}"
+            )
+        if self.quantity == "time order":
+            how = "repeats" if self.value == self.limit else "goes backwards"
+            return (
+                f"t: time {how} at sample {self.index}: t = {self.value:.9g} s after t = {self.limit:.9g} s"
+                f"{more}"
             )
         if self.quantity == "sample rate":
             return (
@@ -234,15 +243,27 @@ def _rest(trajectory: Trajectory, tolerance: float) -> tuple[dict[str, dict[str,
 
 
 def _rate(t: np.ndarray) -> tuple[float, list[Violation]]:
+    """The rate (1 / the median forward step) and what breaks it: time that repeats or goes back
+    (named by its sample: no step size describes it), then forward steps off the median."""
     steps = np.diff(t)
-    step = float(np.median(steps))
-    irregular = np.flatnonzero((np.abs(steps - step) > RATE_TOLERANCE * abs(step)) | (steps <= 0))
-    if not irregular.size:
-        return 1.0 / step, []
-    k = int(irregular[0])
-    return 1.0 / step, [
-        Violation("t", "sample rate", float(t[k]), float(steps[k]), step, int(irregular.size))
-    ]
+    forward = steps > 0
+    step = float(np.median(steps[forward])) if forward.any() else float("nan")
+    violations = []
+    back = np.flatnonzero(~forward)
+    if back.size:
+        k = int(back[0])
+        violations.append(
+            Violation(
+                "t", "time order", float(t[k + 1]), float(t[k + 1]), float(t[k]), int(back.size), index=k + 1
+            )
+        )
+    irregular = np.flatnonzero(forward & (np.abs(steps - step) > RATE_TOLERANCE * abs(step)))
+    if irregular.size:
+        k = int(irregular[0])
+        violations.append(
+            Violation("t", "sample rate", float(t[k]), float(steps[k]), step, int(irregular.size))
+        )
+    return 1.0 / step, violations
 
 
 def _contacts(trajectory: Trajectory, collision: SelfCollision) -> list[Violation]:

@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from idkit.data.presets import Scenario
 from idkit.excitation.files import load_excitation
 from idkit.interfaces import Excitation, Robot
 from idkit.registry import available, create, load
@@ -54,6 +55,12 @@ def excitation_of(spec: str | Path | Excitation, robot: Robot) -> Excitation:
     excitation = load_excitation(path)
     excitation.check_joints(robot.joint_names, f"robot {type(robot).__name__} (excitation file {path})")
     return excitation
+
+
+def scenario_excitation(scenario: Scenario, robot: Robot) -> Excitation | None:
+    """The motion ``scenario``'s ``excitation`` field names, for :func:`idkit.data.scenarios.simulate`
+    (which takes the motion itself); ``None`` when it names none (the robot's own motion)."""
+    return None if scenario.excitation is None else excitation_of(scenario.excitation, robot)
 
 
 def family_name(excitation: Excitation) -> str | None:

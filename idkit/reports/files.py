@@ -27,6 +27,21 @@ class FolderError(ValueError):
     """A folder results cannot be written into (a file, a read-only place, no permission)."""
 
 
+class WriteError(OSError):
+    """A result file could not be written (the disk full, a quota, the folder gone read-only): the
+    message names the file; the file as it was before, and every file written earlier, are intact."""
+
+    def __init__(self, path: Path, error: OSError) -> None:
+        super().__init__(error.errno, error.strerror or str(error), str(path))
+        self.message = (
+            f"cannot write {path}: {error.strerror or error}; nothing of it was written (files written "
+            "before it are intact)"
+        )
+
+    def __str__(self) -> str:
+        return self.message
+
+
 def writable_folder(folder: str | Path, setting: str) -> Path:
     """``folder``, created if missing, once a file could be written in it; else one line naming it.
 
@@ -92,14 +107,19 @@ def write_npz(path: str | Path, arrays: dict[str, Any]) -> Path:
 
 def _write_bytes(path: str | Path, data: bytes) -> Path:
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as error:
+        raise WriteError(path, error) from None
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
         _replace(tmp, path)
-    except BaseException:
+    except BaseException as error:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(error, OSError):
+            raise WriteError(path, error) from None
         raise
     return path
 

@@ -43,6 +43,7 @@ def text(result: RunResult) -> str:
     robot = (result.plugins.get("robot") or {}).get("name") or "?"
     lines = [
         f"{est.estimator} · robot {robot} · data {_source(result.data)} · seed {result.seed}",
+        *_torque_lines(result.data),
         f"{'parameter':<12}{'estimate':>12}{'true':>12}{'rel. error':>12}",
     ]
     held = set(est.details.get("held") or ())  # kept at the robot's reference, not fitted
@@ -61,6 +62,16 @@ def text(result: RunResult) -> str:
     lines += _validation_lines(result)
     lines += _plausibility_lines(result)
     return "\n".join(lines)
+
+
+def _torque_lines(data: Mapping[str, Any] | None) -> list[str]:
+    """What the recorded torques were and what was fitted, when they differ (``effort_scale``)."""
+    torques = (data or {}).get("torques")
+    if not torques or torques["recorded"] == torques["fitted"]:
+        return []
+    scale = torques.get("effort_scale")
+    factors = f" [{', '.join(f'{k:g}' for k in scale)}]" if scale else ""
+    return [f"torques: {torques['recorded']}{factors} → fitted and scored in {torques['fitted']}"]
 
 
 def _plausibility_lines(result: RunResult) -> list[str]:

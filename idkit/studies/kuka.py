@@ -16,7 +16,7 @@ the URDF's ``<dynamics friction= damping=>`` values as Coulomb and viscous coeff
 carries the smallest pseudo-inertia eigenvalue over the links (``min_eig``, ``< 0``: not physically
 consistent) and how many links are negative.
 
-The recordings are read by :func:`idkit.studies.recordings.load_training` (the files' own derivatives
+The recordings are read by :func:`idkit.data.pipeline.read_training` (the files' own derivatives
 by default; ``preprocess={apply: on, ...}`` recomputes them with idkit's filter, its ``cutoff=auto``
 chosen on the training recording) and scored by :func:`idkit.studies.validation.validate_file`: the
 measured and predicted torques compared in the fixed scoring band (6 Hz, on the files' timestamps).
@@ -48,6 +48,10 @@ from typing import Any
 import numpy as np
 from torch import Tensor
 
+from idkit.data.load import DataFile
+from idkit.data.options import DataOptions, Preprocessing
+from idkit.data.pipeline import describe as describe_data
+from idkit.data.pipeline import read_held_out, read_training
 from idkit.interfaces import CostSearcher
 from idkit.model import IdentifiedModel
 from idkit.problem import Problem, Samples
@@ -56,7 +60,6 @@ from idkit.robots.urdf import URDFRobot
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.labels import unique_labels
-from idkit.studies.recordings import DataFile, load_files, load_training
 from idkit.studies.result import Provenance, StudyInterrupted
 from idkit.studies.validation import Validation, score, validate_file
 
@@ -255,7 +258,7 @@ def run(
     stride: int = 1,
     search_cost: Spec = "f1",
     plot_window: Sequence[float] = (10.0, 25.0),
-    preprocess: Any = None,
+    preprocess: Preprocessing | None = None,
     seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
@@ -272,7 +275,7 @@ def run(
         search_cost: the cost PSO and Adam minimise (the linear family minimises its own criterion
             and reports this cost at its estimate).
         plot_window: seconds of the first test recording kept for the plot.
-        preprocess: the ``preprocess`` options (:mod:`idkit.studies.recordings`); the default
+        preprocess: the ``preprocess`` options (:class:`idkit.data.options.Preprocessing`); the default
             (``auto``) keeps the files' own velocities and accelerations, ``apply: on`` recomputes
             them from the positions with idkit's filter.
         seed, device, dtype: of the identification ``Problem``.
@@ -298,19 +301,16 @@ def run(
     rigid = URDFRobot(str(urdf))
     # an automatic cut-off is chosen with the richest model variant's regressor
     richest = URDFRobot(str(urdf), friction=any(v[0] for v in variants), offset=any(v[1] for v in variants))
-    training = load_training(richest, data_dir / f"{train}.npz", preprocess, stride=stride)
-    held = load_files(
-        rigid, [data_dir / f"{name}.npz" for name in test], training.preprocess, "validate", stride
-    )
+    training = read_training(richest, data_dir / f"{train}.npz", DataOptions.of(preprocess), stride=stride)
+    held = read_held_out(rigid, [data_dir / f"{name}.npz" for name in test], training, stride) if test else []
     loaded = [*training.files, *held]
     recordings = dict(zip(names, loaded, strict=True))
-    as_recorded = load_files(rigid, [data_dir / f"{name}.npz" for name in names], {"apply": "off"})
+    files = [data_dir / f"{name}.npz" for name in names]
+    as_recorded = read_training(rigid, files, DataOptions.of({"apply": "off"})).files
     checks = {name: data_check(f.samples, f.times) for name, f in zip(names, as_recorded, strict=True)}
     data = {"dir": str(data_dir), "train": train, "test": list(test), "stride": stride}
     if any(f.preprocessed for f in loaded):
-        data["preprocess"] = {k: v for k, v in training.preprocess.items() if k != "apply"}
-        if training.cutoff is not None:
-            data["preprocess"]["cutoff_choice"] = training.cutoff.to_dict()
+        data["preprocess"] = describe_data(loaded, training)["preprocess"]
     provenance = Provenance(
         task="kuka",
         label="kuka held-out torques",

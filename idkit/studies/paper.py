@@ -178,7 +178,8 @@ def run(
     """
     from tqdm import tqdm
 
-    from idkit.data.scenarios import shared_fields, simulate
+    from idkit.data.scenarios import get_scenario, shared_fields, simulate
+    from idkit.excitation.spec import scenario_excitation
     from idkit.problem import Problem
 
     common = shared_fields(scenario, "paper")
@@ -216,7 +217,8 @@ def run(
     result = PaperTables([], provenance, columns, compare=(final, "RLS-rel"))
     try:
         for name in tqdm(scenarios, desc="paper tables", unit="table", disable=not progress):
-            samples = simulate(robot_obj, name, seed=seed, **common)
+            sc = get_scenario(name, **common)
+            samples = simulate(robot_obj, sc, seed=seed, excitation=scenario_excitation(sc, robot_obj))
             problem = Problem(robot_obj, samples, None, seed=seed, device=device, dtype=dtype)
             fitted = [e.fit(problem) for e in linear_objs] + search.fit_costs(problem, cost_objs)
             estimates = [replace(e, estimator=label) for e, label in zip(fitted, labels, strict=True)]

@@ -446,8 +446,9 @@ def run(
     """
     from tqdm import tqdm
 
-    from idkit.data.scenarios import shared_fields, simulate_batch
+    from idkit.data.scenarios import get_scenario, shared_fields, simulate_batch
     from idkit.estimators.trials import check_chunk, fit_trials
+    from idkit.excitation.spec import scenario_excitation
     from idkit.problem import Problem
 
     common = shared_fields(scenario, "robustness")
@@ -483,7 +484,13 @@ def run(
     found: dict[str, dict[str, list]] = {scenario: {} for scenario in scenarios}
     fit_time: dict[str, float] = {}
     # Trial i's draws depend only on (seed, i): draw up to the shard's end, keep its slice.
-    batches = {s: simulate_batch(robot_obj, s, trials=mine.stop, seed=seed, **common) for s in scenarios}
+    resolved = {s: get_scenario(s, **common) for s in scenarios}
+    batches = {
+        s: simulate_batch(
+            robot_obj, sc, trials=mine.stop, seed=seed, excitation=scenario_excitation(sc, robot_obj)
+        )
+        for s, sc in resolved.items()
+    }
     provenance = Provenance(
         task="robustness",
         label=f"robustness vs {baseline}",

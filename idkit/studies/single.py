@@ -11,8 +11,10 @@ report's ``table()`` and ``save()``; a study never imports a report::
     result.estimate.params            # {"m2": ..., "m3": ..., "s3z": ..., "I": ...}
 
 Measured data: ``data=`` is one file or a list (stacked for training), ``validate=`` lists held-out
-files the identified model is scored on (:mod:`idkit.studies.validation`), ``preprocess`` says how raw
-recordings become samples (:mod:`idkit.studies.recordings`). A fit of a ``urdf`` robot also carries
+files the identified model is scored on (:mod:`idkit.studies.validation`), ``preprocess`` and
+``recording`` say how files become samples (:mod:`idkit.data.options`); the data pipeline
+(:mod:`idkit.data.pipeline`) reads them, and the other recordings an estimator names (a payload's
+reference), which it gets as samples. A fit of a ``urdf`` robot also carries
 its ``identified.urdf`` text (``identified_urdf=False`` to skip), a fit of an ``mjcf`` robot its
 ``identified.xml`` (MJCF; ``identified_mjcf=True`` for a ``urdf`` robot too), which the report writes.
 """
@@ -28,6 +30,17 @@ from typing import Any
 
 import numpy as np
 
+from idkit.data.files import as_paths, refuse_seen_samples, refuse_training_files
+from idkit.data.options import DataOptions, Preprocessing, RecordingOptions
+from idkit.data.pipeline import (
+    Training,
+    read_held_out,
+    read_other,
+    read_training,
+    recorded,
+    simulated,
+)
+from idkit.data.pipeline import describe as describe_data
 from idkit.estimate import Estimate
 from idkit.interfaces import CostSearcher
 from idkit.model import IdentifiedModel
@@ -38,16 +51,6 @@ from idkit.studies.held import say_held
 from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
 from idkit.studies.plausibility import PlausibleAlternative, plausible_alternative
-from idkit.studies.recordings import (
-    DataFile,
-    as_paths,
-    load_files,
-    load_training,
-    preprocess_options,
-    reader_like_data,
-    refuse_seen_samples,
-    refuse_training_files,
-)
 from idkit.studies.result import Provenance
 from idkit.studies.validation import Validation, validate_files
 
@@ -165,41 +168,6 @@ def _scenario_spec(scenario: Any) -> Any:
     return scenario
 
 
-def _describe_files(
-    files: list[DataFile], preprocess: Any, source: dict[str, Any] | None = None
-) -> dict[str, Any]:
-    """``result.json``'s ``data``: ``{"file": path}`` or ``{"files": [...]}`` for training files (no
-    ``source``), or ``source`` plus ``validate`` files; and the preprocessing options with the files
-    they were applied to."""
-    paths = [f.path for f in files]
-    if source is None:
-        out: dict[str, Any] = {"file": paths[0]} if len(paths) == 1 else {"files": paths}
-    else:
-        out = {**source, "validate": paths}
-    before = out.get("preprocess") or {}
-    for key in ("log", "delay"):  # a ROS log's topics and clocks; a torque delay applied
-        found = {**out.get(f"{key}s", {}), **{f.path: getattr(f, key) for f in files if getattr(f, key)}}
-        if found:
-            out[f"{key}s"] = found
-    processed = [*before.get("files", []), *(f.path for f in files if f.preprocessed)]
-    gaps = {**before.get("gaps", {}), **{f.path: f.preprocessing for f in files if _split(f)}}
-    if processed:
-        options, _ = preprocess_options(preprocess)
-        chosen = {"cutoff_choice": before["cutoff_choice"]} if "cutoff_choice" in before else {}
-        out["preprocess"] = {
-            "files": processed,
-            **vars(options),
-            **chosen,
-            **({"gaps": gaps} if gaps else {}),
-        }
-    return out
-
-
-def _split(file: DataFile) -> bool:
-    """Whether preprocessing split ``file`` at gaps in its timestamps."""
-    return bool(file.preprocessing and file.preprocessing.get("note"))
-
-
 def load_data(
     robot: Any,
     scenario: Any = None,
@@ -208,8 +176,8 @@ def load_data(
     data: Any = None,
     n_samples: int | None = None,
     params: Any = None,
-    preprocess: Any = None,
-    recording: Any = None,
+    preprocess: Preprocessing | None = None,
+    recording: RecordingOptions | None = None,
 ) -> tuple[Any, dict[str, float] | None, dict[str, Any]]:
     """``(samples, truth, description)``: measured ``data`` (path(s) or ``Samples``) or a simulation.
 
@@ -220,9 +188,8 @@ def load_data(
         ValueError: both ``scenario`` and ``data`` given (which one was meant?), ``n_samples``
             with ``data`` (a file has the samples it has), or a file the robot cannot use.
     """
-    samples, truth, description, _ = _load(
-        robot, scenario, seed, data, n_samples, params, preprocess, recording
-    )
+    options = DataOptions.of(preprocess, recording)
+    samples, truth, description, _ = _load(robot, scenario, seed, data, n_samples, params, options)
     return samples, truth, description
 
 
@@ -233,11 +200,10 @@ def _load(
     data: Any,
     n_samples: int | None,
     params: Any,
-    preprocess: Any,
-    recording: Any,
-) -> tuple[Any, dict[str, float] | None, dict[str, Any], Any]:
-    """:func:`load_data`, and the ``preprocess`` node with the cut-off the training data resolved
-    (``preprocess`` itself for a simulation): the held-out files are preprocessed with it."""
+    options: DataOptions,
+) -> tuple[Any, dict[str, float] | None, dict[str, Any], Training]:
+    """:func:`load_data`, and the training files read (none for a simulation): the held-out files and
+    an estimator's other recordings are read with the options they resolved."""
     if data is not None:
         if scenario is not None:
             shown = [p if isinstance(p, (str, Path)) else type(p).__name__ for p in as_paths(data)]
@@ -247,33 +213,18 @@ def _load(
             )
         if n_samples is not None:
             raise ValueError(f"n_samples={n_samples} applies to a simulated scenario, not to data=")
-        samples, description, resolved = _measured(robot, data, preprocess, recording)
-        return samples, None, description, resolved
+        training = read_training(robot, data, options)
+        return training.samples(), None, describe_data(training.files, training), training
     import torch
 
     from idkit.data.scenarios import get_scenario, simulate
+    from idkit.excitation.spec import scenario_excitation
 
     sc = get_scenario(_scenario_spec(scenario if scenario is not None else "clean"), n_samples=n_samples)
-    samples = simulate(robot, sc, seed=seed, params=params)
+    samples = simulate(robot, sc, seed=seed, params=params, excitation=scenario_excitation(sc, robot))
     true = torch.as_tensor(params, dtype=torch.float64) if params is not None else robot.nominal_params()
     truth = dict(zip(robot.param_names, true.tolist(), strict=True))
-    return samples, truth, {"scenario": sc.as_dict()}, preprocess
-
-
-def _measured(
-    robot: Any, data: Any, preprocess: Any, recording: Any
-) -> tuple[Any, dict[str, Any], dict[str, Any]]:
-    """``(samples, description, preprocess)`` of the ``data=`` files: stacked samples, ``result.json``'s
-    ``data``, and the ``preprocess`` node with the cut-off resolved (for the held-out files)."""
-    from idkit.data.recording import stack_samples
-
-    training = load_training(robot, data, preprocess, recording=recording)
-    files = training.files
-    samples = stack_samples([f.samples for f in files], [f.path for f in files])
-    description = _describe_files(files, training.preprocess)
-    if training.cutoff is not None and "preprocess" in description:
-        description["preprocess"]["cutoff_choice"] = training.cutoff.to_dict()
-    return samples, description, training.preprocess
+    return samples, truth, {"scenario": sc.as_dict()}, simulated(robot, options)
 
 
 def _identified_urdf(model: IdentifiedModel) -> str | None:
@@ -341,8 +292,8 @@ def run(
     n_samples: int | None = None,
     params: Any = None,
     validate: Any = None,
-    preprocess: Any = None,
-    recording: Any = None,
+    preprocess: Preprocessing | None = None,
+    recording: RecordingOptions | None = None,
     identified_urdf: bool = True,
     identified_mjcf: bool | None = None,
     device: str = "cpu",
@@ -363,8 +314,9 @@ def run(
         params: true parameters ``[P]`` to simulate with (default ``robot.nominal_params()``).
         validate: held-out files (or ``Samples``) the identified model is scored on; a training file
             (same path, same bytes, or the same samples in another file) is refused.
-        preprocess: how raw recordings become samples: ``PreprocessOptions`` fields plus ``apply``
-            (``auto``: raw recordings only; ``on``; ``off``), applied to every data and validate file.
+        preprocess: how raw recordings become samples (:class:`idkit.data.options.Preprocessing`, or a
+            mapping of its fields): ``PreprocessOptions`` fields plus ``apply`` (``auto``: raw
+            recordings only; ``on``; ``off``), applied to every data and validate file.
         recording: how raw recordings are read: ``RecordingOptions`` fields (a ROS log's ``topic``
             and ``effort_topic``, :mod:`idkit.data.logs`; the torque ``delay`` in s or ``"auto"``,
             :mod:`idkit.data.delay`), for every data and validate file.
@@ -380,21 +332,19 @@ def run(
     estimator_obj = build("estimator", estimator)
     if validate is not None and data is not None:
         refuse_training_files(data, validate)
-    samples, truth, source, resolved = _load(
-        robot_obj, scenario, seed, data, n_samples, params, preprocess, recording
-    )
-    held_out = (
-        []
-        if validate is None
-        else load_files(robot_obj, validate, resolved, role="validate", recording=recording)
-    )
+    options = DataOptions.of(preprocess, recording)
+    samples, truth, source, training = _load(robot_obj, scenario, seed, data, n_samples, params, options)
+    held_out = [] if validate is None else read_held_out(robot_obj, validate, training)
     if data is not None:
         refuse_seen_samples(samples, held_out)
     if held_out:
-        source = _describe_files(held_out, resolved, source)
-    read = None if data is None else reader_like_data(robot_obj, data, samples, resolved, recording)
+        source = describe_data(held_out, training, source)
+    recordings = {
+        path: recorded(read_other(robot_obj, path, role, training, data))
+        for role, path in getattr(estimator_obj, "files_needed", dict)().items()  # a duck-typed plugin: none
+    }
     problem = Problem(
-        robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype, read_like_data=read
+        robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype, recordings=recordings
     )
     problem.check_identifiable()  # for every estimator, a third party's included, before its fit
     fitted = estimator_obj.fit(problem)

@@ -10,7 +10,8 @@ filtered with (so tuning ``preprocess.cutoff`` to the reported figure tunes the 
   accelerations and they have to be estimated somehow;
 * **measured** torques: as recorded (resampled onto the samples' times, never filtered at the
   training cut-off);
-* ``E = measured − predicted`` and ``T = measured``, both **band-limited** at :data:`SCORE_BAND_HZ`
+* ``E = measured − predicted`` and ``T = measured``, both **band-limited** at
+  :data:`~idkit.data.preprocess.SCORE_BAND_HZ`
   (6 Hz; ``0.4 ×`` the sampling rate if that is lower) by the zero-phase Butterworth filter of the
   preprocessing (order 4 per pass, run forwards and backwards) on the file's own timestamps
   (:func:`idkit.data.preprocess.band_limit`). Identification motion lives below ~2 Hz; above the
@@ -42,16 +43,10 @@ import torch
 from torch import Tensor
 
 from idkit.data.load import DataFile
-from idkit.data.preprocess import band_limit
+from idkit.data.preprocess import BAND_OF_RATE, SCORE_BAND_HZ, band_limit
 from idkit.interfaces import Robot
 from idkit.model import IdentifiedModel
 from idkit.problem import Samples
-
-#: The scoring band (Hz) of held-out torques (module doc); lowered to ``BAND_OF_RATE ×`` the sampling
-#: rate for recordings slower than 15 Hz.
-SCORE_BAND_HZ = 6.0
-#: The scoring band never exceeds this fraction of the sampling rate (0.8 × the Nyquist frequency).
-BAND_OF_RATE = 0.4
 
 
 def scoring_band(times: np.ndarray | None) -> float | None:

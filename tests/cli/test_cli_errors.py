@@ -76,3 +76,41 @@ def test_main_prints_one_line_and_exits_1(run_idkit):
     assert status == errors.USAGE
     assert len(said) == 1 and said[0].startswith("idkit: unknown estimator 'psoo'; available estimators")
     assert app.FULL_ERROR not in os.environ  # set for Hydra during the run only
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="finds the file being written through /proc")
+def test_a_full_disk_is_one_line_and_leaves_what_was_written_intact(run_idkit, tmp_path, monkeypatch):
+    """The disk fills while the results are written (``OSError: No space left on device``): one line
+    naming the file, exit status 1, no half-written file, and an earlier result kept as it was."""
+    import errno
+    import json
+
+    from idkit.reports import files
+
+    earlier = tmp_path / "earlier"
+    assert run_idkit("estimator=ls", "~cost", "plots=false", f"hydra.run.dir={earlier}")[0] == 0
+    before = (earlier / "result.json").read_text()
+    real = os.fdopen
+
+    def full_disk(fd, *args, **kwargs):
+        handle = real(fd, *args, **kwargs)
+        if "result.json" in os.readlink(f"/proc/self/fd/{fd}"):
+
+            def write(data):
+                raise OSError(errno.ENOSPC, "No space left on device")
+
+            handle.write = write
+        return handle
+
+    monkeypatch.setattr(files.os, "fdopen", full_disk)
+    run = tmp_path / "run"
+    status, said = run_idkit("estimator=ls", "~cost", "plots=false", f"hydra.run.dir={run}")
+    assert status == 1 and said == [
+        f"idkit: cannot write {run / 'result.json'}: No space left on device; nothing of it was written "
+        "(files written before it are intact)"
+    ]
+    assert not (run / "result.json").exists() and not list(run.glob(".*.tmp"))
+    assert (run / ".hydra" / "config.yaml").is_file()  # written before: intact
+    with pytest.raises(files.WriteError):  # over an earlier result: the earlier one stays
+        files.write_json(earlier / "result.json", {"new": 1})
+    assert (earlier / "result.json").read_text() == before and json.loads(before)["task"] == "single"

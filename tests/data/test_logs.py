@@ -9,11 +9,12 @@ import warnings
 
 import numpy as np
 import pytest
-from bag_cases import Stream, storage_file, write_ros1, write_ros2
+from bag_cases import Stream, storage_file, with_chunk_checksums, write_ros1, write_ros2
 
 from idkit.data.load import load_data_file
 from idkit.data.logs import LogWarning, read_log
-from idkit.data.recording import RecordingOptions, load_recording, main
+from idkit.data.options import RecordingOptions
+from idkit.data.recording import load_recording, main
 
 pytest.importorskip("rosbags")
 
@@ -114,14 +115,44 @@ def test_efforts_on_their_own_topic_and_clock_are_interpolated_onto_the_states(t
     ):
         read_log(path, JOINTS, RecordingOptions("/joint_states"))
     with pytest.raises(
-        ValueError, match=r"several JointState topics: /efforts, /joint_states; choose one with"
+        ValueError,
+        match=r"several JointState topics: /efforts, /joint_states; choose the one of the positions",
     ):
         read_log(path, JOINTS)
-    recording, read = read_log(path, JOINTS, RecordingOptions("/joint_states", "/efforts"))
+    with pytest.warns(LogWarning, match=r"2 of 400 state samples \(0\.5 %\) have no effort and are dropped"):
+        recording, read = read_log(path, JOINTS, RecordingOptions("/joint_states", "/efforts"))
     keep = (s["t"] >= tau_t[0]) & (s["t"] <= tau_t[-1])
     np.testing.assert_array_equal(recording.q, s["q"][keep])
     np.testing.assert_allclose(recording.tau, 10 * np.outer(s["t"][keep], [1.0, 2.0, 3.0]), rtol=1e-9)
     assert read["effort_topic"] == {"topic": "/efforts", "clock": "header stamps", "dropped_samples": 2}
+    with pytest.warns(LogWarning):  # the effort topic alone: the positions are on the other one
+        alone, _ = read_log(path, JOINTS, RecordingOptions(effort_topic="/efforts"))
+    np.testing.assert_array_equal(alone.tau, recording.tau)
+
+
+def test_an_effort_topic_over_half_the_log_says_what_it_drops(tmp_path):
+    """Efforts recorded over the second half only: half the state samples have none. They are dropped
+    (no effort is invented), and the console says how many and where instead of halving the data
+    silently."""
+    s = signals(n=2000)
+    late = s["t"] >= s["t"][1000]
+    effort = Stream("/efforts", s["stamps"][late], DRIVER, effort=driver(s["tau"][late]), extra={})
+    path = write("mcap", tmp_path, [states(s, effort=None), effort])
+    with pytest.warns(LogWarning) as said:
+        recording, read = read_log(path, JOINTS, RecordingOptions(effort_topic="/efforts"))
+    (line,) = [str(w.message) for w in said]
+    assert line == (
+        f"{path}: the effort topic /efforts covers 5–9.995 s of the state topic's 0–9.995 s: 1000 of 2000 "
+        "state samples (50 %) have no effort and are dropped (1000 before its first message)"
+    )
+    assert recording.t.size == 1000 and read["effort_topic"]["dropped_samples"] == 1000
+
+
+def test_an_empty_topic_option_is_refused_naming_it():
+    with pytest.raises(ValueError, match=r"^recording\.effort_topic is empty; name a JointState topic"):
+        RecordingOptions(effort_topic="")
+    with pytest.raises(ValueError, match=r"^recording\.topic is empty"):
+        RecordingOptions(topic=" ")
 
 
 def test_zero_header_stamps_use_the_receive_time_and_say_so(tmp_path):
@@ -255,3 +286,39 @@ def test_the_converter_writes_a_per_joint_csv_that_reads_back(tmp_path, capsys):
     assert stop.value.code == 1
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and err[0].startswith(f"python -m idkit.data.recording: {path}: no topic '/nope'")
+
+
+@pytest.mark.parametrize("checksums", [True, False])
+def test_a_log_damaged_in_the_middle_is_one_line_or_read_intact(tmp_path, checksums):
+    """Bytes overwritten inside an MCAP (a bad disk, a cut copy): every read either refuses the log in
+    one line naming it or returns exactly what was recorded — never a traceback (an ``OverflowError``
+    from the reader before) nor, where the chunks carry their checksums as ROS 2's recorder writes them,
+    other numbers. (Without checksums a changed value inside a message cannot be told: then only the
+    structure is checked — messages lost against the index, impossible stamps.)"""
+    s = signals(n=1000)
+    original = storage_file(write_ros2(tmp_path / "bag", [states(s)]))
+    if checksums:
+        with_chunk_checksums(original)
+    intact, _ = read_log(original, JOINTS)
+    data = original.read_bytes()
+    rng = np.random.default_rng(11)
+    refused = 0
+    for k in range(40):
+        damaged = bytearray(data)
+        start = int(rng.integers(len(data) // 4, 3 * len(data) // 4))
+        width = int(rng.choice([1, 8, 64, 512]))
+        damaged[start : start + width] = rng.integers(0, 256, width, dtype=np.uint8).tobytes()
+        path = tmp_path / f"damaged_{k}.mcap"
+        path.write_bytes(bytes(damaged))
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                recording, _ = read_log(path, JOINTS)
+        except ValueError as exc:
+            assert str(exc).startswith(f"{path}: ") and "\n" not in str(exc)
+            refused += 1
+            continue
+        if checksums:
+            for name in ("t", "q", "tau", "qd"):
+                np.testing.assert_array_equal(getattr(recording, name), getattr(intact, name))
+    assert refused >= 20  # most damage lands in the messages' chunk

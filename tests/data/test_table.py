@@ -205,3 +205,20 @@ def test_one_quantity_under_both_names_is_refused(tmp_path, arrays, ours, theirs
         f"{path}: both {ours!r} and {theirs!r} (FloBaRoID's name for {ours}); which one is meant? "
         "Keep one of them"
     )
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    start=st.integers(1_000_000_000 * 10**9, 4_000_000_000 * 10**9),
+    steps=st.lists(st.integers(1, 10**8), min_size=1, max_size=20),
+)
+def test_epoch_stamps_lose_no_digit_before_the_first_is_subtracted(tmp_path_factory, start, steps):
+    """Stamps since the epoch to the nanosecond, as decimal text in a CSV, give the seconds from the
+    first stamp as the exact difference rounded once (float64 seconds since the epoch would keep only
+    ~0.2 µs)."""
+    folder = tmp_path_factory.mktemp("stamps")
+    stamps = np.cumsum([start, *steps]).astype(np.int64)
+    exact = np.array([(s - stamps[0]) / 1e9 for s in stamps.tolist()])
+    csv = folder / "t.csv"
+    csv.write_text("t,q1,tau1\n" + "".join(f"{s // 10**9}.{s % 10**9:09d},0,1\n" for s in stamps.tolist()))
+    np.testing.assert_array_equal(read_table(csv).times("t"), exact)

@@ -9,9 +9,8 @@ import pytest
 import torch
 from urdf_cases import TREE_URDF, pin_model, pin_torques_and_regressor, random_states
 
-from idkit.data.io import save_samples
 from idkit.estimators.payload import PayloadIdentification
-from idkit.problem import IdentificationError, Problem, Samples
+from idkit.problem import IdentificationError, Problem, Recorded, Samples
 from idkit.reports import payload as payload_report
 from idkit.robots.inertia import standard_parameters
 from idkit.robots.urdf import URDFRobot
@@ -70,6 +69,11 @@ def payload_of(robot: URDFRobot, samples: Samples, **options) -> dict:
     return PayloadIdentification(**options).fit(Problem(robot, samples)).details["payload"]
 
 
+def with_reference(robot: URDFRobot, samples: Samples, name: str, reference: Samples) -> Problem:
+    """A problem whose reference recording ``name`` was read (as a study reads it) into ``reference``."""
+    return Problem(robot, samples, recordings={name: Recorded(reference)})
+
+
 def test_noise_free_payload_is_recovered_exactly(tree):
     found = payload_of(tree, simulate(tree, TREE_URDF, "j3", 200, seed=0), link="c")
     assert found["mass"] == pytest.approx(MASS, rel=1e-9)
@@ -125,9 +129,8 @@ def test_the_reference_recording_cancels_a_ten_percent_error_of_the_arm_model(tr
     reference = _with_drive_terms(
         tree, simulate(tree, TREE_URDF, None, 400, seed=5, noise=0.01), fc, fv, offset
     )
-    save_samples(reference, tmp_path / "without_tool.npz")
     alone = payload_of(model, data, link="c")
-    both = payload_of(model, data, link="c", reference=str(tmp_path / "without_tool.npz"))
+    both = payload_of(model, data, link="c", reference=reference)
     error_alone, error_both = abs(alone["mass"] - MASS) / MASS, abs(both["mass"] - MASS) / MASS
     assert error_alone > 0.05  # the arm's errors leak into the payload ...
     assert error_both < 0.01 and np.linalg.norm(np.subtract(both["com"], COM)) < 0.003  # ... and cancel
@@ -254,7 +257,7 @@ def test_a_recorded_joint_term_that_is_no_number_is_named(inserted, message):
         recorded_joint_terms(robot)
 
 
-def test_bad_input_is_refused_in_one_line(tree, tmp_path, cylindrical):
+def test_bad_input_is_refused_in_one_line(tree, cylindrical):
     samples = simulate(tree, TREE_URDF, "j3", 50, seed=11)
     with pytest.raises(ValueError) as unknown:
         PayloadIdentification(link="gripper").fit(Problem(tree, samples))
@@ -276,13 +279,14 @@ def test_bad_input_is_refused_in_one_line(tree, tmp_path, cylindrical):
     few = Samples(samples.q[:2], samples.qd[:2], samples.qdd[:2], samples.tau[:2])
     with pytest.raises(IdentificationError, match=r"8 equations"):
         PayloadIdentification(link="c").fit(Problem(tree, few))
-    save_samples(Samples(q, qd, qdd, plain.tau), tmp_path / "three_joints.npz")
-    with pytest.raises(
-        ValueError, match=r"reference file .*three_joints.npz has 3 joints but the robot has 4"
-    ):
-        PayloadIdentification(link="c", reference=str(tmp_path / "three_joints.npz")).fit(
-            Problem(tree, samples)
+    with pytest.raises(ValueError, match=r"reference file three_joints.npz has 3 joints but the robot has 4"):
+        PayloadIdentification(link="c", reference="three_joints.npz").fit(
+            with_reference(tree, samples, "three_joints.npz", plain)
         )
+    with pytest.raises(
+        ValueError, match=r"^payload: the reference file unread.npz was not read: an estimator reads"
+    ):
+        PayloadIdentification(link="c", reference="unread.npz").fit(Problem(tree, samples))
     with pytest.raises(
         ValueError, match=r"^payload: min_mass must be .*a finite number >= 0 \(kg\), got -1.0$"
     ):
@@ -347,14 +351,11 @@ def test_the_same_trajectory_replayed_cancels_what_the_model_cannot(tree, tmp_pa
     model = URDFRobot(str(tmp_path / "arm.urdf"))
     states = smooth_states(400)
     data = _unmodelled(simulate(tree, TREE_URDF, "j3", 400, seed=13, states=states))
-    save_samples(
-        _unmodelled(simulate(tree, TREE_URDF, None, 400, seed=13, states=states)), tmp_path / "bare.npz"
-    )
-    reference = str(tmp_path / "bare.npz")
+    bare = _unmodelled(simulate(tree, TREE_URDF, None, 400, seed=13, states=states))
     for correction in ("model", "samples"):
         details = (
-            PayloadIdentification(link="c", reference=reference, correction=correction)
-            .fit(Problem(model, data))
+            PayloadIdentification(link="c", reference="bare.npz", correction=correction)
+            .fit(with_reference(model, data, "bare.npz", bare))
             .details
         )
         assert details["payload"]["mass"] == pytest.approx(MASS, rel=1e-8), correction
@@ -365,22 +366,19 @@ def test_the_same_trajectory_replayed_cancels_what_the_model_cannot(tree, tmp_pa
     assert abs(alone["mass"] - MASS) > 0.05 * MASS
 
 
-def test_correction_by_samples_refuses_another_trajectory(tree, tmp_path):
+def test_correction_by_samples_refuses_another_trajectory(tree):
     data = simulate(tree, TREE_URDF, "j3", 100, seed=15)
-    save_samples(simulate(tree, TREE_URDF, None, 90, seed=15), tmp_path / "shorter.npz")
+    shorter = simulate(tree, TREE_URDF, None, 90, seed=15)
     with pytest.raises(
         ValueError, match=r"shorter.npz has 90 samples, the data 100 \(use correction=model\)$"
     ):
-        PayloadIdentification(link="c", reference=str(tmp_path / "shorter.npz"), correction="samples").fit(
-            Problem(tree, data)
+        PayloadIdentification(link="c", reference="shorter.npz", correction="samples").fit(
+            with_reference(tree, data, "shorter.npz", shorter)
         )
     moved = Samples(data.q.clone(), data.qd, data.qdd, data.tau)
     moved.q[17, 2] += 0.2
-    save_samples(moved, tmp_path / "moved.npz")
-    with pytest.raises(ValueError, match=r"moved.npz differs from the data by 0.2 at sample 17, joint j3"):
-        PayloadIdentification(link="c", reference=str(tmp_path / "moved.npz"), correction="samples").fit(
-            Problem(tree, data)
-        )
+    with pytest.raises(ValueError, match=r"<Samples> differs from the data by 0.2 at sample 17, joint j3"):
+        PayloadIdentification(link="c", reference=moved, correction="samples").fit(Problem(tree, data))
     with pytest.raises(
         ValueError, match=r"^payload: correction must be one of 'model', 'samples', got 'both'$"
     ):

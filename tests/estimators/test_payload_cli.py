@@ -53,7 +53,8 @@ def test_the_command_prints_and_writes_the_payload(files, run_idkit, capsys):
     assert block["mass"] == pytest.approx(MASS, rel=1e-8)
     assert block["sdk"]["ur"]["cog"] == pytest.approx(COM, abs=1e-9)
     assert '<link name="payload">' in (run / "identified.urdf").read_text()
-    back = URDFRobot(str(run / "identified.urdf"))
+    used = result["plugins"]["robot"]["options"]  # the robot as the run built it (defaults included)
+    back = URDFRobot(str(run / "identified.urdf"), friction=used["friction"], offset=used["offset"])
     assert back.nominal_params().tolist() == pytest.approx(
         list(result["payload"]["estimate"]["params"].values())
     )
@@ -161,8 +162,16 @@ def test_the_data_given_as_its_own_reference_is_refused_in_one_line(files, raw, 
     copy = files / "copy.csv"
     copy.write_bytes(data.read_bytes())
     same = files / "same_samples.npz"
+    # the robot the command fits, typed out (no default may change it): the same cut-off is chosen
     save_samples(single.load_data(URDFRobot(str(files / "arm.urdf")), data=str(data))[0], same)
-    common = ["robot=urdf", f"robot.urdf={files / 'arm.urdf'}", "estimator=payload", "estimator.link=c"]
+    common = [
+        "robot=urdf",
+        f"robot.urdf={files / 'arm.urdf'}",
+        "robot.friction=false",
+        "robot.offset=false",
+        "estimator=payload",
+        "estimator.link=c",
+    ]
     cases = {
         data: r"is the data file .*with_tool.csv \(same file\)",
         copy: r"is the data file .*with_tool.csv \(same content\)",

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import torch
 
-from idkit.data.io import save_samples
 from idkit.estimators.payload import PayloadIdentification
 from idkit.problem import Problem, Samples
 from idkit.robots.urdf import URDFRobot
@@ -64,11 +63,9 @@ def test_the_reference_recording_on_the_kuka_with_a_ten_percent_wrong_arm(kuka_d
     model = URDFRobot(str(tmp_path / "arm.urdf"))
     with_tool = pinocchio_samples(urdf, truth, recorded_motion(kuka_dir, 1), payload=True, seed=2)
     # the reference runs another motion (measurements_3's, faster): correction=model needs no replay
-    save_samples(
-        pinocchio_samples(urdf, truth, recorded_motion(kuka_dir, 3), False, 3), tmp_path / "bare.npz"
-    )
+    bare = pinocchio_samples(urdf, truth, recorded_motion(kuka_dir, 3), False, 3)
     alone = PayloadIdentification().fit(Problem(model, with_tool)).details["payload"]
-    both = PayloadIdentification(reference=str(tmp_path / "bare.npz")).fit(Problem(model, with_tool))
+    both = PayloadIdentification(reference=bare).fit(Problem(model, with_tool))
     found = both.details["payload"]
     assert abs(alone["mass"] - MASS) > 0.02 * MASS
     assert abs(found["mass"] - MASS) < 0.01 * MASS

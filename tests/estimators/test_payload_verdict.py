@@ -9,10 +9,9 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from idkit.data.io import save_samples
 from idkit.estimators.payload import PayloadIdentification, payload_block
 from idkit.estimators.payload_verdict import sdk_calls, verdict
-from idkit.problem import Problem, Samples
+from idkit.problem import Problem, Recorded, Samples
 from idkit.reports import payload as payload_report
 from idkit.robots.inertia import standard_parameters
 from idkit.robots.urdf import URDFRobot
@@ -117,8 +116,9 @@ def test_a_reference_held_still_is_no_reference_and_nothing_is_identified(tmp_pa
     pose = q[60].expand_as(q).clone()
     still = torch.zeros_like(q)
     weight = robot.inverse_dynamics(robot.nominal_params(), pose, still, still)  # the arm alone, held still
-    save_samples(Samples(pose, still, still, weight), tmp_path / "rest.npz")
-    estimate = PayloadIdentification(reference=str(tmp_path / "rest.npz")).fit(Problem(robot, data))
+    rest = str(tmp_path / "rest.npz")  # read by the study, handed over as samples
+    problem = Problem(robot, data, recordings={rest: Recorded(Samples(pose, still, still, weight))})
+    estimate = PayloadIdentification(reference=rest).fit(problem)
     block = estimate.details["payload"]
     assert block["recordings"]["reference_motion_share"] == 0.0
     assert block["verdict"]["unusable"].startswith(f"the reference {tmp_path / 'rest.npz'} cannot show")

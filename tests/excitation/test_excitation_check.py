@@ -126,6 +126,23 @@ def test_not_at_rest_and_irregular_rate_are_violations():
     assert violation.line() == "t: step 0.014 s after t = 0.49 s, expected 0.01 s (±1e-06 relative)"
 
 
+def test_time_going_backwards_is_named_by_its_sample_not_as_a_step_size():
+    trajectory = sine_trajectory(0.2)
+    t = trajectory.t.copy()
+    t[[60, 61]] = t[[61, 60]]  # two rows swapped: 0.61 s then 0.60 s
+    swapped = Trajectory(JOINTS, t, trajectory.q, trajectory.qd, trajectory.qdd)
+    found = check_trajectory(swapped, LIMITS, None, None, NotChecked("x")).violations
+    lines = [v.line() for v in found if v.subject == "t"]
+    assert lines[0] == "t: time goes backwards at sample 61: t = 0.6 s after t = 0.61 s"
+    assert lines[1].startswith("t: step 0.02 s after t = 0.59 s")  # the forward step around the swap
+    t = trajectory.t.copy()
+    t[30] = t[29]
+    repeated = Trajectory(JOINTS, t, trajectory.q, trajectory.qd, trajectory.qdd)
+    found = check_trajectory(repeated, LIMITS, None, None, NotChecked("x")).violations
+    lines = [v.line() for v in found if v.subject == "t"]
+    assert lines[0] == "t: time repeats at sample 30: t = 0.29 s after t = 0.29 s"
+
+
 def test_contacts_are_violations_with_their_first_time():
     pytest.importorskip("pinocchio")
     robot = URDFRobot(ARM_URDF)

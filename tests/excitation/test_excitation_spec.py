@@ -6,18 +6,19 @@ import pytest
 import torch
 
 from idkit.data.presets import Scenario
-from idkit.data.scenarios import shared_fields, simulate
+from idkit.data.scenarios import get_scenario, shared_fields, simulate
 from idkit.excitation.files import excitation_yaml
 from idkit.excitation.fourier import FourierExcitation
 from idkit.excitation.paper import PaperExcitation
-from idkit.excitation.spec import excitation_of, family_name
+from idkit.excitation.spec import excitation_of, family_name, scenario_excitation
 
 
 def test_a_family_name_is_its_default_member(cylindrical):
     assert torch.equal(excitation_of("paper", cylindrical).to_vector(), PaperExcitation().to_vector())
     assert excitation_of("fourier", cylindrical).n_joints == 3
     default = simulate(cylindrical, "outliers", seed=1)
-    by_name = simulate(cylindrical, {"name": "outliers", "excitation": "paper"}, seed=1)
+    named = get_scenario({"name": "outliers", "excitation": "paper"})
+    by_name = simulate(cylindrical, named, seed=1, excitation=scenario_excitation(named, cylindrical))
     assert torch.equal(default.tau, by_name.tau)  # the cylindrical robot's default is eq. (39)
 
 
@@ -37,7 +38,7 @@ def test_a_file_is_loaded_and_checked(cylindrical, tmp_path):
     unknown = tmp_path / "unknown.yaml"
     unknown.write_text("excitation: fourrier\noptions: {}\n")
     with pytest.raises(ValueError, match=f"excitation file {unknown}: unknown excitation 'fourrier'"):
-        simulate(cylindrical, "clean", excitation=unknown)
+        scenario_excitation(get_scenario("clean", excitation=str(unknown)), cylindrical)
 
 
 def test_neither_a_file_nor_a_family(cylindrical, tmp_path):
@@ -45,7 +46,7 @@ def test_neither_a_file_nor_a_family(cylindrical, tmp_path):
         ValueError,
         match="excitation 'nope.yaml': no such file, and not an excitation family \\(fourier, paper\\)",
     ):
-        simulate(cylindrical, {"name": "clean", "excitation": "nope.yaml"})
+        scenario_excitation(get_scenario({"name": "clean", "excitation": "nope.yaml"}), cylindrical)
 
 
 def test_family_name_of_an_object():

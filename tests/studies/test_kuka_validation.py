@@ -9,9 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from idkit.data.options import DataOptions
+from idkit.data.pipeline import CutoffNote, read_held_out, read_training
 from idkit.robots.urdf import URDFRobot
 from idkit.studies import single
-from idkit.studies.recordings import CutoffNote, load_files, load_training
 
 pytest.importorskip("pinocchio")
 from idkit.verify.rescore import documented_score, predicted_torques, read_identified  # noqa: E402
@@ -59,12 +60,12 @@ def test_an_automatic_cutoff_on_samples_files_with_timestamps(kuka_dir):
     cut-off is chosen on the training file, said once, and the held-out file is filtered with it."""
     robot = URDFRobot(str(kuka_dir / "kuka_lwr4.urdf"), friction=True, offset=True)
     with pytest.warns(CutoffNote, match=r"^cut-off \d+ Hz \(auto: lowest 5-fold cross-validated"):
-        training = load_training(robot, kuka_dir / "measurements_1.npz", {"apply": "on"})
+        training = read_training(robot, kuka_dir / "measurements_1.npz", DataOptions.of({"apply": "on"}))
     choice = training.cutoff
     assert choice is not None and len(choice.scores) == 8 and choice.band == 6.0
     assert choice.scores[choice.cutoff] == min(choice.scores.values())
-    assert training.preprocess["cutoff"] == choice.cutoff and training.files[0].preprocessed
-    held = load_files(robot, kuka_dir / "measurements_3.npz", training.preprocess, "validate")
+    assert training.options.preprocess.cutoff == choice.cutoff and training.files[0].preprocessed
+    held = read_held_out(robot, kuka_dir / "measurements_3.npz", training)
     trim = int(np.ceil(3 / choice.cutoff * 199.0))
     assert held[0].preprocessed and held[0].samples.n_samples >= 5027 - 2 * trim - 10
 

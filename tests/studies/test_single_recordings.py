@@ -18,12 +18,13 @@ from omegaconf import OmegaConf
 
 from idkit.cli.app import setup
 from idkit.cli.tasks import arguments
-from idkit.data.preprocess import GapWarning, PreprocessOptions
+from idkit.data.options import DataOptions, Preprocessing
+from idkit.data.pipeline import DelayWarning
+from idkit.data.preprocess import GapWarning
 from idkit.estimators.linear.observation import IdentificationError
 from idkit.reports import single as report
 from idkit.robots.urdf import URDFRobot
 from idkit.studies import single
-from idkit.studies.recordings import DelayWarning, preprocess_options
 
 ASSET = Path(__file__).resolve().parents[2] / "idkit" / "robots" / "assets" / "cylindrical.urdf"
 RATE = 200.0
@@ -218,17 +219,30 @@ def test_the_preprocess_group_is_the_options_dataclass(files):
         }
     GlobalHydra.instance().clear()
     for name, node in groups.items():
-        options, apply = preprocess_options(node)
-        assert (options, apply) == (PreprocessOptions(cutoff="auto"), name)
+        assert DataOptions.of(node).preprocess == Preprocessing(apply=name)
+        checked = arguments("single", {"preprocess": node}, single.run)["preprocess"]
+        assert checked == Preprocessing(apply=name)
 
 
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
         (["preprocess.cutoff=150"], r"cutoff 150 Hz is not below the Nyquist frequency 100 Hz"),
-        (["preprocess.cutoff=soon"], r"^preprocess\.cutoff must be 'auto' or a number of Hz, got 'soon'$"),
+        (["preprocess.cutoff=soon"], r"^setting 'preprocess\.cutoff' must be a float or 'auto', got 'soon'"),
         (["preprocess=off"], r"train\.csv: a raw recording \(no accelerations qdd\); preprocess it"),
         (["preprocess.cutof=5"], None),  # Hydra refuses the unknown key itself
+        (
+            ["+preprocess.velocitiez=measured"],
+            r"^preprocess has no option 'velocitiez'; its options \(closest",
+        ),
+        (["preprocess.trim=-1"], r"^preprocess\.trim must be seconds >= 0, or null \(3 / cutoff\), got -1"),
+        (["preprocess.decimate=0"], r"^preprocess\.decimate must be a whole number >= 1, got 0$"),
+        (["preprocess.max_gap=0.5"], r"^preprocess\.max_gap must be a number of median steps > 1, got 0\.5$"),
+        (["preprocess.apply=sometimes"], r"^setting 'preprocess\.apply' must be 'auto' or 'on' or 'off'"),
+        (
+            ["+recording.topics=/joint_states"],
+            r"^recording has no option 'topics'; its options \(closest first\): topic",
+        ),
     ],
 )
 def test_bad_preprocessing_is_one_clear_line(files, tmp_path, overrides, message):
@@ -242,6 +256,18 @@ def test_bad_preprocessing_is_one_clear_line(files, tmp_path, overrides, message
     with pytest.raises(ValueError, match=message) as caught:
         command(*args, out=tmp_path)
     assert "\n" not in str(caught.value)
+
+
+def test_a_typo_in_a_section_from_python_is_named_as_that_key(files):
+    """``idkit.run(preprocess={...})`` is checked as the command line checks it: a misspelt option is
+    refused as that key, with the options closest first — not reported later as whatever it changed."""
+    robot = {"_name_": "urdf", "urdf": str(files["urdf"])}
+    with pytest.raises(
+        ValueError, match=r"^preprocess has no option 'velocitiez'; its options \(closest first\): velocities"
+    ):
+        single.run(robot, "ls", None, data=str(files["train"]), preprocess={"velocitiez": "measured"})
+    with pytest.raises(ValueError, match=r"^setting 'recording\.delay' must be a float or 'auto'"):
+        single.run(robot, "ls", None, data=str(files["train"]), recording={"delay": "late"})
 
 
 def test_recording_with_other_joints_is_named(files, tmp_path):
@@ -547,6 +573,33 @@ def test_a_bag_gives_the_estimate_of_the_csv_of_the_same_samples(files, tmp_path
         assert data["data"]["logs"][str(path)]["ignored_topics"] == ["/status"]
 
 
+def test_epoch_stamps_of_a_bag_and_of_a_csv_give_one_estimate_to_1e_9(files, tmp_path):
+    """Nanosecond stamps since the epoch, jittered by up to 0.2 ms (as a real logger's): as float64
+    seconds they keep ~0.2 µs, which moved an estimate by ~1e-4. Subtracting the first stamp exactly
+    (integers in the bag, decimal text in the CSV) leaves the bag, its storage file and the CSV of
+    the same samples one estimate."""
+    pytest.importorskip("rosbags")
+    from bag_cases import Stream, storage_file, write_ros2
+
+    table = np.loadtxt(files["train"], delimiter=",", skiprows=1)
+    jitter = np.random.default_rng(5).integers(0, 200_000, table.shape[0])
+    stamps = 1_700_000_000_123_456_789 + np.round(table[:, 0] * 1e9).astype(np.int64) + jitter
+    stream = Stream("/joint_states", stamps, ["theta1", "d2", "d3"], table[:, 1:4], None, table[:, 4:7])
+    bag = write_ros2(tmp_path / "bag", [stream])
+    csv = tmp_path / "epoch.csv"
+    lines = ["t,q1,q2,q3,tau1,tau2,tau3"] + [
+        f"{s // 10**9}.{s % 10**9:09d}," + ",".join(f"{v:.17g}" for v in row[1:])
+        for s, row in zip(stamps.tolist(), table, strict=True)
+    ]
+    csv.write_text("\n".join(lines) + "\n")
+    quiet = ["estimator=ls", "~cost", "plots=false", "identified_urdf=false", "preprocess.cutoff=5"]
+    reference, _ = command(*robot_args(files), f"data={csv}", *quiet, out=tmp_path / "csv")
+    for name, path in (("folder", bag), ("file", storage_file(bag))):
+        result, _ = command(*robot_args(files), f"data={path}", *quiet, out=tmp_path / name)
+        for key, value in reference.estimate.params.items():
+            assert result.estimate.params[key] == pytest.approx(value, rel=1e-9, abs=1e-12), (name, key)
+
+
 def test_a_bag_without_a_robot_joint_is_one_line_naming_it(files, tmp_path, monkeypatch, capsys):
     pytest.importorskip("rosbags")
     bag = bag_of(files["train"], tmp_path / "bag", drop="d2")
@@ -626,5 +679,69 @@ def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
     floor = error(command(*robot_args(files), f"data={aligned}", *quiet, out=tmp_path / "e")[0])
     assert error(given) < 1.1 * floor and error(ignored) > 5 * floor
     assert error(found) < 1.1 * floor + error(ignored) / 40
-    with pytest.raises(ValueError, match=r"recording\.delay must be 'auto' or seconds, got 'soon'"):
+    with pytest.raises(ValueError, match=r"setting 'recording\.delay' must be a float or 'auto', got 'soon'"):
         command(*robot_args(files), f"data={late}", "recording.delay=soon", *quiet, out=tmp_path / "d")
+
+
+def test_a_current_recording_with_its_effort_scale_is_the_recording_in_newton_metres(files, tmp_path):
+    """``robot.effort_scale`` applies to every torque idkit reads — the training file, the held-out one
+    (their measured torques, scored and plotted), the automatic cut-off's choice: motor currents with
+    their scale give the model and the held-out figures of the same recordings converted to N·m first
+    (held-out ‖E‖/‖T‖ was ~900 % when the held-out currents went unscaled)."""
+    scale = np.array([20.0, 50.0, 35.0])  # joint torque (N·m, N) per ampere
+
+    def in_amperes(path: Path) -> Path:
+        header = path.read_text().splitlines()[0]
+        table = np.loadtxt(path, delimiter=",", skiprows=1)
+        table[:, 4:7] /= scale
+        out = tmp_path / f"amperes_{path.name}"
+        np.savetxt(out, table, delimiter=",", header=header, comments="", fmt="%.17g")
+        return out
+
+    quiet = ["estimator=ls", "~cost", "plots=false", "identified_urdf=false"]
+    newton, newton_json = command(
+        *robot_args(files),
+        f"data={files['train']}",
+        f"validate=[{files['test']}]",
+        *quiet,
+        out=tmp_path / "nm",
+    )
+    amperes, amperes_json = command(
+        *robot_args(files),
+        "robot.effort_scale=[20,50,35]",
+        f"data={in_amperes(files['train'])}",
+        f"validate=[{in_amperes(files['test'])}]",
+        *quiet,
+        out=tmp_path / "a",
+    )
+    robot = URDFRobot(str(ASSET), friction=True, offset=True)
+    _, q, qd, qdd = (torch.from_numpy(x) for x in motion(10.0, 0.3, 2))
+    predicted = [
+        robot.inverse_dynamics(
+            torch.tensor([r.estimate.params[p] for p in robot.param_names], dtype=torch.float64), q, qd, qdd
+        )
+        for r in (newton, amperes)
+    ]
+    torch.testing.assert_close(
+        predicted[1], predicted[0], rtol=1e-6, atol=1e-6 * float(predicted[0].abs().max())
+    )
+    held = [r.validation[0].scores for r in (newton, amperes)]
+    np.testing.assert_allclose(held[1].measured, held[0].measured, rtol=1e-12)  # what the plot shows
+    scores = [
+        j["payload"]["validation"][str(p)]
+        for j, p in ((newton_json, files["test"]), (amperes_json, tmp_path / "amperes_test.csv"))
+    ]
+    for key in ("rel_all", "rel_all_raw", "rms", "relative"):
+        np.testing.assert_allclose(scores[1][key], scores[0][key], rtol=1e-6, err_msg=key)
+    assert scores[0]["rel_all"] < 0.01
+    assert (
+        "torques: efforts as logged (e.g. motor currents), times robot.effort_scale per joint [20, 50, 35] → "
+        "fitted and scored in joint torque (N·m; N on a prismatic joint)"
+    ) in report.text(amperes).splitlines()
+    assert "torques:" not in report.text(newton)
+    torques = amperes_json["data"]["torques"]
+    assert torques["effort_scale"] == [20.0, 50.0, 35.0] and torques["fitted"].startswith("joint torque (N·m")
+    assert (
+        "effort_scale" in torques["recorded"]
+        and newton_json["data"]["torques"]["recorded"] == torques["fitted"]
+    )

@@ -22,11 +22,12 @@ from omegaconf import OmegaConf
 
 from idkit.cli.app import setup
 from idkit.cli.tasks import TASKS, arguments
-from idkit.data.scenarios import simulate, simulate_batch
+from idkit.data.scenarios import get_scenario, simulate, simulate_batch
 from idkit.excitation.criterion import NoiseModel, excitation_criterion
 from idkit.excitation.effort import default_acceleration_limits
 from idkit.excitation.export import controller_times, read_trajectory
 from idkit.excitation.files import load_excitation
+from idkit.excitation.spec import scenario_excitation
 from idkit.problem import Problem
 from idkit.registry import create
 from idkit.reports import excitation as report
@@ -135,12 +136,15 @@ def test_the_exported_samples_are_the_motion_at_1khz_at_rest_within_eq38(written
 def test_a_scenario_on_the_file_equals_the_scenario_on_the_object(written, name):
     result, files = written
     robot = CylindricalRobot()
-    from_file = simulate(robot, {"name": name, "excitation": files["excitation"]}, seed=4)
+    scenario = get_scenario({"name": name, "excitation": files["excitation"]})
+    from_file = simulate(robot, scenario, seed=4, excitation=scenario_excitation(scenario, robot))
     from_object = simulate(robot, name, seed=4, excitation=result.result.excitation)
     for key in ("q", "qd", "qdd", "tau"):
         assert torch.equal(getattr(from_file, key), getattr(from_object, key))
-    batch = simulate_batch(robot, name, trials=2, seed=4, excitation=files["excitation"])
-    assert batch.scenario.excitation == files["excitation"] and torch.equal(batch[0].tau, from_file.tau)
+    with pytest.raises(
+        ValueError, match=f"^scenario '{name}' names the excitation '.*excitation.yaml': give the"
+    ):
+        simulate(robot, scenario, seed=4)  # data reads no excitation file: the motion is given
 
 
 def test_robustness_and_paper_run_every_scenario_on_the_file(written):

@@ -117,7 +117,8 @@ def test_measured_data_have_no_truth(tmp_path, cylindrical):
     result = idkit.run(estimator="ls", cost=None, data=path, out_dir=tmp_path / "run")
     data = json.loads((tmp_path / "run" / "result.json").read_text())
     assert data["payload"]["truth"] is None and data["payload"]["relative_error"] is None
-    assert data["data"] == {"file": str(path)}
+    joint_torque = "joint torque (N·m; N on a prismatic joint)"
+    assert data["data"] == {"file": str(path), "torques": {"recorded": joint_torque, "fitted": joint_torque}}
     same = idkit.run(estimator="ls", cost=None, scenario="torque_noise", seed=1)
     assert result.estimate.params == pytest.approx(same.estimate.params, rel=1e-12)
 
