@@ -30,13 +30,14 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/tour_cases.py
 
+from idkit.data.options import DataOptions
+from idkit.data.pipeline import read_training  # noqa: E402
 from idkit.data.recording import save_recording  # noqa: E402
 from idkit.estimators.linear.least_squares import LeastSquares  # noqa: E402
 from idkit.estimators.linear.uncertainty import base_uncertainty  # noqa: E402
 from idkit.estimators.physical import PhysicallyConsistentLS  # noqa: E402
 from idkit.estimators.varpro import VariableProjection  # noqa: E402
 from idkit.problem import Problem  # noqa: E402
-from idkit.studies.recordings import load_training  # noqa: E402
 from tests import tour_cases  # noqa: E402
 
 Z95 = 1.959964
@@ -96,7 +97,7 @@ def main() -> None:
     for _ in range(args.draws):
         path = folder / "train.csv"
         save_recording(tour_cases.noisy_recording(arm, arm_params, motion, rng), path)
-        training = load_training(arm, str(path)).files[0]
+        training = read_training(arm, str(path), DataOptions.of()).files[0]
         samples = training.samples
         problem = Problem(arm, samples)
         Y = arm.regressor(samples.q, samples.qd, samples.qdd).numpy()
@@ -119,7 +120,7 @@ def main() -> None:
             record(method, fit.base_params, named(std), arm_truth, time.perf_counter() - start)
         amps = 1 / np.array(tour_cases.DRIVE_SCALE)
         save_recording(tour_cases.noisy_recording(drive, drive_params, motion, rng, amps), path)
-        samples = load_training(drive, str(path)).files[0].samples
+        samples = read_training(drive, str(path), DataOptions.of()).files[0].samples
         fit = VariableProjection().fit(Problem(drive, samples))
         values = {**fit.params, **fit.base_params}
         record(

@@ -9,12 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from idkit.data.options import DataOptions
+from idkit.data.pipeline import read_training
 from idkit.data.recording import save_recording
 from idkit.estimators.linear.least_squares import LeastSquares
 from idkit.estimators.physical import PhysicallyConsistentLS
 from idkit.estimators.varpro import VariableProjection
 from idkit.problem import Problem
-from idkit.studies.recordings import load_training
 from tests.tour_cases import (
     DRIVE_SCALE,
     DRIVE_TRUTH,
@@ -70,7 +71,7 @@ def test_95_percent_intervals_cover_the_truth_on_the_tours_recording(tour, tmp_p
         save_recording(noisy_recording(robot, params, motion, rng), path)
         with warnings.catch_warnings():  # the chosen cut-off and prior weight are notes
             warnings.simplefilter("ignore", UserWarning)
-            problem = Problem(robot, load_training(robot, str(path)).files[0].samples)
+            problem = Problem(robot, read_training(robot, str(path), DataOptions.of()).files[0].samples)
             fits = {"pcls": PhysicallyConsistentLS().fit(problem), "ls": LeastSquares().fit(problem)}
         for name, fit in fits.items():
             estimate = np.array([fit.base_params[n] for n in robot.base_param_names])
@@ -104,7 +105,9 @@ def test_95_percent_intervals_of_the_drive_cover_the_truth_shapes_included(tour,
         save_recording(noisy_recording(robot, params, motion, rng, 1 / np.array(DRIVE_SCALE)), path)
         with warnings.catch_warnings():  # the cut-off note; theta1's shape at its bound (phi1 = 0)
             warnings.simplefilter("ignore", UserWarning)
-            fit = VariableProjection().fit(Problem(robot, load_training(robot, str(path)).files[0].samples))
+            fit = VariableProjection().fit(
+                Problem(robot, read_training(robot, str(path), DataOptions.of()).files[0].samples)
+            )
         values = {**fit.params, **fit.base_params}
         for name, std in fit.details["uncertainty"]["std"].items():
             z.setdefault(name, []).append((values[name] - truth[name]) / std)
