@@ -25,10 +25,11 @@ $(STAMP): pyproject.toml plugins/idkit-robust/pyproject.toml constraints.txt
 	touch $@
 	@echo "idkit is installed in $(VENV); to put the idkit command on PATH: . $(VENV)/bin/activate"
 
-# The peers the benchmarks measure (JAX + evosax, pyswarms: ~0.7 GB) only when benchmarking.
+# The peers the benchmarks measure (JAX + evosax, pyswarms, FIGAROH and its solvers) only when benchmarking,
+# at the versions in constraints.txt where it has them.
 BENCH_STAMP := $(VENV)/.bench-installed
 $(BENCH_STAMP): $(STAMP)
-	$(VENV)/bin/python -m pip install -q -e ".[bench]"
+	$(PIP) -e ".[bench]"
 	touch $@
 
 paper: $(STAMP)
@@ -52,6 +53,8 @@ docs: $(STAMP)
 bench: $(BENCH_STAMP)
 	$(VENV)/bin/python bench/estimators.py
 	$(VENV)/bin/python bench/rnea.py
+	$(VENV)/bin/python bench/pcls_figaroh.py
+	$(VENV)/bin/python bench/pcls_command.py
 
 lock:
 	PYTHON=$(PYTHON) .ci/lock $(EXTRAS)
