@@ -1,6 +1,7 @@
 """The whole real-robot command, end to end: ``prior_weight=auto`` (the default) against a fixed weight.
 
-Run: ``python bench/pcls_command.py [--repeats 3] [--only kuka|ur5e]``. Prints one Markdown table.
+Run: ``python bench/pcls_command.py [--repeats 3] [--only kuka|ur5e] [--levers]``. Prints one Markdown
+table.
 
 The budget of issue 24 is "the whole default command on a 6–7 joint arm with a few thousand samples
 in ≤ 2× (fixed-weight fit + start-up)"; the fixed-weight command is exactly that (start-up, loading,
@@ -15,9 +16,11 @@ alternately; wall time and the child's CPU time (user + system), medians. Two ar
   (:func:`simulated_recordings`): 3,000 samples at 200 Hz for training and two other trajectories
   for validation, so the command also chooses the filter cut-off (``preprocess.cutoff=auto``).
 
-The chosen prior weight and the held-out ``‖E‖/‖T‖`` of each command are printed beside the times
-(same choice quality). The load average is printed before and after: on a shared machine wall times
-move with it, CPU times much less.
+``--levers`` adds what the rest of the command costs: the fixed-weight command with ``plots=false``, and
+for raw recordings also with ``preprocess.cutoff=`` given (the value the default chose), so the
+cut-off is not cross-validated. The chosen prior weight and the held-out ``‖E‖/‖T‖`` of each command
+are printed beside the times (same choice quality). The load average is printed before and after: on
+a shared machine wall times move with it, CPU times much less.
 """
 
 from __future__ import annotations
@@ -202,32 +205,52 @@ def run_command(arguments: list[str], folder: Path) -> tuple[float, float, dict]
     return wall, cpu, json.loads((folder / "result.json").read_text())
 
 
-def timings(arguments: list[str], repeats: int, folder: Path) -> tuple[Timing, Timing]:
-    """The default command and the fixed-weight one, ``repeats`` times each, alternately."""
-    runs: dict[bool, Timing] = {}
+def variants(result: dict, levers: bool) -> dict[str, list[str]]:
+    """The commands beside the default (label → extra arguments), given the default's ``result.json``:
+    the fixed weight and, with ``levers``, the fixed weight without plots and, for a raw recording,
+    also with the cut-off the default chose given (so not cross-validated)."""
+    out = {"prior_weight=300": list(FIXED)}
+    if levers:
+        out["prior_weight=300 plots=false"] = [*FIXED, "plots=false"]
+        cutoff = (result.get("data", {}).get("preprocess") or {}).get("cutoff_choice")
+        if cutoff:
+            given = f"preprocess.cutoff={cutoff['cutoff']:g}"
+            out[f"prior_weight=300 plots=false {given}"] = [*FIXED, "plots=false", given]
+    return out
+
+
+def timings(arguments: list[str], repeats: int, folder: Path, levers: bool) -> dict[str, Timing]:
+    """The default command and the others (:func:`variants`, known once the default has run),
+    ``repeats`` rounds of each, alternately."""
+    runs: dict[str, Timing] = {}
+    commands: dict[str, list[str]] = {"default (auto)": []}
     for k in range(repeats):
-        for fixed in (False, True):
-            extra = list(FIXED) if fixed else []
-            wall, cpu, result = run_command(arguments + extra, folder / f"{'fixed' if fixed else 'auto'}-{k}")
-            payload = result["payload"]
-            timing = runs.setdefault(
-                fixed,
-                Timing(
-                    [],
-                    [],
-                    payload["estimate"]["details"]["prior_weight"],
-                    [100 * v["rel_all"] for v in payload["validation"].values()],
-                ),
-            )
-            timing.wall.append(wall)
-            timing.cpu.append(cpu)
-    return runs[False], runs[True]
+        n = 0
+        while n < len(commands):  # the first default run adds the variants to this very round
+            label, extra = list(commands.items())[n]
+            wall, cpu, result = run_command(arguments + extra, folder / f"{n}-{k}")
+            if label not in runs:
+                payload = result["payload"]
+                weight = payload["estimate"]["details"]["prior_weight"]
+                held_out = [100 * v["rel_all"] for v in payload["validation"].values()]
+                runs[label] = Timing([], [], weight, held_out)
+                if n == 0:
+                    commands.update(variants(result, levers))
+            runs[label].wall.append(wall)
+            runs[label].cpu.append(cpu)
+            n += 1
+    return runs
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3, help="runs of each command (median)")
     parser.add_argument("--only", choices=("kuka", "ur5e"), help="one arm only")
+    parser.add_argument(
+        "--levers",
+        action="store_true",
+        help="also time the fixed weight without plots, then with the cut-off given",
+    )
     args = parser.parse_args()
     load_before = os.getloadavg()
     rows = []
@@ -250,10 +273,12 @@ def main() -> None:
                 f"validate=[{held[0]},{held[1]}]",
             ]
         for k, (arm, arguments) in enumerate(arms.items()):
-            auto, fixed = timings(arguments, args.repeats, folder / f"arm{k}")
+            runs = timings(arguments, args.repeats, folder / f"arm{k}", args.levers)
+            auto = runs["default (auto)"]
+            fixed = runs["prior_weight=300"]
             ratio = statistics.median(auto.wall) / statistics.median(fixed.wall)
             cpu_ratio = statistics.median(auto.cpu) / statistics.median(fixed.cpu)
-            for label, timing in (("default (auto)", auto), ("prior_weight=300", fixed)):
+            for label, timing in runs.items():
                 rows.append(
                     f"| {arm} | {label} | {statistics.median(timing.wall):.1f} ({min(timing.wall):.1f}) | "
                     f"{statistics.median(timing.cpu):.1f} | {timing.weight:g} | "
