@@ -29,7 +29,9 @@ Each fit is scored by the figure the command prints (:func:`idkit.studies.valida
 read back by pinocchio, its RNEA plus friction and offsets on the held-out files' own states
 (:mod:`idkit.verify.rescore`, the npz read with numpy). "PSD" is checked on pinocchio's inertias of that
 file. Times: wall and CPU (this process) of the fit, median of ``repeats`` calls after one warm-up,
-everything on one thread; the load average is printed before and after.
+everything on one thread; the load average is printed before and after. ``--sweep`` adds a table of
+both priors at matched weights (idkit's ``w`` of :data:`SWEEP`), held-out figures only: the shapes of
+the two priors differ (entropic divergence of the pseudo-inertias vs a per-coordinate quadratic).
 """
 
 from __future__ import annotations
@@ -64,6 +66,8 @@ from idkit.verify.rescore import documented_score, predicted_torques, read_ident
 KUKA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kuka-lwr4"
 HELD_OUT = ("measurements_3.npz", "measurements_2.npz")
 FIXED_WEIGHT = 300.0
+#: idkit prior weights of ``--sweep`` (FIGAROH's matched by :func:`figaroh_weight`).
+SWEEP = (100.0, 300.0, 1000.0, 3000.0)
 #: idkit's parameter key → FIGAROH's (``<key>_<joint>``); inertia keys are the same.
 FIGAROH_KEYS = {"mcx": "mx", "mcy": "my", "mcz": "mz", "fc": "fs", "offset": "off"}
 #: FIGAROH's ``physical_fit`` defaults (``figaroh.identification.config.PHYSICAL_FIT_DEFAULTS``) with the
@@ -194,19 +198,28 @@ def rescored(robot: URDFRobot, params: np.ndarray, folder: Path) -> tuple[list[f
     return scores, float(min(eigen))
 
 
-def row(fit: Fit, robot: URDFRobot, held: list[DataFile], folder: Path) -> str:
-    vector = torch.from_numpy(fit.params)
-    ours = [100 * validate_file(robot, vector, h).rel_all for h in held]
-    again, eigen = rescored(robot, fit.params, folder)
+def held_out(robot: URDFRobot, params: np.ndarray, held: list[DataFile]) -> list[float]:
+    """The command's held-out ``‖E‖/‖T‖`` (%) of standard ``params`` on each held-out file."""
+    return [100 * validate_file(robot, torch.from_numpy(params), h).rel_all for h in held]
+
+
+def mass_ratios(robot: URDFRobot, params: np.ndarray) -> str:
+    """The smallest and largest link mass over its CAD mass."""
     masses = [robot.param_names.index(f"{link}.m") for link in robot.link_names]
-    ratio = fit.params[masses] / robot.nominal_params().numpy()[masses]
+    ratio = params[masses] / robot.nominal_params().numpy()[masses]
+    return f"{ratio.min():.2f}–{ratio.max():.2f}"
+
+
+def row(fit: Fit, robot: URDFRobot, held: list[DataFile], folder: Path) -> str:
+    again, eigen = rescored(robot, fit.params, folder)
+    ours = held_out(robot, fit.params, held)
     cells = [
         fit.label,
         f"{statistics.median(fit.wall):.2f} ({min(fit.wall):.2f})",
         f"{statistics.median(fit.cpu):.2f}",
         *(f"{a:.2f} % / {100 * b:.2f} %" for a, b in zip(ours, again, strict=True)),
         f"{'yes' if eigen >= 0 else 'no'} ({eigen:.1e})",
-        f"{ratio.min():.2f}–{ratio.max():.2f}",
+        mass_ratios(robot, fit.params),
         fit.note,
     ]
     return "| " + " | ".join(cells) + " |"
@@ -215,6 +228,9 @@ def row(fit: Fit, robot: URDFRobot, held: list[DataFile], folder: Path) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3, help="timed fits per method (median)")
+    parser.add_argument(
+        "--sweep", action="store_true", help="also both priors at matched weights 100–3000 (held-out only)"
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
     load_before = os.getloadavg()
@@ -281,6 +297,22 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         for fit in fits:
             print(row(fit, robot, held, Path(folder)), flush=True)
+        if args.sweep:
+            print(
+                "\n| prior weight (idkit w / FIGAROH λ) | idkit pcls: m3 / m2 | mass / CAD "
+                "| FIGAROH physical_fit: m3 / m2 | mass / CAD |"
+            )
+            print("|---|---:|---:|---:|---:|")
+            for w in SWEEP:
+                cells = [f"{w:g} / {figaroh_weight(w, scale2):.3g}"]
+                for fit in (
+                    pcls_fit(problem, prior_weight=w),
+                    figaroh_fit(robot, Y_rows, tau_rows, figaroh_weight(w, scale2), None),
+                ):
+                    params = fit()[0]
+                    cells += [" / ".join(f"{x:.2f} %" for x in held_out(robot, params, held))]
+                    cells += [mass_ratios(robot, params)]
+                print("| " + " | ".join(cells) + " |", flush=True)
     load_after = os.getloadavg()
     shown = [" ".join(f"{x:.2f}" for x in load) for load in (load_before, load_after)]
     print(
