@@ -55,7 +55,9 @@ import torch  # noqa: E402
 from idkit import registry  # noqa: E402
 from idkit.data.load import DataFile  # noqa: E402
 from idkit.data.recording import stack_samples  # noqa: E402
+from idkit.estimate import Estimate  # noqa: E402
 from idkit.estimators.physical import PhysicallyConsistentLS  # noqa: E402
+from idkit.model import IdentifiedModel  # noqa: E402
 from idkit.problem import Problem  # noqa: E402
 from idkit.robots.urdf import URDFRobot  # noqa: E402
 from idkit.robots.urdf_export import write_identified_urdf  # noqa: E402
@@ -200,7 +202,9 @@ def rescored(robot: URDFRobot, params: np.ndarray, folder: Path) -> tuple[list[f
 
 def held_out(robot: URDFRobot, params: np.ndarray, held: list[DataFile]) -> list[float]:
     """The command's held-out ``‖E‖/‖T‖`` (%) of standard ``params`` on each held-out file."""
-    return [100 * validate_file(robot, torch.from_numpy(params), h).rel_all for h in held]
+    estimate = Estimate("bench", dict(zip(robot.param_names, params.tolist(), strict=True)), None, 0.0)
+    model = IdentifiedModel(robot, estimate)
+    return [100 * validate_file(model, h).rel_all for h in held]
 
 
 def mass_ratios(robot: URDFRobot, params: np.ndarray) -> str:
