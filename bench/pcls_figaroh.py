@@ -9,7 +9,8 @@ exactly as the short command ``idkit robot=urdf robot.urdf=kuka_lwr4.urdf data=m
 — with Coulomb + viscous friction and an offset per joint:
 
 * idkit ``pcls`` with ``prior_weight=auto`` (the command's default), at the fixed weight 300, and with
-  ``plausible=true`` (every link mass within [0.5, 2] × CAD; the alternative the command also fits);
+  ``plausible=true`` (every link mass within [0.5, 2] × CAD and inside its geometry's bounding
+  ellipsoid; the alternative the command also fits when a link is flagged);
 * FIGAROH 1.0.2's direct LMI effort fit (``figaroh.identification.physical_fit``) as its
   ``select_stage: physical_fit`` runs it (:func:`figaroh.identification.selection.run_physical_fit`:
   ``build_problem`` on the standard regressor, the CAD vector as prior, cvxopt, then the configured
