@@ -152,7 +152,8 @@ def simulated_recordings(folder: Path, seed: int = 0) -> tuple[Path, list[Path]]
     import torch
 
     from idkit import registry
-    from idkit.data.recording import Recording, save_recording
+    from idkit.data.raw import Recording
+    from idkit.data.recording import save_recording
 
     model = folder / "ur5e.xml"
     model.write_text(UR5E_MJCF, encoding="utf-8")

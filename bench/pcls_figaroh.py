@@ -5,7 +5,7 @@ and the KUKA files in ``../shared/data/kuka-lwr4``). Prints one Markdown table.
 
 Every method fits the same training samples — ``measurements_1`` loaded and preprocessed by idkit
 exactly as the short command ``idkit robot=urdf robot.urdf=kuka_lwr4.urdf data=measurements_1.npz
-'validate=[measurements_3.npz,measurements_2.npz]'`` loads it (:func:`idkit.studies.recordings.load_training`)
+'validate=[measurements_3.npz,measurements_2.npz]'`` loads it (:func:`idkit.data.pipeline.read_training`)
 — with Coulomb + viscous friction and an offset per joint:
 
 * idkit ``pcls`` with ``prior_weight=auto`` (the command's default), at the fixed weight 300, and with
@@ -55,14 +55,14 @@ import torch  # noqa: E402
 
 from idkit import registry  # noqa: E402
 from idkit.data.load import DataFile  # noqa: E402
-from idkit.data.recording import stack_samples  # noqa: E402
+from idkit.data.options import DataOptions  # noqa: E402
+from idkit.data.pipeline import read_held_out, read_training  # noqa: E402
 from idkit.estimate import Estimate  # noqa: E402
 from idkit.estimators.physical import PhysicallyConsistentLS  # noqa: E402
 from idkit.model import IdentifiedModel  # noqa: E402
 from idkit.problem import Problem  # noqa: E402
 from idkit.robots.urdf import URDFRobot  # noqa: E402
 from idkit.robots.urdf_export import write_identified_urdf  # noqa: E402
-from idkit.studies.recordings import load_files, load_training  # noqa: E402
 from idkit.studies.validation import validate_file  # noqa: E402
 from idkit.verify.rescore import documented_score, predicted_torques, read_identified  # noqa: E402
 
@@ -240,9 +240,9 @@ def main() -> None:
     torch.set_num_threads(1)
     load_before = os.getloadavg()
     robot = registry.create("robot", "urdf", urdf=str(KUKA / "kuka_lwr4.urdf"), friction=True, offset=True)
-    training = load_training(robot, str(KUKA / "measurements_1.npz"))
-    samples = stack_samples([f.samples for f in training.files], [f.path for f in training.files])
-    held = load_files(robot, [str(KUKA / name) for name in HELD_OUT], training.preprocess, role="validate")
+    training = read_training(robot, str(KUKA / "measurements_1.npz"), DataOptions.of())
+    samples = training.samples()
+    held = read_held_out(robot, [str(KUKA / name) for name in HELD_OUT], training)
     problem = Problem(robot, samples, None)
 
     started = time.perf_counter()
