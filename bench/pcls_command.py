@@ -16,9 +16,10 @@ alternately; wall time and the child's CPU time (user + system), medians. Two ar
   (:func:`simulated_recordings`): 3,000 samples at 200 Hz for training and two other trajectories
   for validation, so the command also chooses the filter cut-off (``preprocess.cutoff=auto``).
 
-``--levers`` adds what the rest of the command costs: the fixed-weight command with ``plots=false``, and
-for raw recordings also with ``preprocess.cutoff=`` given (the value the default chose), so the
-cut-off is not cross-validated. The chosen prior weight and the held-out ``‖E‖/‖T‖`` of each command
+``--levers`` adds what the rest of the command costs: both commands with ``OMP_NUM_THREADS=1`` (one
+torch and BLAS thread), the fixed-weight command with ``plots=false``, and for raw recordings also
+with ``preprocess.cutoff=`` given (the value the default chose), so the cut-off is not
+cross-validated. The chosen prior weight and the held-out ``‖E‖/‖T‖`` of each command
 are printed beside the times (same choice quality). The load average is printed before and after: on
 a shared machine wall times move with it, CPU times much less.
 """
@@ -192,12 +193,13 @@ class Timing:
     held_out: list[float]
 
 
-def run_command(arguments: list[str], folder: Path) -> tuple[float, float, dict]:
-    """Run ``idkit`` with ``arguments`` into the new run folder ``folder``: (wall s, CPU s, result.json)."""
+def run_command(arguments: list[str], folder: Path, env: dict[str, str]) -> tuple[float, float, dict]:
+    """Run ``idkit`` with ``arguments`` (and ``env`` added to the environment) into the new run folder
+    ``folder``: (wall s, CPU s, result.json)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
     command = [str(IDKIT), *arguments, f"hydra.run.dir={folder}"]
-    done = subprocess.run(command, capture_output=True, text=True)
+    done = subprocess.run(command, capture_output=True, text=True, env={**os.environ, **env})
     wall = time.perf_counter() - started
     if done.returncode:
         raise RuntimeError(f"{' '.join(command)} failed:\n{done.stderr[-2000:]}")
@@ -206,17 +208,25 @@ def run_command(arguments: list[str], folder: Path) -> tuple[float, float, dict]
     return wall, cpu, json.loads((folder / "result.json").read_text())
 
 
-def variants(result: dict, levers: bool) -> dict[str, list[str]]:
-    """The commands beside the default (label → extra arguments), given the default's ``result.json``:
-    the fixed weight and, with ``levers``, the fixed weight without plots and, for a raw recording,
-    also with the cut-off the default chose given (so not cross-validated)."""
-    out = {"prior_weight=300": list(FIXED)}
+#: A command beside the default: its extra arguments and environment.
+Command = tuple[list[str], dict[str, str]]
+ONE_THREAD = {"OMP_NUM_THREADS": "1"}
+
+
+def variants(result: dict, levers: bool) -> dict[str, Command]:
+    """The commands beside the default (label → extra arguments and environment), given the default's
+    ``result.json``: the fixed weight and, with ``levers``, both on one thread (``OMP_NUM_THREADS=1``:
+    torch's intra-op pool, BLAS), the fixed weight without plots and, for a raw recording, also with
+    the cut-off the default chose given (so not cross-validated)."""
+    out: dict[str, Command] = {"prior_weight=300": (list(FIXED), {})}
     if levers:
-        out["prior_weight=300 plots=false"] = [*FIXED, "plots=false"]
+        out["default, OMP_NUM_THREADS=1"] = ([], ONE_THREAD)
+        out["prior_weight=300, OMP_NUM_THREADS=1"] = (list(FIXED), ONE_THREAD)
+        out["prior_weight=300 plots=false"] = ([*FIXED, "plots=false"], {})
         cutoff = (result.get("data", {}).get("preprocess") or {}).get("cutoff_choice")
         if cutoff:
             given = f"preprocess.cutoff={cutoff['cutoff']:g}"
-            out[f"prior_weight=300 plots=false {given}"] = [*FIXED, "plots=false", given]
+            out[f"prior_weight=300 plots=false {given}"] = ([*FIXED, "plots=false", given], {})
     return out
 
 
@@ -224,12 +234,12 @@ def timings(arguments: list[str], repeats: int, folder: Path, levers: bool) -> d
     """The default command and the others (:func:`variants`, known once the default has run),
     ``repeats`` rounds of each, alternately."""
     runs: dict[str, Timing] = {}
-    commands: dict[str, list[str]] = {"default (auto)": []}
+    commands: dict[str, Command] = {"default (auto)": ([], {})}
     for k in range(repeats):
         n = 0
         while n < len(commands):  # the first default run adds the variants to this very round
-            label, extra = list(commands.items())[n]
-            wall, cpu, result = run_command(arguments + extra, folder / f"{n}-{k}")
+            label, (extra, env) = list(commands.items())[n]
+            wall, cpu, result = run_command(arguments + extra, folder / f"{n}-{k}", env)
             if label not in runs:
                 payload = result["payload"]
                 weight = payload["estimate"]["details"]["prior_weight"]
@@ -250,7 +260,7 @@ def main() -> None:
     parser.add_argument(
         "--levers",
         action="store_true",
-        help="also time the fixed weight without plots, then with the cut-off given",
+        help="also both on one thread, the fixed weight without plots, then with the cut-off given",
     )
     args = parser.parse_args()
     load_before = os.getloadavg()
