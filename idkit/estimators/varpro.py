@@ -23,8 +23,10 @@ physically consistent, on the robot rebuilt with ``θ`` as its reference shape).
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
@@ -509,7 +511,31 @@ def _uncertainty(
     uncertainty = base_uncertainties(
         jacobian[None], target[None], estimate[None], names, structural=robot.unidentifiable, joints=n
     )
-    return uncertainty[0].to_details()
+    values = dict(zip(names, estimate.tolist(), strict=True))
+    return _shapes_without_amplitude(uncertainty[0].to_details(), values, robot.joint_names)
+
+
+def _shapes_without_amplitude(
+    details: dict[str, Any], values: dict[str, float], joints: Sequence[str]
+) -> dict[str, Any]:
+    """A joint whose sigmoid amplitude ``φ1`` is within two standard deviations of 0 has no friction
+    step the data can see, so its shape (``φ2``, ``φ3``) is not identified whatever the linearised
+    std says: its std becomes infinite and the combination is named as unidentifiable."""
+    found = details["uncertainty"]
+    std = found["std"]
+    for joint in joints:
+        amplitude, spread = values.get(f"{joint}.phi1"), std.get(f"{joint}.phi1")
+        if amplitude is None or spread is None or not abs(amplitude) < 2 * spread:
+            continue
+        for key in ("phi2", "phi3"):
+            name = f"{joint}.{key}"
+            if name in std:
+                std[name] = math.inf
+                found.get("std_rel_pct", {})[name] = math.inf
+        found.setdefault("unidentifiable", []).append(
+            f"{joint}.phi2, {joint}.phi3 (the friction step {joint}.phi1 is within 2 std of 0)"
+        )
+    return details
 
 
 def _standard(robot: Robot, data: Projection, theta: Tensor, solution: Tensor) -> Tensor:

@@ -330,3 +330,21 @@ def test_the_search_is_sized_before_it_starts(tree):
     robot, _, samples = tree
     estimate = VariableProjection(particles=2, iterations=2500, polish=0).fit(Problem(robot, samples))
     assert len(estimate.details["history"]) <= 1001 and estimate.details["history_stride"] == 3
+
+
+def test_a_shape_without_a_friction_step_is_not_identified():
+    """A joint whose amplitude phi1 is within 2 std of 0 has no step to shape: its phi2, phi3 get an
+    infinite std and are named, whatever the linearisation says."""
+    from idkit.estimators.varpro import _shapes_without_amplitude
+
+    details = {
+        "uncertainty": {
+            "std": {"a.phi1": 0.5, "a.phi2": 3.0, "a.phi3": 0.1, "b.phi1": 0.1, "b.phi2": 2.0},
+            "std_rel_pct": {"a.phi2": 30.0, "a.phi3": 10.0, "b.phi2": 5.0},
+            "unidentifiable": [],
+        }
+    }
+    found = _shapes_without_amplitude(details, {"a.phi1": 0.6, "b.phi1": 3.0}, ["a", "b"])["uncertainty"]
+    assert found["std"]["a.phi2"] == found["std"]["a.phi3"] == float("inf")
+    assert found["std"]["b.phi2"] == 2.0  # a step 30 std tall: its shape stands
+    assert found["unidentifiable"] == ["a.phi2, a.phi3 (the friction step a.phi1 is within 2 std of 0)"]
