@@ -12,6 +12,7 @@ warnings on one line each (:mod:`idkit.cli.output`).
 
 from __future__ import annotations
 
+import contextlib
 import inspect
 import os
 import sys
@@ -70,6 +71,7 @@ def setup(names_only: bool = False) -> None:
 
 def _run(cfg: DictConfig, run_dir: Path) -> Any:
     """Study, then report: the arguments are the config (``idkit.cli.tasks.arguments``)."""
+    from idkit.runtime import torch_threads
     from idkit.studies.result import StudyInterrupted
 
     task = get_task(cfg.task)
@@ -83,7 +85,10 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
     if "checkpoint" in takes:  # a long study saves its partial report as it goes
         kwargs["checkpoint"] = lambda partial: _write(report, partial, resolved, run_dir, plots=False)
     try:
-        result = study(**kwargs)
+        # One fit is many small tensor operations, for which a second torch thread costs more than it
+        # saves (docs/speed.md); the estimators that batch large work (pso, ls) set their own threads.
+        with torch_threads(1) if cfg.task == "single" else contextlib.nullcontext():
+            result = study(**kwargs)
     except StudyInterrupted as stop:
         _write(report, stop.partial, resolved, run_dir, plots=False)
         p = stop.partial.provenance
