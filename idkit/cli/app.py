@@ -28,7 +28,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from idkit.cli import command_line, errors, output, provenance
-from idkit.cli.defaults import apply_real_robot_defaults
+from idkit.cli.defaults import apply_real_robot_defaults, preselect_estimator
 from idkit.cli.source import RegistryConfigSource, RegistrySearchPath
 from idkit.cli.tasks import arguments, get_task
 from idkit.options import check_setting
@@ -145,7 +145,7 @@ def main() -> None:
         print(f"idkit {idkit.__version__}")
         return
     try:
-        sys.argv[1:] = command_line.arrange(words)
+        sys.argv[1:] = preselect_estimator(command_line.arrange(words))
     except command_line.UsageError as exc:
         errors.fail(str(exc))
     setup(names_only=any(arg in HELP_FLAGS for arg in words))

@@ -102,7 +102,7 @@ def _plausibility_lines(result: RunResult) -> list[str]:
         com = "(" + ", ".join(f"{x:.3f}" for x in found["com"][link]) + ")"
         cad_com = "(" + ", ".join(f"{x:.3f}" for x in found["cad_com"][link]) + ")"
         lines.append(
-            f"{link:<24}{mass:11.4g}{cad:9.4g}{mass / cad:7.2f}x   {com:<26}{cad_com:<24}{flag}"
+            f"{link:<24}{mass:11.4g}{cad:9.4g}{mass / cad:7.3g}x   {com:<26}{cad_com:<24}{flag}"
             + (f" ({'; '.join(notes)})" if notes else "")
         )
     if found.get("geometry"):

@@ -13,7 +13,7 @@ from hydra import compose, initialize_config_module
 from hydra.core.global_hydra import GlobalHydra
 
 from idkit.cli.app import setup
-from idkit.cli.defaults import apply_real_robot_defaults
+from idkit.cli.defaults import apply_real_robot_defaults, preselect_estimator
 from idkit.studies.defaults import RealRobotNote, applies, chosen, searches_cost
 
 URDF = str(files("idkit") / "robots/assets/cylindrical.urdf")
@@ -66,6 +66,27 @@ def test_the_composed_config_is_changed_in_place_with_one_note():
         "consistent fit with friction and torque offsets); set any of them to change it, e.g. "
         "estimator=ls robot.friction=false"
     ]
+
+
+def test_options_of_the_default_estimator_typed_without_naming_it_are_its():
+    """``estimator.prior_weight=300`` alone: Hydra would check it against the paper's pso while it
+    composes; named first, the pcls node keeps it and the note still says pcls was chosen."""
+    typed = ["robot=urdf", f"robot.urdf={URDF}", "data=train.csv", "estimator.prior_weight=300"]
+    words = preselect_estimator([*typed, "--multirun"])
+    assert words == ["estimator=pcls", *typed, "--multirun"]
+    cfg = composed(*words[:-1])
+    with pytest.warns(RealRobotNote) as said:
+        apply_real_robot_defaults(cfg, words[:-1])
+    assert cfg.estimator._name_ == "pcls" and cfg.estimator.prior_weight == 300
+    assert "estimator=pcls cost=null robot.friction=true robot.offset=true" in str(said[0].message)
+    for untouched in (
+        [*typed[:3], "estimator=ls", "estimator.prior_weight=1"],  # an estimator named
+        ["estimator.particles=8"],  # the paper's robot
+        typed[:2] + typed[3:],  # no measured data
+        [*typed, "task=kuka"],  # a study with its own estimators
+        typed[:3],  # no estimator option
+    ):
+        assert preselect_estimator(untouched) == untouched
 
 
 @pytest.mark.parametrize(
