@@ -12,7 +12,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 import torch
@@ -29,10 +29,13 @@ from idkit.conic.program import (
 )
 from idkit.estimate import Estimate, to_python
 from idkit.estimators.linear.uncertainty import base_uncertainty
-from idkit.interfaces import Estimator, Robot
+from idkit.interfaces import Estimator
 from idkit.notes import Note
 from idkit.problem import IdentificationError, Problem
-from idkit.robots.inertia import link_count
+from idkit.robots.inertia import linked
+
+if TYPE_CHECKING:
+    from idkit.robots.urdf import URDFRobot
 
 #: Prior weights tried by ``prior_weight="auto"`` (half-decades; 0 = the data alone, with the tie-break).
 PRIOR_CANDIDATES = (0.0, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0, 10000.0)
@@ -84,7 +87,7 @@ class WeightChoice:
 
 def cross_validated_weight(
     programs: Callable[[bool], ConsistentProgram],
-    robot: Robot,
+    robot: URDFRobot,
     W: Tensor,
     tau: Tensor,
     scale2: float,
@@ -128,7 +131,9 @@ def cross_validated_weight(
             )
         )
     K = robot.base_map.numpy()
-    scores, per_fold, squared = {}, {}, {}
+    scores: dict[float, float] = {}
+    per_fold: dict[float, list[float]] = {}
+    squared: dict[float, np.ndarray] = {}
     failures: list[IdentificationError] = []
     for weight in candidates:
         errors = []
@@ -259,8 +264,7 @@ class PhysicallyConsistentLS(Estimator):
         start = time.perf_counter()
         settings = self.resolve()
         problem.check_identifiable()
-        robot = problem.robot
-        link_count(robot)
+        robot = linked(problem.robot)
         reference = cad_reference(robot)
         reference.announce("pcls")
         s = problem.tensors()
