@@ -143,8 +143,8 @@ def _refuse_unmodelled(mujoco: Any, model: Any, label: str) -> None:
         return repr(_name(mujoco, model, kind, index) or f"#{index}") + f" ({what})"
 
     if model.neq:
-        kinds = [mujoco.mjtEq(int(t)).name.removeprefix("mjEQ_").lower() for t in model.eq_type]
-        listed = ", ".join(named(obj.mjOBJ_EQUALITY, i, kinds[i]) for i in range(model.neq))
+        equalities = [mujoco.mjtEq(int(t)).name.removeprefix("mjEQ_").lower() for t in model.eq_type]
+        listed = ", ".join(named(obj.mjOBJ_EQUALITY, i, equalities[i]) for i in range(model.neq))
         raise ValueError(f"mjcf: {label}: equality constraints are not supported: {listed}")
     for i in range(model.ntendon):
         terms = {
