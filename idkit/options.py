@@ -57,6 +57,7 @@ from typing import Any
 
 if typing.TYPE_CHECKING:
     from pydantic import TypeAdapter
+    from pydantic_core import ErrorDetails
 
 
 class OptionError(ValueError, TypeError):
@@ -176,7 +177,9 @@ def type_hints(function: Callable[..., Any]) -> dict[str, Any]:
     import, so annotations are evaluated one by one in the function's module. A class stands for
     its ``__init__``.
     """
-    function = function.__init__ if isinstance(function, type) else function
+    if isinstance(function, type):
+        cls: type[Any] = function
+        function = cls.__init__
     function = inspect.unwrap(function)
     raw = getattr(function, "__annotations__", {})
     namespace = getattr(function, "__globals__", {})
@@ -283,7 +286,7 @@ def _check(where: str, value: Any, annotation: Any, default: Any) -> Any:
     return converted
 
 
-def _hint(errors: list[dict[str, Any]], value: Any, annotation: Any) -> str:
+def _hint(errors: collections.abc.Sequence[ErrorDetails], value: Any, annotation: Any) -> str:
     """``"; <why>"`` from pydantic's most specific error, or closest choices for a literal."""
     error = max(errors, key=lambda e: len(e["loc"]))
     if error["type"] in ("literal_error", "enum") and isinstance(value, str):
@@ -315,6 +318,7 @@ def _nan_at(value: Any) -> str | None:
     (nested), or ``None`` (nowhere)."""
     if isinstance(value, float):
         return "" if math.isnan(value) else None
+    items: collections.abc.Iterable[tuple[Any, Any]]
     if isinstance(value, (list, tuple)):
         items = enumerate(value)
     elif isinstance(value, dict):

@@ -210,7 +210,8 @@ class CsvTable(Table):
     def read(cls, path: Path) -> CsvTable:
         reader = csv.reader(io.StringIO(decode_text(path), newline=""))
         header: list[str] | None = None
-        rows, lines = [], []
+        rows: list[list[str]] = []
+        lines: list[int] = []
         for row in reader:
             if not any(cell.strip() for cell in row):
                 continue
@@ -237,7 +238,8 @@ class CsvTable(Table):
     def _columns(self, prefix: str) -> tuple[dict[int, int], dict[str, int]]:
         """Quantity ``prefix``'s numbered columns ``{index: column}`` and per-joint ``{joint: column}``."""
         prefix = prefix.casefold()
-        numbered, named = {}, {}
+        numbered: dict[int, int] = {}
+        named: dict[str, int] = {}
         for col, label in enumerate(self.header):
             joint = _NAMED.fullmatch(label)
             if joint and joint["quantity"].casefold() == prefix:
