@@ -29,6 +29,7 @@ from __future__ import annotations
 import codecs
 import csv
 import io
+import os
 import re
 import zipfile
 from abc import ABC, abstractmethod
@@ -63,7 +64,7 @@ _CONTROL = bytes(set(range(32)) - {9, 10, 12, 13, 27})
 _SEPARATORS = {";": "';'", "\t": "tab", "|": "'|'"}
 
 
-def check_table_path(path: str | Path) -> Path:
+def check_table_path(path: str | os.PathLike[str]) -> Path:
     """``path`` as a ``Path`` if it is an existing ``.npz`` or ``.csv`` file.
 
     Raises:
@@ -145,7 +146,7 @@ class Table(ABC):
             raise ValueError(self.missing_message(*lacking) + hint)
 
 
-def read_table(path: str | Path) -> Table:
+def read_table(path: str | os.PathLike[str]) -> Table:
     """Open ``path`` (``.csv`` or ``.npz``, module doc), refusing what is not such a file.
 
     Raises:
