@@ -287,7 +287,7 @@ class PhysicallyConsistentLS(Estimator):
         ls_scale2, scale2 = scale2, misfit_scale(scale2, first.data_term * scale2 + rest, W.shape)
         if scale2 != ls_scale2:  # the tie-break's weight is relative to the data's: solve again
             first = programs(False).solve(R, b, scale2, 0.0, once=once)
-        chosen = None
+        cross_validation: dict[str, Any] | None = None
         if settings.prior_weight == "auto":
             started = time.perf_counter()
             chosen = cross_validated_weight(programs, robot, W, tau, scale2)
@@ -302,7 +302,7 @@ class PhysicallyConsistentLS(Estimator):
             else:
                 warnings.warn(f"pcls prior_weight=auto: {chosen.reason}", PriorWeightNote, stacklevel=2)
             solution = programs(weight > 0).solve(R, b, scale2, weight)
-            cv_time = time.perf_counter() - started
+            cross_validation = {**chosen.to_details(), "time_s": time.perf_counter() - started}
         else:
             weight = float(settings.prior_weight)
             solution = programs(True).solve(R, b, scale2, weight, once=True) if weight > 0 else first
@@ -331,8 +331,8 @@ class PhysicallyConsistentLS(Estimator):
         if solution.repaired:
             details["repaired"] = list(solution.repaired)
         details["plausibility"] = plausibility_report(robot, settings.plausibility, params)
-        if chosen is not None:
-            details["prior_weight_cv"] = {**chosen.to_details(), "time_s": cv_time}
+        if cross_validation is not None:
+            details["prior_weight_cv"] = cross_validation
         return Estimate(
             estimator=self.name,
             params=dict(zip(robot.param_names, params.tolist(), strict=True)),
