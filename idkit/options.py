@@ -211,14 +211,8 @@ def describe(annotation: Any, article: bool = True) -> str:
         return " or ".join(describe(a, article) for a in args)
     if origin is typing.Literal:
         return " or ".join(repr(a) for a in args)
-    if origin is tuple and args and args[-1] is not Ellipsis:
-        return f"a list of {len(args)} ({', '.join(describe(a, False) for a in args)})"
-    if origin in _SEQUENCES:
-        return f"a list of {describe(args[0], False)}" if args else "a list"
-    if origin in _MAPPINGS:
-        return (
-            f"a mapping of {describe(args[0], False)} to {describe(args[1], False)}" if args else "a mapping"
-        )
+    if origin in _SEQUENCES or origin in _MAPPINGS:
+        return _describe_container(origin, args)
     if annotation is bool and article:
         return "a bool (true/false, yes/no, on/off or 1/0)"
     if annotation in (int, float, str) and article:
@@ -226,6 +220,15 @@ def describe(annotation: Any, article: bool = True) -> str:
     if isinstance(annotation, type):
         return annotation.__name__
     return str(annotation)
+
+
+def _describe_container(origin: Any, args: tuple[Any, ...]) -> str:
+    """:func:`describe` of a sequence or mapping type (``origin``) with its arguments."""
+    if origin is tuple and args and args[-1] is not Ellipsis:
+        return f"a list of {len(args)} ({', '.join(describe(a, False) for a in args)})"
+    if origin in _SEQUENCES:
+        return f"a list of {describe(args[0], False)}" if args else "a list"
+    return f"a mapping of {describe(args[0], False)} to {describe(args[1], False)}" if args else "a mapping"
 
 
 # --- checking one value ------------------------------------------------------------------------

@@ -284,47 +284,15 @@ def _tree(robot: ET.Element, label: str) -> KinematicTree:
         if element.get("name") is None:
             raise ValueError(f"a <{element.tag}> has no name attribute (parameters are named after them)")
     own = [_link_inertial(link) for link in robot.findall("link")]
-    links = {link.get("name", ""): link for link in robot.findall("link")}
     inertial_of = {link.name: link for link in own}
-    # each link's joints to its children, with the child link's name
-    children: dict[str, list[tuple[ET.Element, str]]] = {name: [] for name in links}
-    parent_of: dict[str, str] = {}
-    for joint in robot.findall("joint"):
-        name, kind = joint.get("name", ""), joint.get("type")
-        if kind in UNSUPPORTED:
-            raise ValueError(f"joint {name!r} has type {kind!r}: {UNSUPPORTED[kind]}")
-        if kind not in MOVING and kind != "fixed":
-            raise ValueError(
-                f"joint {name!r} has unknown type {kind!r} "
-                "(supported: revolute, continuous, prismatic, fixed)"
-            )
-        if joint.find("mimic") is not None:
-            raise ValueError(f"joint {name!r} has <mimic>: mimic joints are not supported")
-        ends = []
-        for role in ("parent", "child"):
-            end = joint.find(role)
-            link_name = None if end is None else end.get("link")
-            if link_name is None or link_name not in links:
-                raise ValueError(f"joint {name!r}: {role} link {link_name!r} is not defined")
-            ends.append(link_name)
-        parent_link, child_link = ends
-        if child_link in parent_of:
-            raise ValueError(
-                f"link {child_link!r} is the child of two joints ({parent_of[child_link]!r}, "
-                f"{name!r}): closed loops are not supported"
-            )
-        parent_of[child_link] = name
-        children[parent_link].append((joint, child_link))
-    roots = [name for name in links if name not in parent_of]
-    if len(roots) != 1:
-        raise ValueError(f"expected one root link, found {roots or 'none (a loop)'}")
+    children, root = _joint_graph(robot, [link.get("name", "") for link in robot.findall("link")])
     bodies: list[Body] = []
     inertials: list[np.ndarray] = []
     welded: list[list[str]] = []
     # Depth-first walk. A stack entry is (link, owning body, pose of the link in that body, the
     # Body its moving parent joint starts — or None when it hangs on a fixed joint).
     stack: list[tuple[str, int, np.ndarray, np.ndarray, Body | None]] = [
-        (roots[0], -1, np.eye(3), np.zeros(3), None)
+        (root, -1, np.eye(3), np.zeros(3), None)
     ]
     while stack:
         link, owner, rot, pos, body = stack.pop()
@@ -355,4 +323,46 @@ def _tree(robot: ET.Element, label: str) -> KinematicTree:
         for b, inertial, w in zip(bodies, inertials, welded, strict=True)
     ]
     fixed = tuple(joint.get("name", "") for joint in robot.findall("joint") if joint.get("type") == "fixed")
-    return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies), label, tuple(own), fixed)
+    return KinematicTree(robot.get("name", ""), root, tuple(bodies), label, tuple(own), fixed)
+
+
+def _joint_graph(robot: ET.Element, links: list[str]) -> tuple[dict[str, list[tuple[ET.Element, str]]], str]:
+    """Each link's joints to its children, with the child link's name, and the root link; every joint
+    checked (:func:`_check_joint`) and every link with one parent at most."""
+    children: dict[str, list[tuple[ET.Element, str]]] = {name: [] for name in links}
+    parent_of: dict[str, str] = {}
+    for joint in robot.findall("joint"):
+        name = joint.get("name", "")
+        _check_joint(joint)
+        ends = []
+        for role in ("parent", "child"):
+            end = joint.find(role)
+            link_name = None if end is None else end.get("link")
+            if link_name is None or link_name not in children:
+                raise ValueError(f"joint {name!r}: {role} link {link_name!r} is not defined")
+            ends.append(link_name)
+        parent_link, child_link = ends
+        if child_link in parent_of:
+            raise ValueError(
+                f"link {child_link!r} is the child of two joints ({parent_of[child_link]!r}, "
+                f"{name!r}): closed loops are not supported"
+            )
+        parent_of[child_link] = name
+        children[parent_link].append((joint, child_link))
+    roots = [name for name in children if name not in parent_of]
+    if len(roots) != 1:
+        raise ValueError(f"expected one root link, found {roots or 'none (a loop)'}")
+    return children, roots[0]
+
+
+def _check_joint(joint: ET.Element) -> None:
+    """Refuse a joint idkit does not model: an unsupported or unknown type, a ``<mimic>``."""
+    name, kind = joint.get("name", ""), joint.get("type")
+    if kind in UNSUPPORTED:
+        raise ValueError(f"joint {name!r} has type {kind!r}: {UNSUPPORTED[kind]}")
+    if kind not in MOVING and kind != "fixed":
+        raise ValueError(
+            f"joint {name!r} has unknown type {kind!r} (supported: revolute, continuous, prismatic, fixed)"
+        )
+    if joint.find("mimic") is not None:
+        raise ValueError(f"joint {name!r} has <mimic>: mimic joints are not supported")
