@@ -96,7 +96,7 @@ class RegistryConfigSource(ConfigSource):
             if group == SCENARIO_GROUP:
                 node = scenario_node(name)
             else:
-                node = plugin_node(group, name, names_only=self.names_only)  # type: ignore[arg-type]  # checked there
+                node = plugin_node(group, name, names_only=self.names_only)  # type: ignore[arg-type]  # registry checks it
         except registry.PluginError as exc:
             raise ConfigCompositionException(str(exc)) from exc
         return ConfigResult(
