@@ -1,7 +1,7 @@
 # Two entry points for a fresh machine; each sets itself up (a venv in .venv, torch pinned to the
 # CPU build, every other package at the version in constraints.txt) before it runs.
-#   make paper     reproduce the paper's Tables II-V     make test   lint, build the docs (strict), run the fast tests
-#   make test-all  lint, the docs and every test (slow, statistical, integration too): what CI runs
+#   make paper     reproduce the paper's Tables II-V     make test   lint, type-check, build the docs (strict), run the fast tests
+#   make test-all  lint, types, the docs and every test (slow, statistical, integration too): what CI runs
 #   make docs      build the documentation site into site/ (mkdocs.yml); `.venv/bin/mkdocs serve` previews it
 #   make lock      re-resolve every dependency to its newest release, run the whole suite on it, and
 #                  rewrite constraints.txt only if it passes (the scheduled check for dependency drift)
@@ -12,7 +12,7 @@ EXTRAS := test,docs,mjcf,logs,collision
 # pyproject.toml keeps ranges for users' environments; set-up and CI install the locked versions.
 PIP    := $(VENV)/bin/python -m pip install -q -c constraints.txt
 
-.PHONY: setup paper test test-all bench docs lint lock
+.PHONY: setup paper test test-all bench docs lint typecheck lock
 setup: $(STAMP)
 
 # torch first, on its own: its CPU build where PyTorch's CPU index is reachable (.ci/torch-index);
@@ -38,11 +38,16 @@ paper: $(STAMP)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
-# Lint and the docs first: a lint finding, a broken page or docstring fails CI (`.ci/run` is `make test-all`).
-test: lint docs
+# mypy on idkit/ ([tool.mypy] in pyproject.toml says what and how strictly)
+typecheck: $(STAMP)
+	$(VENV)/bin/mypy
+
+# Lint, types and the docs first: a lint finding, a type error, a broken page or docstring fails CI
+# (`.ci/run` is `make test-all`).
+test: lint typecheck docs
 	$(VENV)/bin/pytest
 
-test-all: lint docs
+test-all: lint typecheck docs
 	$(VENV)/bin/pytest -m ""
 
 # Not --quiet: it keeps griffe's docstring warnings from failing the strict build. The variable

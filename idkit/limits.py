@@ -65,7 +65,7 @@ class MotionLimits:
         return cls(tuple(joint_names), stacked[..., 0], stacked[..., 1])
 
     def replace(
-        self, variable: str, lower: float | Sequence[float], upper: float | Sequence[float]
+        self, variable: str, lower: float | Sequence[float] | Tensor, upper: float | Sequence[float] | Tensor
     ) -> MotionLimits:
         """A copy with one variable's limits set (a number applies to every joint)."""
         row = self._row(variable)

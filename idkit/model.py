@@ -191,7 +191,7 @@ class IdentifiedModel:
         else:
             tau = self.robot.inverse_dynamics(params, *flat)
         tau = tau.reshape(*batch, n)
-        return tau.numpy() if as_numpy else tau  # type: ignore[return-value]
+        return tau.numpy() if as_numpy else tau  # type: ignore[return-value]  # as_numpy follows Array
 
     # --- parameters ---------------------------------------------------------------------------
 

@@ -57,6 +57,7 @@ from typing import Any
 
 if typing.TYPE_CHECKING:
     from pydantic import TypeAdapter
+    from pydantic_core import ErrorDetails
 
 
 class OptionError(ValueError, TypeError):
@@ -176,7 +177,9 @@ def type_hints(function: Callable[..., Any]) -> dict[str, Any]:
     import, so annotations are evaluated one by one in the function's module. A class stands for
     its ``__init__``.
     """
-    function = function.__init__ if isinstance(function, type) else function
+    if isinstance(function, type):
+        cls: type[Any] = function
+        function = cls.__init__
     function = inspect.unwrap(function)
     raw = getattr(function, "__annotations__", {})
     namespace = getattr(function, "__globals__", {})
@@ -208,14 +211,8 @@ def describe(annotation: Any, article: bool = True) -> str:
         return " or ".join(describe(a, article) for a in args)
     if origin is typing.Literal:
         return " or ".join(repr(a) for a in args)
-    if origin is tuple and args and args[-1] is not Ellipsis:
-        return f"a list of {len(args)} ({', '.join(describe(a, False) for a in args)})"
-    if origin in _SEQUENCES:
-        return f"a list of {describe(args[0], False)}" if args else "a list"
-    if origin in _MAPPINGS:
-        return (
-            f"a mapping of {describe(args[0], False)} to {describe(args[1], False)}" if args else "a mapping"
-        )
+    if origin in _SEQUENCES or origin in _MAPPINGS:
+        return _describe_container(origin, args)
     if annotation is bool and article:
         return "a bool (true/false, yes/no, on/off or 1/0)"
     if annotation in (int, float, str) and article:
@@ -223,6 +220,15 @@ def describe(annotation: Any, article: bool = True) -> str:
     if isinstance(annotation, type):
         return annotation.__name__
     return str(annotation)
+
+
+def _describe_container(origin: Any, args: tuple[Any, ...]) -> str:
+    """:func:`describe` of a sequence or mapping type (``origin``) with its arguments."""
+    if origin is tuple and args and args[-1] is not Ellipsis:
+        return f"a list of {len(args)} ({', '.join(describe(a, False) for a in args)})"
+    if origin in _SEQUENCES:
+        return f"a list of {describe(args[0], False)}" if args else "a list"
+    return f"a mapping of {describe(args[0], False)} to {describe(args[1], False)}" if args else "a mapping"
 
 
 # --- checking one value ------------------------------------------------------------------------
@@ -283,7 +289,7 @@ def _check(where: str, value: Any, annotation: Any, default: Any) -> Any:
     return converted
 
 
-def _hint(errors: list[dict[str, Any]], value: Any, annotation: Any) -> str:
+def _hint(errors: collections.abc.Sequence[ErrorDetails], value: Any, annotation: Any) -> str:
     """``"; <why>"`` from pydantic's most specific error, or closest choices for a literal."""
     error = max(errors, key=lambda e: len(e["loc"]))
     if error["type"] in ("literal_error", "enum") and isinstance(value, str):
@@ -315,6 +321,7 @@ def _nan_at(value: Any) -> str | None:
     (nested), or ``None`` (nowhere)."""
     if isinstance(value, float):
         return "" if math.isnan(value) else None
+    items: collections.abc.Iterable[tuple[Any, Any]]
     if isinstance(value, (list, tuple)):
         items = enumerate(value)
     elif isinstance(value, dict):

@@ -29,10 +29,9 @@ def resolve_dtype(dtype: str | torch.dtype) -> torch.dtype:
     """Accept ``"float64"``/``"float32"`` (config-friendly) or one of those ``torch.dtype``s."""
     if isinstance(dtype, torch.dtype) and dtype in DTYPES.values():
         return dtype
-    try:
-        return DTYPES[dtype]  # type: ignore[index]
-    except (KeyError, TypeError):
-        raise ValueError(f"unknown dtype {dtype!r} (option dtype); use one of {', '.join(DTYPES)}") from None
+    if isinstance(dtype, str) and dtype in DTYPES:
+        return DTYPES[dtype]
+    raise ValueError(f"unknown dtype {dtype!r} (option dtype); use one of {', '.join(DTYPES)}")
 
 
 def available_devices() -> list[str]:

@@ -197,7 +197,8 @@ def required_members(kind: Kind) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """
     base = interface(kind)
     attributes = tuple(k for k in vars(base).get("__annotations__", {}) if not hasattr(base, k))
-    return tuple(sorted(base.__abstractmethods__)), attributes
+    abstract: frozenset[str] = getattr(base, "__abstractmethods__", frozenset())  # ABCMeta sets it
+    return tuple(sorted(abstract)), attributes
 
 
 def conform(kind: Kind, cls: type, where: str) -> type:

@@ -18,7 +18,7 @@ import os
 import sys
 import uuid
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -77,7 +77,8 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
     task = get_task(cfg.task)
     study = task.study_function()
     report = task.report_module()
-    resolved = OmegaConf.to_container(cfg, resolve=True)
+    # a DictConfig's container is a dict with string keys; OmegaConf's signature allows any container
+    resolved = cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))
     kwargs = arguments(cfg.task, resolved, study)
     takes = inspect.signature(study).parameters
     if "progress" in takes:  # a bar on a terminal; in a log file its redraws would pile up
@@ -117,7 +118,10 @@ def task(cfg: DictConfig) -> Any:
         provenance.claim(run_dir, "hydra.run.dir" if single else "hydra.sweep.dir or hydra.sweep.subdir")
         with output.one_line_warnings():  # also in a launcher's worker process
             apply_real_robot_defaults(cfg, hydra_cfg.overrides.task)
-            provenance.record(run_dir, cfg, HydraConfig.instance().cfg)
+            full = HydraConfig.instance().cfg  # the whole config, {hydra: ...}, once Hydra has set it
+            if not isinstance(full, DictConfig):
+                raise RuntimeError(f"hydra: no config to record (got {type(full).__name__})")
+            provenance.record(run_dir, cfg, full)
             return _run(cfg, run_dir)
     except Exception as exc:
         message = errors.one_line(exc)  # a refused input, or more memory than there is

@@ -41,7 +41,7 @@ def group_options(group: str) -> list[str]:
         from idkit.data.presets import SCENARIOS
 
         return list(SCENARIOS)
-    return list(registry.available(group))  # type: ignore[arg-type]
+    return list(registry.available(group))  # type: ignore[arg-type]  # a config's string; checked there
 
 
 def scenario_node(name: str) -> dict[str, object]:
@@ -96,7 +96,7 @@ class RegistryConfigSource(ConfigSource):
             if group == SCENARIO_GROUP:
                 node = scenario_node(name)
             else:
-                node = plugin_node(group, name, names_only=self.names_only)  # type: ignore[arg-type]
+                node = plugin_node(group, name, names_only=self.names_only)  # type: ignore[arg-type]  # registry checks it
         except registry.PluginError as exc:
             raise ConfigCompositionException(str(exc)) from exc
         return ConfigResult(

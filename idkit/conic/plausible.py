@@ -18,12 +18,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from idkit.interfaces import Robot
 from idkit.robots.inertia import link_count
+
+if TYPE_CHECKING:
+    from idkit.robots.urdf import URDFRobot
 
 
 @dataclass(frozen=True)
@@ -84,7 +86,7 @@ class Plausibility:
 
 
 def plausibility_constraints(
-    robot: Robot, bounds: Plausibility, z: Any, unit: np.ndarray, who: str
+    robot: URDFRobot, bounds: Plausibility, z: Any, unit: np.ndarray, who: str
 ) -> list[Any]:
     """cvxpy constraints on the scaled unknowns ``z`` (``p = unit * z``) for ``bounds``.
 
@@ -112,7 +114,7 @@ def plausibility_constraints(
     return out
 
 
-def _inside_geometry(robot: Robot, z: Any, unit: np.ndarray) -> list[Any]:
+def _inside_geometry(robot: URDFRobot, z: Any, unit: np.ndarray) -> list[Any]:
     """``tr(J_i Q4_i) >= 0`` for every link with geometry, on the scaled unknowns: ``J(p) = m0 S J(z) S``
     with ``S = diag(L, L, L, 1)`` (:mod:`idkit.conic.prior`), so ``tr(J(z) S Q4 S) >= 0``."""
     import cvxpy as cp
@@ -139,7 +141,7 @@ def _inside_geometry(robot: Robot, z: Any, unit: np.ndarray) -> list[Any]:
 PLAUSIBLE_MASS_RATIO = (0.5, 2.0)
 
 
-def plausibility_report(robot: Robot, bounds: Plausibility, params: Any) -> dict[str, Any]:
+def plausibility_report(robot: URDFRobot, bounds: Plausibility, params: Any) -> dict[str, Any]:
     """For ``details["plausibility"]``: what was enforced, each link's mass and centre of mass beside
     CAD, the links that are implausible — a mass outside :data:`PLAUSIBLE_MASS_RATIO` times CAD, or a
     centre of mass the fit moved out of the box bounding the link's geometry (where the CAD's is

@@ -22,12 +22,15 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from idkit.interfaces import Robot
 from idkit.notes import Note
 from idkit.robots.inertia import link_count, pseudo_inertia_rows
+
+if TYPE_CHECKING:
+    from idkit.robots.urdf import URDFRobot
 
 #: A reference body is at least this fraction of its own largest extent thick in every direction
 #: (second moments ``>= MIN_THICKNESS² λ_max``): a rod 10 % as wide as it is long.
@@ -87,7 +90,7 @@ def _listed(names: tuple[str, ...]) -> str:
     return shown + (f" and {len(names) - 4} more links" if len(names) > 4 else "")
 
 
-def parameter_units(robot: Robot) -> np.ndarray:
+def parameter_units(robot: URDFRobot) -> np.ndarray:
     """Typical magnitude ``[P]`` of each parameter: ``m0``, ``m0 L``, ``m0 L²`` per link (``L`` the
     CAD radius of gyration about the link origin, at least ``MIN_LENGTH``); 1 for the rest."""
     nb = link_count(robot)
@@ -103,7 +106,7 @@ def parameter_units(robot: Robot) -> np.ndarray:
     return unit
 
 
-def cad_reference(robot: Robot) -> CadReference:
+def cad_reference(robot: URDFRobot) -> CadReference:
     """The CAD reference bodies of a ``urdf`` robot, well-posed (module doc).
 
     Raises:

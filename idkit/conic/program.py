@@ -51,7 +51,7 @@ import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, get_args
+from typing import TYPE_CHECKING, Any, Literal, get_args
 
 import numpy as np
 import torch
@@ -62,8 +62,11 @@ from idkit.conic.prior import CadReference, cad_reference
 from idkit.interfaces import Robot
 from idkit.problem import IdentificationError, Samples
 from idkit.robots.drives import NONNEGATIVE
-from idkit.robots.inertia import link_count, pseudo_inertia, pseudo_inertia_rows
+from idkit.robots.inertia import link_count, linked, pseudo_inertia, pseudo_inertia_rows
 from idkit.seeds import torch_generator
+
+if TYPE_CHECKING:
+    from idkit.robots.urdf import URDFRobot
 
 #: Weight (χ² per squared relative deviation) of the pull to CAD when ``prior_weight = 0`` (module doc).
 TIE_BREAK = 1.0
@@ -125,13 +128,14 @@ class ConsistentSettings:
     ) -> ConsistentSettings:
         """The settings, or ``ValueError`` naming ``who`` and the option; ``auto``: whether
         ``prior_weight="auto"`` is accepted (a fit has the data to choose it, a projection has not)."""
+        weight: float | Literal["auto"] = "auto"
         if not (auto and prior_weight == "auto"):
             if isinstance(prior_weight, (str, bool)) or not (
                 math.isfinite(prior_weight) and prior_weight >= 0
             ):
                 allowed = "a finite number >= 0" + (" or 'auto'" if auto else "")
                 raise ValueError(f"{who}: prior_weight must be {allowed}, got {prior_weight!r}")
-            prior_weight = float(prior_weight)
+            weight = float(prior_weight)
         if min_mass is not None and not (math.isfinite(min_mass) and min_mass >= 0):
             raise ValueError(f"{who}: min_mass must be None or a finite number >= 0 (kg), got {min_mass!r}")
         choices = get_args(Solver)
@@ -139,7 +143,7 @@ class ConsistentSettings:
             listed = ", ".join(map(repr, choices))
             raise ValueError(f"{who}: solver must be one of {listed}, got {solver!r}")
         conic = {"auto": AUTO_SOLVERS, "clarabel": AUTO_SOLVERS[:2], "scs": ("SCS",)}[solver]
-        return cls(prior_weight, min_mass, solver, conic, plausibility or Plausibility())
+        return cls(weight, min_mass, solver, conic, plausibility or Plausibility())
 
 
 @dataclass(frozen=True)
@@ -197,7 +201,7 @@ class ConsistentProgram:
 
     def __init__(
         self,
-        robot: Robot,
+        robot: URDFRobot,
         settings: ConsistentSettings,
         rows: int,
         prior: bool,
@@ -396,7 +400,7 @@ def _interruptible_scs() -> Any:
     "interrupted", which cvxpy reports as a solver failure, so the next fold or weight would start."""
     from cvxpy.reductions.solvers.conic_solvers.scs_conif import SCS
 
-    class InterruptibleSCS(SCS):  # type: ignore[misc]
+    class InterruptibleSCS(SCS):
         def name(self) -> str:
             return "SCS_INTERRUPTIBLE"
 
@@ -426,7 +430,7 @@ def compress(W: Tensor, tau: Tensor | None = None) -> tuple[np.ndarray, np.ndarr
 
 
 def solve_consistent(
-    robot: Robot,
+    robot: URDFRobot,
     R: np.ndarray,
     b: np.ndarray,
     scale2: float,
@@ -464,7 +468,7 @@ def nearest_consistent(
     if (params is None) == (base_params is None):
         raise ValueError("nearest_consistent: give exactly one of params [P] or base_params [B]")
     settings = ConsistentSettings.checked("nearest_consistent", prior_weight, min_mass, solver)
-    link_count(robot)
+    robot = linked(robot)
     if params is not None:
         params = torch.as_tensor(params, dtype=torch.float64)
         if params.shape != (robot.n_params,):

@@ -9,8 +9,9 @@ over-predicting every torque drives to −∞; idkit's ``f8``/``f16`` use ``max_
 
 from __future__ import annotations
 
-import math
-from typing import ClassVar
+import functools
+import operator
+from typing import ClassVar, TypeVar
 
 from torch import Tensor
 
@@ -29,7 +30,7 @@ class NormProductCost(Cost):
 
     def __call__(self, error: Tensor, measured: Tensor) -> Tensor:
         e = self.error_matrix(error, measured)
-        return math.prod(NORMS[name](e) for name in self.norms)
+        return functools.reduce(operator.mul, (NORMS[name](e) for name in self.norms))
 
     def structure(self) -> NormStructure | None:
         """The declared norm product; ``None`` for a subclass that changes what is computed."""
@@ -72,13 +73,17 @@ _PAPER = {  # eq.: norms, in the order of eqs. (28)-(35)
 }
 
 
-def _variant(index: int, eq: str, relative: bool) -> type[NormProductCost]:
-    base = RelativeNormProductCost if relative else NormProductCost
+_Base = TypeVar("_Base", bound=NormProductCost)
+
+
+def _variant(index: int, eq: str, base: type[_Base]) -> type[_Base]:
     norms = _PAPER[eq]
-    matrix = "E_rel" if relative else "E"
+    matrix = "E_rel" if base.relative else "E"
     doc = f"f{index}: product of norms {' · '.join(norms)} of {matrix} (eq. {eq})."
     return type(f"f{index}", (base,), {"norms": norms, "__doc__": doc, "__module__": __name__})
 
 
-f1, f2, f3, f4, f5, f6, f7, f8 = (_variant(i + 1, eq, False) for i, eq in enumerate(_PAPER))
-f9, f10, f11, f12, f13, f14, f15, f16 = (_variant(i + 9, eq, True) for i, eq in enumerate(_PAPER))
+f1, f2, f3, f4, f5, f6, f7, f8 = (_variant(i + 1, eq, NormProductCost) for i, eq in enumerate(_PAPER))
+f9, f10, f11, f12, f13, f14, f15, f16 = (
+    _variant(i + 9, eq, RelativeNormProductCost) for i, eq in enumerate(_PAPER)
+)

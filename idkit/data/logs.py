@@ -213,7 +213,12 @@ def _choose(
 
 
 def _stream(path: Path, reader: Any, connections: list[Any], topic: str) -> Stream:
-    stamps, received, names, position, velocity, effort = [], [], [], [], [], []
+    stamps: list[int] = []
+    received: list[int] = []
+    names: list[tuple[str, ...]] = []
+    position: list[np.ndarray] = []
+    velocity: list[np.ndarray] = []
+    effort: list[np.ndarray] = []
     try:
         for connection, receive_time, raw in reader.messages(connections=connections):
             message = reader.deserialize(raw, connection.msgtype)

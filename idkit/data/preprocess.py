@@ -134,8 +134,9 @@ def _whole(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def _check(options: PreprocessOptions, rate: float, recording: Recording) -> None:
-    """What the options' own check cannot know: the cut-off against this recording's rate."""
+def _check(options: PreprocessOptions, rate: float, recording: Recording) -> float:
+    """What the options' own check cannot know: the cut-off against this recording's rate; returns the
+    cut-off (Hz)."""
     where = f"preprocess ({recording.source})"
     nyquist = rate / 2
     if options.cutoff == "auto":
@@ -155,6 +156,7 @@ def _check(options: PreprocessOptions, rate: float, recording: Recording) -> Non
         )
     if options.velocities == "measured" and recording.qd is None:
         raise ValueError(f"{where}: velocities='measured' but the recording has no qd columns")
+    return options.cutoff
 
 
 @dataclass(frozen=True)
@@ -223,12 +225,12 @@ def preprocess_recording(recording: Recording, options: PreprocessOptions | None
     t = recording.t - recording.t[0]
     stretches, median = split_at_gaps(t, options.max_gap)
     rate = 1.0 / median if options.rate is None else float(options.rate)
-    _check(options, rate, recording)
+    cutoff = _check(options, rate, recording)
     _check_grid_memory(recording, [t[rows] for rows in stretches], rate, median)
     from scipy import signal  # ~1 s of import: only for recordings, not for every command
 
-    sos = signal.butter(options.order, options.cutoff, fs=rate, output="sos")
-    trim = 3.0 / options.cutoff if options.trim is None else float(options.trim)
+    sos = signal.butter(options.order, cutoff, fs=rate, output="sos")
+    trim = 3.0 / cutoff if options.trim is None else float(options.trim)
     keep = int(np.ceil(trim * rate - 1e-9))
     shortest = max(2 * keep + 3, 3 * (2 * len(sos) + 1) + 1)  # trims + 3; sosfiltfilt's edge padding
     parts, segments = [], []
@@ -302,8 +304,8 @@ def _segment(
     q = lowpass(resample(recording.q))
     raw_tau = resample(recording.tau)
     tau = lowpass(raw_tau) if options.filter_torques else raw_tau
-    measured = options.velocities == "measured"
-    qd = lowpass(resample(recording.qd)) if measured else np.gradient(q, h, axis=0)
+    measured = recording.qd if options.velocities == "measured" else None  # checked present: _check
+    qd = np.gradient(q, h, axis=0) if measured is None else lowpass(resample(measured))
     qdd = np.empty_like(q)
     qdd[1:-1] = (q[2:] - 2 * q[1:-1] + q[:-2]) / h**2
     qdd[0], qdd[-1] = qdd[1], qdd[-2]  # trimmed below

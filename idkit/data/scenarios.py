@@ -65,7 +65,8 @@ def get_scenario(scenario: str | Scenario | Mapping[str, Any], **overrides: Any)
     elif isinstance(scenario, Mapping):
         values = dict(scenario)
         name = values.get("name")
-        base = SCENARIOS[name].replace(**values) if name in SCENARIOS else Scenario().replace(**values)
+        preset = SCENARIOS[name] if isinstance(name, str) and name in SCENARIOS else Scenario()
+        base = preset.replace(**values)
     else:
         raise TypeError(f"scenario must be a name, a Scenario or a mapping, got {type(scenario).__name__}")
     return base.replace(**{k: v for k, v in overrides.items() if v is not None})
@@ -242,7 +243,8 @@ def simulate_batch(
     u = unit * level
     clean_stack = torch.stack([getattr(clean, k) for k in SAMPLE_ARRAYS])  # [4, N, n]
     noisy = clean_stack * (1.0 + u)  # [T, 4, N, n]
-    return SampleBatch(sc, int(seed), t, clean, *noisy.unbind(1), relative_error=u, outliers=outliers)
+    q, qd, qdd, tau = noisy.unbind(1)
+    return SampleBatch(sc, int(seed), t, clean, q, qd, qdd, tau, relative_error=u, outliers=outliers)
 
 
 def simulate(

@@ -29,6 +29,7 @@ from __future__ import annotations
 import codecs
 import csv
 import io
+import os
 import re
 import zipfile
 from abc import ABC, abstractmethod
@@ -63,7 +64,7 @@ _CONTROL = bytes(set(range(32)) - {9, 10, 12, 13, 27})
 _SEPARATORS = {";": "';'", "\t": "tab", "|": "'|'"}
 
 
-def check_table_path(path: str | Path) -> Path:
+def check_table_path(path: str | os.PathLike[str]) -> Path:
     """``path`` as a ``Path`` if it is an existing ``.npz`` or ``.csv`` file.
 
     Raises:
@@ -145,7 +146,7 @@ class Table(ABC):
             raise ValueError(self.missing_message(*lacking) + hint)
 
 
-def read_table(path: str | Path) -> Table:
+def read_table(path: str | os.PathLike[str]) -> Table:
     """Open ``path`` (``.csv`` or ``.npz``, module doc), refusing what is not such a file.
 
     Raises:
@@ -210,7 +211,8 @@ class CsvTable(Table):
     def read(cls, path: Path) -> CsvTable:
         reader = csv.reader(io.StringIO(decode_text(path), newline=""))
         header: list[str] | None = None
-        rows, lines = [], []
+        rows: list[list[str]] = []
+        lines: list[int] = []
         for row in reader:
             if not any(cell.strip() for cell in row):
                 continue
@@ -237,7 +239,8 @@ class CsvTable(Table):
     def _columns(self, prefix: str) -> tuple[dict[int, int], dict[str, int]]:
         """Quantity ``prefix``'s numbered columns ``{index: column}`` and per-joint ``{joint: column}``."""
         prefix = prefix.casefold()
-        numbered, named = {}, {}
+        numbered: dict[int, int] = {}
+        named: dict[str, int] = {}
         for col, label in enumerate(self.header):
             joint = _NAMED.fullmatch(label)
             if joint and joint["quantity"].casefold() == prefix:

@@ -135,9 +135,10 @@ def search_average(parts: Sequence[Estimate], robot: Robot) -> tuple[str, Tensor
         raise ValueError(f"cannot average estimates that searched different spaces: {sorted(spaces)}")
     (space,) = spaces
     if space == "base":
-        if any(part.base_params is None for part in parts):
+        bases = [part.base_params for part in parts if part.base_params is not None]
+        if len(bases) < len(parts):
             raise ValueError("a base-space estimate without base parameters cannot be averaged")
-        mean = mean_params([part.base_params for part in parts])
+        mean = mean_params(bases)
         names = robot.base_param_names
     else:
         mean = mean_params([part.params for part in parts])
@@ -180,7 +181,7 @@ def average_estimates(
     average = position.to(dtype=objective.lower.dtype, device=objective.lower.device)
     measured = objective.measured[0]
     error = objective.error(average) if space == "base" else problem.error(average)
-    details = {
+    details: dict[str, Any] = {
         "parts": {part.estimator: part.to_dict() for part in parts},
         "costs_at_average": {cost_label(c): float(c(error, measured)) for c in costs},
         "space": space,

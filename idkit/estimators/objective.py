@@ -34,7 +34,7 @@ from torch import Tensor
 from idkit.costs.factors import FACTORS, factor_parameters
 from idkit.estimators.trials import check_same_setting
 from idkit.interfaces import Cost, NormStructure, Robot
-from idkit.optim.base_map import cached_tape, identity
+from idkit.optim.base_map import Tape, cached_tape, identity
 from idkit.optim.fast import ProductSpec
 from idkit.optim.fused import NormProducts, selector
 from idkit.problem import Problem, Samples
@@ -161,7 +161,9 @@ class Objective:
         """The fused torch form of the structured costs' slots (the eager engine's; built on first
         use, so a fit on the fast kernel never builds it)."""
         count = len(self.costs)
-        return NormProducts([self.structures[s % count] for s in self.fast], *self.shape, self.measured)
+        declared = {c: structure for c, structure in enumerate(self.structures) if structure is not None}
+        n, samples = self.shape
+        return NormProducts([declared[s % count] for s in self.fast], n, samples, self.measured)
 
     @property
     def fast_costs(self) -> list[int]:
@@ -184,8 +186,10 @@ class Objective:
         Needs the regressor and a structure for every cost. ``map_seconds`` is then the time this
         call spent tracing the robot's base map (or reading its tape from the cache).
         """
-        if not self.use_regressor or any(s is None for s in self.structures):
+        declared = [s for s in self.structures if s is not None]
+        if not self.use_regressor or len(declared) < len(self.structures):
             raise ValueError("the fast kernel needs the regressor and a declared structure for every cost")
+        tape: Tape | None
         if self.space == "base":
             tape, self.map_seconds = identity(self.dimension), 0.0
         else:
@@ -194,7 +198,7 @@ class Objective:
                 robot, robot.base_params, self.dimension, lambda: _map_key(robot, self.dimension)
             )
         count = len(self.costs)
-        structures = tuple(self.structures[s % count] for s in range(self.slots))
+        structures = tuple(declared[s % count] for s in range(self.slots))
         return ProductSpec(
             self.linear, self.offset.reshape(self.slots, -1), self.shape[0], structures, self.base, tape
         )

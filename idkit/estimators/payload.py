@@ -367,7 +367,9 @@ def payload_block(
     std[(np.abs(jac[:, ~finite]) > 0).any(1)] = np.inf  # touched by an unidentified direction
     rows = [(0, 1, 2), (1, 3, 4), (2, 4, 5)]
     inertia_std = [[float(std[4 + k]) for k in row] for row in rows]
-    judged = verdict(mass, float(std[0]), com, std[1:4], inertia, inertia_std, unusable)
+    judged = verdict(
+        mass, float(std[0]), com.tolist(), std[1:4].tolist(), inertia.tolist(), inertia_std, unusable
+    )
     block.update(
         mass=mass,
         com=com.tolist(),
@@ -560,7 +562,7 @@ class PayloadIdentification(Estimator):
         ref_samples, ref_name, made = reference_samples(robot, settings.reference, problem)
         ref = _rows(robot, ref_samples, base=model)
         ref_residual = ref.tau - ref.Y @ arm_params
-        inertials = slice(0, 10 * len(robot.tree.bodies))
+        inertials = slice(0, 10 * len(tree_of(robot).bodies))
         about = {
             "file": ref_name,
             "samples": ref_samples.n_samples,
@@ -573,6 +575,7 @@ class PayloadIdentification(Estimator):
         if settings.correction == "samples":
             about["max_mismatch"] = same_trajectory(samples, ref_samples, ref_name, robot.joint_names)
             return System(A, b - ref_residual, rows.tau, groups, names, units, len(b), about)
+        assert rows.W is not None and ref.W is not None  # correction=model: _rows was asked for them
         top = torch.cat([A, rows.W], 1)
         bottom = torch.cat([torch.zeros(ref.W.shape[0], 10, dtype=torch.float64), ref.W], 1)
         return System(
@@ -616,7 +619,9 @@ class PayloadIdentification(Estimator):
             )
         body = slice(10 * where.body, 10 * where.body + 10)
         s = problem.tensors()
-        recordings = {"data_motion_share": motion_share(robot, s.q, s.qd, s.qdd, body)}
+        recordings: dict[str, float | None] = {
+            "data_motion_share": motion_share(robot, s.q, s.qd, s.qdd, body)
+        }
         reference = details.get("reference") or {}
         recordings.update(
             reference_motion_share=reference.get("motion_share"), reference_cond=reference.get("cond")

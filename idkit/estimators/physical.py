@@ -12,7 +12,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 import torch
@@ -29,10 +29,13 @@ from idkit.conic.program import (
 )
 from idkit.estimate import Estimate, to_python
 from idkit.estimators.linear.uncertainty import base_uncertainty
-from idkit.interfaces import Estimator, Robot
+from idkit.interfaces import Estimator
 from idkit.notes import Note
 from idkit.problem import IdentificationError, Problem
-from idkit.robots.inertia import link_count
+from idkit.robots.inertia import linked
+
+if TYPE_CHECKING:
+    from idkit.robots.urdf import URDFRobot
 
 #: Prior weights tried by ``prior_weight="auto"`` (half-decades; 0 = the data alone, with the tie-break).
 PRIOR_CANDIDATES = (0.0, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0, 10000.0)
@@ -84,7 +87,7 @@ class WeightChoice:
 
 def cross_validated_weight(
     programs: Callable[[bool], ConsistentProgram],
-    robot: Robot,
+    robot: URDFRobot,
     W: Tensor,
     tau: Tensor,
     scale2: float,
@@ -128,7 +131,9 @@ def cross_validated_weight(
             )
         )
     K = robot.base_map.numpy()
-    scores, per_fold, squared = {}, {}, {}
+    scores: dict[float, float] = {}
+    per_fold: dict[float, list[float]] = {}
+    squared: dict[float, np.ndarray] = {}
     failures: list[IdentificationError] = []
     for weight in candidates:
         errors = []
@@ -259,8 +264,7 @@ class PhysicallyConsistentLS(Estimator):
         start = time.perf_counter()
         settings = self.resolve()
         problem.check_identifiable()
-        robot = problem.robot
-        link_count(robot)
+        robot = linked(problem.robot)
         reference = cad_reference(robot)
         reference.announce("pcls")
         s = problem.tensors()
@@ -283,7 +287,7 @@ class PhysicallyConsistentLS(Estimator):
         ls_scale2, scale2 = scale2, misfit_scale(scale2, first.data_term * scale2 + rest, W.shape)
         if scale2 != ls_scale2:  # the tie-break's weight is relative to the data's: solve again
             first = programs(False).solve(R, b, scale2, 0.0, once=once)
-        chosen = None
+        cross_validation: dict[str, Any] | None = None
         if settings.prior_weight == "auto":
             started = time.perf_counter()
             chosen = cross_validated_weight(programs, robot, W, tau, scale2)
@@ -298,7 +302,7 @@ class PhysicallyConsistentLS(Estimator):
             else:
                 warnings.warn(f"pcls prior_weight=auto: {chosen.reason}", PriorWeightNote, stacklevel=2)
             solution = programs(weight > 0).solve(R, b, scale2, weight)
-            cv_time = time.perf_counter() - started
+            cross_validation = {**chosen.to_details(), "time_s": time.perf_counter() - started}
         else:
             weight = float(settings.prior_weight)
             solution = programs(True).solve(R, b, scale2, weight, once=True) if weight > 0 else first
@@ -327,8 +331,8 @@ class PhysicallyConsistentLS(Estimator):
         if solution.repaired:
             details["repaired"] = list(solution.repaired)
         details["plausibility"] = plausibility_report(robot, settings.plausibility, params)
-        if chosen is not None:
-            details["prior_weight_cv"] = {**chosen.to_details(), "time_s": cv_time}
+        if cross_validation is not None:
+            details["prior_weight_cv"] = cross_validation
         return Estimate(
             estimator=self.name,
             params=dict(zip(robot.param_names, params.tolist(), strict=True)),

@@ -56,7 +56,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, get_args
 
 import torch
 from torch import Tensor
@@ -217,8 +217,9 @@ class ParticleSwarm(Estimator):
         """The preset with this instance's overrides applied, checked (``ValueError`` naming the option)."""
         if self.preset not in PRESETS:
             raise ValueError(f"unknown PSO preset {self.preset!r}; use one of {', '.join(PRESETS)}")
-        if self.engine not in Engine.__args__:
-            raise ValueError(f"unknown PSO engine {self.engine!r}; use one of {', '.join(Engine.__args__)}")
+        engines = get_args(Engine)
+        if self.engine not in engines:
+            raise ValueError(f"unknown PSO engine {self.engine!r}; use one of {', '.join(engines)}")
         values = dict(PRESETS[self.preset])
         for name in values:
             if getattr(self, name) is not None:
@@ -487,25 +488,30 @@ class ParticleSwarm(Estimator):
         everything = list(range(len(costs)))
         if self.engine == "eager":
             return [eager(everything, "engine='eager' was asked for")]
-        refusals = {c: _cost_refusal(objective, c) for c in everything}
-        chosen = [c for c in everything if refusals[c] is None] if self.engine == "auto" else everything
-        # with engine="native", every cost the kernel refuses is named
-        reason = "; ".join(sorted({refusals[c] for c in chosen} - {None})) or None
-        if not chosen:
-            reason = "; ".join(sorted(set(refusals.values())))
-        elif reason is None:
-            started = time.perf_counter()
-            part = subset(chosen)
-            spec = part.spec()  # traces the base map, or reads it from the cache
-            reason = fast.refusal(spec)  # loads (or compiles) the kernel
-            build_seconds = time.perf_counter() - started
-        if reason is not None:
+
+        def refused(reason: str) -> list[EngineGroup]:
             if self.engine == "native":
                 raise ValueError(
                     f"engine='native' is impossible here: {reason}; use engine='auto' or 'eager'"
                 )
             return [eager(everything, reason)]
-        built = fast.kernel()
+
+        refusals = {c: _cost_refusal(objective, c) for c in everything}
+        chosen = [c for c in everything if refusals[c] is None] if self.engine == "auto" else everything
+        if not chosen:
+            return refused("; ".join(sorted({why for why in refusals.values() if why is not None})))
+        # with engine="native", every cost the kernel refuses is named
+        named = "; ".join(sorted({why for c in chosen if (why := refusals[c]) is not None}))
+        if named:
+            return refused(named)
+        started = time.perf_counter()
+        part = subset(chosen)
+        spec = part.spec()  # traces the base map, or reads it from the cache
+        reason = fast.refusal(spec)  # loads (or compiles) the kernel
+        build_seconds = time.perf_counter() - started
+        built = fast.kernel()  # loaded by refusal(): the reason, or the kernel
+        if reason is not None or isinstance(built, str):
+            return refused(reason or str(built))
         where = "base map in the kernel" if spec.tape is not None else "base map in torch (not translatable)"
         details = {
             "engine": "native",
@@ -515,7 +521,9 @@ class ParticleSwarm(Estimator):
         groups = [EngineGroup(chosen, details, partial(_run_fast, part, spec), fast=True)]
         rest = [c for c in everything if c not in chosen]
         if rest:
-            groups.append(eager(rest, "; ".join(sorted({refusals[c] for c in rest}))))
+            groups.append(
+                eager(rest, "; ".join(sorted({why for c in rest if (why := refusals[c]) is not None})))
+            )
         return groups
 
 

@@ -47,7 +47,7 @@ def per_cost_estimates(
     run_costs: Tensor,
     kept: Tensor,
     mean: Tensor,
-    values: Sequence[float],
+    values: Sequence[float | Tensor],
     history: Tensor | None,
     common: dict[str, Any],
 ) -> list[Estimate]:
@@ -88,8 +88,8 @@ def runs_at_bounds(names: Sequence[str], position: Tensor, kept: Tensor, objecti
     (``kept[C, R]``) ended at a bound: the reported mean of runs some of which the box stopped is
     the box's doing too, though it may lie inside."""
     low, high = near_bounds(position, objective.lower, objective.upper)
-    low, high = ((mask & kept[..., None]).any(-2).tolist() for mask in (low, high))  # [C, D]
-    return [sides(names, lows, highs) for lows, highs in zip(low, high, strict=True)]
+    per_cost = ((mask & kept[..., None]).any(-2).tolist() for mask in (low, high))  # [C, D] each
+    return [sides(names, lows, highs) for lows, highs in zip(*per_cost, strict=True)]
 
 
 def make_estimate(

@@ -55,8 +55,9 @@ def trial_chunk(chunk: int | None, per_trial: int) -> int:
         chunk: explicit trials per batch, or ``None``.
         per_trial: error-tensor elements one trial needs (costs × runs × particles × n × N).
     """
-    if check_chunk(chunk) is not None:
-        return chunk
+    checked = check_chunk(chunk)
+    if checked is not None:
+        return checked
     return max(1, CHUNK_ELEMENTS // max(per_trial, 1))
 
 
@@ -83,7 +84,7 @@ def in_trial(error: E, position: int) -> E:
     (the trial's index in the caller's list), so a study says which draw failed; ``fit`` — a batch
     of one — raises it unchanged, exactly as before batching.
     """
-    error.trial = position  # type: ignore[attr-defined]
+    error.trial = position  # type: ignore[attr-defined]  # a mark on any exception type; fit_in_batches removes it
     return error
 
 
@@ -107,7 +108,7 @@ def fit_in_batches(
             if isinstance(position, int) and error.args and isinstance(error.args[0], str):
                 seed = batch[position].seed
                 error.args = (f"trial {members[position]} (seed {seed}): {error.args[0]}", *error.args[1:])
-                del error.trial  # named once, for the list the caller passed
+                delattr(error, "trial")  # named once, for the list the caller passed
             raise
         for index, estimates in zip(members, fitted, strict=True):
             results[index] = estimates

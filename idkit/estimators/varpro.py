@@ -43,6 +43,7 @@ from idkit.model import IdentifiedModel
 from idkit.optim import sizes, swarm
 from idkit.problem import Problem
 from idkit.robots.drives import sigmoid_friction
+from idkit.robots.urdf import URDFRobot
 from idkit.runtime import resolve_threads, torch_threads
 
 #: Relative ridge on ``A`` (scale of its trace): a shape whose sigmoid is nearly linear in ``q̇``
@@ -275,7 +276,7 @@ class VariableProjection(Estimator):
         self.resolve()
         problem.check_identifiable()
         robot = problem.robot
-        if getattr(robot, "friction", None) != "sigmoid":
+        if not isinstance(robot, URDFRobot) or robot.friction != "sigmoid":
             raise IdentificationError(
                 f"varpro: robot {type(robot).__name__} has no nonlinear friction shapes; use a 'urdf' robot "
                 "with friction=sigmoid (a model linear in its parameters needs estimator=ls)"
@@ -370,7 +371,7 @@ class VariableProjection(Estimator):
         )
 
     def _pcls(
-        self, robot: Robot, problem: Problem, steepness: Tensor, shift: Tensor
+        self, robot: URDFRobot, problem: Problem, steepness: Tensor, shift: Tensor
     ) -> tuple[IdentifiedModel, dict[str, Any]]:
         """pcls on the robot whose reference sigmoid shape is the one found: the model on ``robot``
         (whose parameters include the shape) and the details kept of the fit."""

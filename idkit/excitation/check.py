@@ -302,7 +302,7 @@ def check_trajectory(
             f"check: limits are for {limits.joint_names}, the trajectory has {trajectory.joint_names}"
         )
     joints, t = trajectory.joint_names, trajectory.t
-    margins: dict[str, dict[str, dict[str, float]]] = {joint: {} for joint in joints}
+    kept: dict[str, dict[str, dict[str, float]]] = {joint: {} for joint in joints}  # the margins kept
     violations: list[Violation] = []
     checks = [
         (name, values, limits.lower[row].numpy(), limits.upper[row].numpy())
@@ -317,7 +317,7 @@ def check_trajectory(
     for name, values, lower, upper in checks:
         found, broken = _margins(name, values, t, lower, upper, joints, required.share(name))
         for joint, margin in found.items():
-            margins[joint][name] = margin
+            kept[joint][name] = margin
         violations += broken
     rest, broken = _rest(trajectory, rest_tolerance)
     violations += broken
@@ -330,7 +330,7 @@ def check_trajectory(
         len(t),
         float(t[-1] - t[0]),
         rate,
-        margins,
+        kept,
         rest,
         collision.status(),
         effort_status,

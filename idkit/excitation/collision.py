@@ -208,7 +208,9 @@ def self_collision(
     for name in robot.joint_names:
         joint = pin_names.index(name)
         columns.append((model.idx_qs[joint], model.nqs[joint]))
-    bodies = sorted(
-        {tuple(sorted(_link_of(model, geometry.geometryObjects[i]) for i in pair)) for pair in kept}
-    )
+    links = [
+        (_link_of(model, geometry.geometryObjects[i]), _link_of(model, geometry.geometryObjects[j]))
+        for i, j in kept
+    ]
+    bodies = sorted({(a, b) if a <= b else (b, a) for a, b in links})
     return SelfCollision(tuple(robot.joint_names), bodies, incomplete, pin, model, geometry, columns)

@@ -119,6 +119,7 @@ def read_trajectory(path: str | os.PathLike[str], joint_names: Sequence[str]) ->
     table = read_table(path)
     table.require(matrices=QUANTITIES, vectors=["t"])
     joints = tuple(joint_names)
+    named: Sequence[str] | None
     if isinstance(table, NpzTable):
         with open_npz(table.path, "t, q, qd, qdd and joint_names") as archive:
             if "joint_names" not in archive.files:

@@ -100,7 +100,7 @@ class FourierExcitation(Excitation):
         shape = (n_joints, harmonics)
         k = torch.arange(1, harmonics + 1, dtype=torch.float64)
         self._omega = 2.0 * math.pi / period * k  # [K]
-        if a is None:
+        if a is None or b is None:  # both, as checked above
             j = torch.arange(1, n_joints + 1, dtype=torch.float64)[:, None]
             phase = 2.0 * math.pi * torch.frac(j * k * GOLDEN)  # [n, K]
             self._a = DEFAULT_AMPLITUDE * self._omega[0] * torch.cos(phase)

@@ -129,9 +129,9 @@ def _check_budget(t_end: float, learning_rate: float, **values: int) -> None:
     for key, value in values.items():
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ValueError(f"optimize_excitation: {key} must be an integer >= 1, got {value!r}")
-    for key, value in (("t_end", t_end), ("learning_rate", learning_rate)):
-        if not positive_number(value):
-            raise ValueError(f"optimize_excitation: {key} must be a finite number > 0, got {value!r}")
+    for key, number in (("t_end", t_end), ("learning_rate", learning_rate)):
+        if not positive_number(number):
+            raise ValueError(f"optimize_excitation: {key} must be a finite number > 0, got {number!r}")
 
 
 def optimize_excitation(
@@ -240,9 +240,8 @@ def optimize_excitation(
     start, start_value, details["start"] = _start(
         robot, family, criterion_, inner, inner_efforts, collision, check_grid, t
     )
-    improved = start_value is None or _better(criterion_, after, start_value)
-    if not improved:
-        assert start is not None
+    improved = start is None or start_value is None or _better(criterion_, after, start_value)
+    if start is not None and start_value is not None and not improved:
         details["search_result"] = after
         final, after = start, start_value
         for key in ("shrunk_by", "shrunk_for", "criterion_before_shrink"):
@@ -383,14 +382,18 @@ def _runnable(
     """
     inside = fit_into_limits(family, coefficients.double().cpu(), limits, grid)
 
-    def torques_within(c: Tensor) -> bool:
-        return bool((nominal_torques(robot, *family.evaluate(c, grid)).abs() <= efforts).all())
+    tests: dict[str, Callable[[Tensor], bool]] = {}
+    if efforts is not None:
 
-    def collision_free(c: Tensor) -> bool:
-        return not collision.contacts(family.evaluate(c, grid)[0].numpy(), first_only=True)
+        def torques_within(c: Tensor) -> bool:
+            return bool((nominal_torques(robot, *family.evaluate(c, grid)).abs() <= efforts).all())
 
-    tests = {"effort": torques_within} if efforts is not None else {}
+        tests["effort"] = torques_within
     if collision is not None:
+
+        def collision_free(c: Tensor) -> bool:
+            return not collision.contacts(family.evaluate(c, grid)[0].numpy(), first_only=True)
+
         tests["self-collision"] = collision_free
     failing = [name for name, test in tests.items() if not test(inside)]
     if not failing:

@@ -16,6 +16,7 @@ the trace (seconds, for torch's tracer import) without loading anything executab
 from __future__ import annotations
 
 import contextlib
+import enum
 import json
 import operator
 import time
@@ -24,6 +25,7 @@ import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import torch
@@ -231,7 +233,7 @@ def cached_tape(
         tape = _MISSING
     if tape is _MISSING:
         tape = trace(function, parameters)
-        if file is not None:
+        if file is not None and manifest is not None:
             with manifest.locked():  # another process's check never sees the file unrecorded
                 cache.write_atomically(file, (tape.to_json() if tape is not None else "null").encode())
                 manifest.record()
@@ -241,7 +243,13 @@ def cached_tape(
     return tape, seconds
 
 
-_MISSING = object()
+class _Missing(enum.Enum):
+    """A tape not on disk (a typed sentinel: ``None`` is a recorded "not translatable")."""
+
+    MISSING = enum.auto()
+
+
+_MISSING = _Missing.MISSING
 
 
 def agrees(tape: Tape, function: Callable[[Tensor], Tensor], parameters: int) -> bool:
@@ -259,7 +267,7 @@ def agrees(tape: Tape, function: Callable[[Tensor], Tensor], parameters: int) ->
     )
 
 
-def _read(file: Path) -> Tape | None | object:
+def _read(file: Path) -> Tape | None | Literal[_Missing.MISSING]:
     """The tape cached in ``file`` (already checked by ``cache.prepared``), ``None`` for a recorded
     "not translatable", or ``_MISSING``."""
     try:

@@ -73,6 +73,7 @@ def kernel() -> Build | str:
         from idkit.optim import kernel as compiled
     except Exception as error:  # numba missing or broken on this platform
         return f"the fast kernel cannot be loaded ({type(error).__name__}: {error})"
+    misses = 0  # kernels numba compiled: set by the attempt that succeeds (the other returns)
     for attempt in (1, 2):
         try:
             with compiled.MANIFEST.locked():  # numba's files are recorded before another process checks
@@ -396,8 +397,10 @@ def run(
         empty = np.zeros((0, 0, 0))
         _in_threads(used, trials, blocks, lambda trial, block: call(trial, block, empty))
     _record_new_code(built)
-    final = [torch.from_numpy(a).view(slots, runs, *a.shape[1:]) for a in (x, v, pbest, pcost, gpos)]
-    state = swarm.SwarmState(*final, final[3].amin(-1))
+    position, velocity, best, cost, best_global = (
+        torch.from_numpy(a).view(slots, runs, *a.shape[1:]) for a in (x, v, pbest, pcost, gpos)
+    )
+    state = swarm.SwarmState(position, velocity, best, cost, best_global, cost.amin(-1))
     return state, torch.from_numpy(history).view(len(kept), slots, runs)
 
 

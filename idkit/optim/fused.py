@@ -11,6 +11,8 @@ coincide (~1e-8, see ``spectral_norm_3``).
 
 from __future__ import annotations
 
+import functools
+import operator
 from collections.abc import Callable, Sequence
 
 import torch
@@ -72,28 +74,28 @@ def norm_product(
 
     def value(e: Tensor) -> Tensor:
         a = e.abs() if uses_abs else None
-        s = a.reshape(*a.shape[:-2], n * samples) @ sums if sums is not None else None
+        s = a.reshape(*a.shape[:-2], n * samples) @ sums if sums is not None and a is not None else None
         square = e.square() if uses_square else None
-        out = None
+        factors = []
         for name, parameter in zip(names, values, strict=True):
             if FACTORS[name].parameter is not None:
                 v = FACTORS[name].reference(e, parameter)
-            elif name == "1":
+            elif name == "1" and s is not None:
                 v = s[..., :samples].amax(-1)
-            elif name == "inf":
+            elif name == "inf" and s is not None:
                 v = s[..., samples:].amax(-1)
-            elif name == "max_abs":
+            elif name == "max_abs" and a is not None:
                 v = a.amax(dim=(-2, -1))
-            elif name == "fro":
+            elif name == "fro" and square is not None:
                 v = square.sum(dim=(-2, -1)).sqrt()
-            elif name == "max_row_sq":
+            elif name == "max_row_sq" and square is not None:
                 v = square.sum(dim=-1).amax(dim=-1)
             elif name == "2" and n == 3:
                 v = spectral_norm_3(e)
             else:
                 v = FACTORS[name].reference(e, parameter)
-            out = v if out is None else out * v
-        return out
+            factors.append(v)
+        return functools.reduce(operator.mul, factors)
 
     return value
 

@@ -107,7 +107,7 @@ def csv_rows(result: PaperTables) -> tuple[list[str], list[list[Any]]]:
     for t in result.tables:
         for est in t.estimates:
             ref = t.reference.get(est.estimator)
-            row = [TABLES.get(t.scenario, ""), t.scenario, est.estimator]
+            row: list[Any] = [TABLES.get(t.scenario, ""), t.scenario, est.estimator]
             row += [column_value(est.params, c) for c in columns]
             row += [est.wall_time_s, t.error(est.estimator)]
             if ref is None:

@@ -157,7 +157,7 @@ def reference_lines(reference: Mapping[str, Any] | None) -> list[str]:
     head = (
         f"reference {reference['file']} ({reference['samples']} samples"
         + (
-            f", preprocessed{_HOW.get(reference.get('preprocess'), '')}"
+            f", preprocessed{_HOW.get(reference.get('preprocess', ''), '')}"
             if reference.get("preprocessed")
             else ""
         )

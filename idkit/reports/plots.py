@@ -65,7 +65,9 @@ def estimates_vs_truth(
     return save_figure(fig, path)
 
 
-def boxplots(errors: Mapping[str, Mapping[str, Sequence[float]]], path: Path, title: str) -> Path:
+def boxplots(
+    errors: Mapping[str, Mapping[str, Sequence[float] | np.ndarray]], path: Path, title: str
+) -> Path:
     """One panel per scenario: the distribution of each estimator's parameter error (log scale)."""
     import numpy as np
 

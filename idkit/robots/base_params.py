@@ -48,7 +48,7 @@ class BaseParameters:
         out = []
         for k, row in enumerate(self.matrix):
             terms = [names[self.indices[k]]]
-            for j in np.flatnonzero(row):
+            for j in np.flatnonzero(row).tolist():
                 if j != self.indices[k]:
                     terms.append(f"{row[j]:+.{digits}g}*{names[j]}")
             out.append(" ".join(terms))

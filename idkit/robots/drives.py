@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -119,9 +119,16 @@ def sigmoid_friction(qd: Tensor, steepness: Tensor, shift: Tensor) -> Tensor:
     return torch.sigmoid(steepness * (qd + shift)) - torch.sigmoid(steepness * shift)
 
 
+def float_array(value: float | Sequence[float]) -> np.ndarray:
+    """One number or a sequence of them (a list, a tuple, a config's list) as floats ``[k]``; non-numbers
+    raise numpy's ``ValueError``/``TypeError``, for the caller to word."""
+    items = list(value) if isinstance(value, Iterable) and not isinstance(value, (str, bytes)) else value
+    return np.atleast_1d(np.asarray(items, dtype=np.float64))
+
+
 def per_joint(value: float | Sequence[float], joints: Sequence[str], option: str, who: str) -> np.ndarray:
     """A per-joint option as ``[n]`` finite floats (one value is broadcast), or a one-line ``ValueError``."""
-    array = np.atleast_1d(np.asarray(value if np.isscalar(value) else list(value), dtype=np.float64))
+    array = float_array(value)
     if array.size == 1:
         array = np.full(len(joints), array[0])
     if array.shape != (len(joints),) or not np.isfinite(array).all():

@@ -287,7 +287,7 @@ def _mjcf_solids(robot: MJCFRobot) -> _Found:
                 kind = mujoco.mjtGeom(int(model.geom_type[g])).name.removeprefix("mjGEOM_").lower()
                 what = f"geom {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or '#' + str(g)} {kind}"
                 try:
-                    solids.append((f"{name} {what}", _mjcf_solid(model, g, kind, rotation, translation)))
+                    solids.append((f"{name} {what}", _mjcf_solid(model, int(g), kind, rotation, translation)))
                 except _Unusable as error:
                     lost.append(f"{name}: {what} ({error})")
     return found

@@ -16,13 +16,26 @@ writer, the physically consistent estimator (``pcls``) and the KUKA study all ne
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import numpy as np
 import torch
 from torch import Tensor
 
-T = TypeVar("T")
+if TYPE_CHECKING:
+    from idkit.robots.urdf import URDFRobot
+
+
+class _Arithmetic(Protocol):
+    """What :func:`pseudo_inertia_rows` does to an entry: sums, differences, negation, halving."""
+
+    def __add__(self, other: Any, /) -> Any: ...
+    def __sub__(self, other: Any, /) -> Any: ...
+    def __neg__(self) -> Any: ...
+    def __truediv__(self, other: Any, /) -> Any: ...
+
+
+T = TypeVar("T", bound=_Arithmetic)
 
 
 def pseudo_inertia_rows(pi: Sequence[T]) -> list[list[T]]:
@@ -47,20 +60,30 @@ def pseudo_inertia(inertial: Tensor) -> Tensor:
     return torch.stack([torch.stack(row, -1) for row in rows], -2)
 
 
-def link_count(robot: Any) -> int:
+def link_count(robot: object) -> int:
     """How many links carry 10 standard parameters each (the first ``10 nb`` of ``[P]``).
 
     Raises:
-        ValueError: the robot is not a ``urdf`` robot (a kinematic ``tree`` and a ``base_map``):
-            only those order their parameters by link.
+        ValueError: the robot is not a ``urdf`` robot (:func:`linked`).
     """
-    tree = getattr(robot, "tree", None)
-    if tree is None or not hasattr(robot, "base_map"):
+    return len(linked(robot).tree.bodies)
+
+
+def linked(robot: object) -> URDFRobot:
+    """``robot`` itself, once known to be a ``urdf`` robot (a kinematic ``tree``, ``link_names`` and a
+    ``base_map``): only those order their parameters by link.
+
+    Raises:
+        ValueError: any other robot, named.
+    """
+    from idkit.robots.urdf import URDFRobot  # urdf.py reads its links through this module
+
+    if not isinstance(robot, URDFRobot):
         raise ValueError(
             f"physical consistency needs a 'urdf' robot (10 standard parameters per link and a base "
             f"map), got {type(robot).__name__}"
         )
-    return len(tree.bodies)
+    return robot
 
 
 def min_pseudo_inertia_eigenvalues(robot: Any, params: Tensor) -> Tensor:

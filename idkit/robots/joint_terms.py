@@ -50,7 +50,7 @@ def _urdf_terms(urdf: str, joint_names: tuple[str, ...]) -> dict[str, float]:
             raise ValueError(f"urdf ({label}): {what} is {text!r}, not a number") from None
 
     root = ET.fromstring(data, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
-    joints = {joint.get("name"): joint for joint in root.findall("joint")}
+    joints = {joint.get("name", ""): joint for joint in root.findall("joint")}
     out: dict[str, float] = {}
     for name in joint_names:
         joint = joints[name]
@@ -61,14 +61,21 @@ def _urdf_terms(urdf: str, joint_names: tuple[str, ...]) -> dict[str, float]:
                     what = f"joint {name!r}: <dynamics {attribute}>"
                     out[f"{name}.{key}"] = number(dynamics.get(attribute), what)
         for child in joint:
-            if child.tag is ET.Comment and (child.text or "").strip().startswith(MARK):
+            text = idkit_comment(child)
+            if text is not None:
                 out.update(
                     {
                         f"{name}.{key}": number(value, f"joint {name!r}: {key} of its {MARK} comment")
-                        for key, value in comment_pairs(child.text).items()
+                        for key, value in comment_pairs(text).items()
                     }
                 )
     return out
+
+
+def idkit_comment(element: ET.Element[Any]) -> str | None:
+    """The text of ``element`` if it is an ``idkit:`` comment (XML parsed with its comments kept)."""
+    text = element.text or ""
+    return text if element.tag is ET.Comment and text.strip().startswith(MARK) else None
 
 
 def comment_pairs(text: str) -> dict[str, str]:

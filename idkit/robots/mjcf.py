@@ -143,8 +143,8 @@ def _refuse_unmodelled(mujoco: Any, model: Any, label: str) -> None:
         return repr(_name(mujoco, model, kind, index) or f"#{index}") + f" ({what})"
 
     if model.neq:
-        kinds = [mujoco.mjtEq(int(t)).name.removeprefix("mjEQ_").lower() for t in model.eq_type]
-        listed = ", ".join(named(obj.mjOBJ_EQUALITY, i, kinds[i]) for i in range(model.neq))
+        equalities = [mujoco.mjtEq(int(t)).name.removeprefix("mjEQ_").lower() for t in model.eq_type]
+        listed = ", ".join(named(obj.mjOBJ_EQUALITY, i, equalities[i]) for i in range(model.neq))
         raise ValueError(f"mjcf: {label}: equality constraints are not supported: {listed}")
     for i in range(model.ntendon):
         terms = {
@@ -172,32 +172,38 @@ def _refuse_unmodelled(mujoco: Any, model: Any, label: str) -> None:
             f"mjcf: {label}: body {_name(mujoco, model, obj.mjOBJ_BODY, int(b))!r} has gravcomp="
             f"{model.body_gravcomp[b]:g}: gravity compensation is not supported"
         )
-    kinds = {int(mujoco.mjtJoint.mjJNT_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball"}
     for j in range(model.njnt):
-        name = _name(mujoco, model, obj.mjOBJ_JOINT, j)
-        body = _name(mujoco, model, obj.mjOBJ_BODY, int(model.jnt_bodyid[j]))
-        where = f"joint {name or '#' + str(j)!r} (body {body!r})"
-        if int(model.jnt_type[j]) in kinds:
-            raise ValueError(
-                f"mjcf: {label}: {where} is a {kinds[int(model.jnt_type[j])]} joint: only hinge and "
-                "slide joints are supported (fixed-base trees)"
-            )
-        if not name:
-            raise ValueError(f"mjcf: {label}: {where} has no name: joints are matched to data by name")
-        if not body:
-            raise ValueError(
-                f"mjcf: {label}: the body of joint {name!r} has no name: parameters are named after it"
-            )
-        if model.jnt_stiffness[j] != 0:
-            raise ValueError(
-                f"mjcf: {label}: {where} has stiffness={model.jnt_stiffness[j]:g}: joint springs are not "
-                "supported"
-            )
+        _refuse_joint(mujoco, model, label, j)
     gravity = np.asarray(model.opt.gravity, dtype=np.float64)
     if gravity[0] != 0 or gravity[1] != 0 or gravity[2] > 0:
         raise ValueError(
             f"mjcf: {label}: option gravity={' '.join(f'{g:g}' for g in gravity)}: only gravity along -z "
             "is supported"
+        )
+
+
+def _refuse_joint(mujoco: Any, model: Any, label: str, j: int) -> None:
+    """Raise for joint ``j`` unless it is a named hinge or slide joint of a named body, without a spring."""
+    obj = mujoco.mjtObj
+    kinds = {int(mujoco.mjtJoint.mjJNT_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball"}
+    name = _name(mujoco, model, obj.mjOBJ_JOINT, j)
+    body = _name(mujoco, model, obj.mjOBJ_BODY, int(model.jnt_bodyid[j]))
+    where = f"joint {name or '#' + str(j)!r} (body {body!r})"
+    if int(model.jnt_type[j]) in kinds:
+        raise ValueError(
+            f"mjcf: {label}: {where} is a {kinds[int(model.jnt_type[j])]} joint: only hinge and "
+            "slide joints are supported (fixed-base trees)"
+        )
+    if not name:
+        raise ValueError(f"mjcf: {label}: {where} has no name: joints are matched to data by name")
+    if not body:
+        raise ValueError(
+            f"mjcf: {label}: the body of joint {name!r} has no name: parameters are named after it"
+        )
+    if model.jnt_stiffness[j] != 0:
+        raise ValueError(
+            f"mjcf: {label}: {where} has stiffness={model.jnt_stiffness[j]:g}: joint springs are not "
+            "supported"
         )
 
 

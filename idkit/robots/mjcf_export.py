@@ -114,8 +114,8 @@ def urdf_to_mjcf(urdf: str | os.PathLike) -> str:
         model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
     except ValueError as error:
         raise ValueError(f"mjcf: MuJoCo cannot convert {label}: {' '.join(str(error).split())}") from None
-    with tempfile.TemporaryDirectory() as folder:  # mj_saveLastXML writes only to a file
-        path = Path(folder) / "converted.xml"
+    with tempfile.TemporaryDirectory() as scratch:  # mj_saveLastXML writes only to a file
+        path = Path(scratch) / "converted.xml"
         mujoco.mj_saveLastXML(str(path), model)
         return path.read_text(encoding="utf-8")
 

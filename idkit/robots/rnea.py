@@ -175,12 +175,12 @@ def forward_kinematics(tree: TreeTensors, q: Tensor, qd: Tensor, qdd: Tensor, gr
         else:
             w = w_in
             a = a + joint.axis * qdd[k] + 2.0 * coriolis
-        for store, value in zip(
-            (kin.w, kin.dw, kin.a, kin.sin, kin.versine, kin.offset),
-            (w, dw, a, sin, versine, offset),
-            strict=True,
-        ):
-            store.append(value)
+        kin.w.append(w)
+        kin.dw.append(dw)
+        kin.a.append(a)
+        kin.sin.append(sin)
+        kin.versine.append(versine)
+        kin.offset.append(offset)
     return kin
 
 

@@ -44,7 +44,15 @@ from torch import Tensor
 from idkit.interfaces import Robot
 from idkit.limits import MotionLimits
 from idkit.robots.base_params import BaseParameters, find_base_parameters
-from idkit.robots.drives import Boxes, DriveModel, Friction, check_effort_scale, per_joint, read_armatures
+from idkit.robots.drives import (
+    Boxes,
+    DriveModel,
+    Friction,
+    check_effort_scale,
+    float_array,
+    per_joint,
+    read_armatures,
+)
 from idkit.robots.rnea import TreeTensors, rnea, rnea_regressor
 from idkit.robots.urdf_model import INERTIAL_NAMES, KinematicTree, parse_urdf
 from idkit.seeds import Seed, torch_generator
@@ -174,12 +182,13 @@ class URDFRobot(Robot):
                 per_joint(self.sigmoid_steepness, joints, "sigmoid_steepness", self.source_format),
                 per_joint(self.sigmoid_shift, joints, "sigmoid_shift", self.source_format),
             )
+        low, high = self.steepness_range  # a config's list becomes the tuple Boxes holds
         boxes = Boxes(
             self.max_coulomb,
             self.max_viscous,
             self.max_offset,
             self.max_armature,
-            tuple(self.steepness_range),
+            (low, high),
             self.max_shift,
         )
         return DriveModel(
@@ -246,9 +255,9 @@ class URDFRobot(Robot):
             lo, hi = body.limits or default
             lower.append(lo)
             upper.append(hi)
-        lo, hi = torch.tensor(lower, dtype=torch.float64), torch.tensor(upper, dtype=torch.float64)
+        low, high = torch.tensor(lower, dtype=torch.float64), torch.tensor(upper, dtype=torch.float64)
         shape = (n_states, self.n_joints)
-        q = lo + (hi - lo) * torch.rand(shape, generator=generator, dtype=torch.float64)
+        q = low + (high - low) * torch.rand(shape, generator=generator, dtype=torch.float64)
         qd = torch.randn(shape, generator=generator, dtype=torch.float64)
         qdd = torch.randn(shape, generator=generator, dtype=torch.float64)
         return q, qd, qdd
@@ -316,8 +325,10 @@ class URDFRobot(Robot):
             lower += [m_lo, *(h0 - m_hi * length), xx_lo, xy_lo, xz_lo, yy_lo, yz_lo, zz_lo]
             upper += [m_hi, *(h0 + m_hi * length), xx_hi, xy_hi, xz_hi, yy_hi, yz_hi, zz_hi]
         drive_lower, drive_upper = self.drives.bounds()
-        lower, upper = np.concatenate([lower, drive_lower]), np.concatenate([upper, drive_upper])
-        return torch.tensor(lower, dtype=torch.float64), torch.tensor(upper, dtype=torch.float64)
+        return (
+            torch.tensor(np.concatenate([lower, drive_lower]), dtype=torch.float64),
+            torch.tensor(np.concatenate([upper, drive_upper]), dtype=torch.float64),
+        )
 
     def base_bounds(self) -> tuple[Tensor, Tensor]:
         """Search box ``(lower[B], upper[B])``: the interval image ``K mid ± |K| half`` of ``bounds``."""
@@ -410,7 +421,7 @@ class URDFRobot(Robot):
         """``stribeck_velocity`` as ``[n]`` positive scales, or ``None``."""
         if value is None:
             return None
-        scales = np.atleast_1d(np.asarray(value if np.isscalar(value) else list(value), dtype=np.float64))
+        scales = float_array(value)
         if scales.size == 1:
             scales = np.full(self.n_joints, scales[0])
         if self.friction is not True or scales.shape != (self.n_joints,) or not (scales > 0).all():

@@ -35,17 +35,20 @@ import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import torch
 from torch import Tensor
 
 from idkit.robots.inertia import centroidal, frame_change, min_pseudo_inertia_eigenvalues, pseudo_inertia
-from idkit.robots.joint_terms import MARK, comment_pairs
+from idkit.robots.joint_terms import comment_pairs, idkit_comment
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_frames import link_placement
 from idkit.robots.urdf_model import INERTIAL_NAMES, read_urdf_text
+
+#: An element or a comment (``ET.Comment``): what :func:`_append` places.
+_Child = TypeVar("_Child", bound="ET.Element[Any]")
 
 
 def parameter_vector(
@@ -85,8 +88,8 @@ def identified_urdf(
     values = parameter_vector(robot, params)
     data, _ = read_urdf_text(robot.urdf)
     root = ET.fromstring(data, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
-    links = {link.get("name"): link for link in root.findall("link")}
-    joints = {joint.get("name"): joint for joint in root.findall("joint")}
+    links = {link.get("name", ""): link for link in root.findall("link")}
+    joints = {joint.get("name", ""): joint for joint in root.findall("joint")}
     carried = _payload_parameters(robot, payload)
     if carried is not None:  # a copy: ``values`` may share memory with the caller's tensor
         values = values.copy()
@@ -278,7 +281,7 @@ def _write_armatures(robot: URDFRobot, values: np.ndarray, root: ET.Element) -> 
             _append(transmission, ET.Comment(note + "rotor_inertia is its a-priori value "))
 
 
-def _append(parent: ET.Element, child: ET.Element) -> ET.Element:
+def _append(parent: ET.Element, child: _Child) -> _Child:
     """Append ``child`` indented like its siblings (a pretty-printed source stays pretty)."""
     if len(parent):
         child.tail, parent[-1].tail = parent[-1].tail, parent.text
@@ -305,8 +308,9 @@ def _take_own_comments(joint: ET.Element) -> dict[str, str]:
     ``key=value`` pairs, so that terms this fit does not hold are kept."""
     pairs: dict[str, str] = {}
     for child in list(joint):
-        if child.tag is ET.Comment and (child.text or "").strip().startswith(MARK):
-            pairs.update(comment_pairs(child.text or ""))
+        text = idkit_comment(child)
+        if text is not None:
+            pairs.update(comment_pairs(text))
             siblings = list(joint)
             if child is siblings[-1] and len(siblings) > 1:
                 siblings[-2].tail = child.tail  # keep the closing tag's indentation

@@ -41,6 +41,12 @@ def _origin(joint: ET.Element) -> tuple[np.ndarray, np.ndarray]:
     return rpy_matrix(np.array([float(v) for v in rpy.split()])), np.array([float(v) for v in xyz.split()])
 
 
+def _link(joint: ET.Element, role: str) -> str:
+    """The link a joint's ``<parent>`` or ``<child>`` (``role``) names ("" if none: checked by the reader)."""
+    end = joint.find(role)
+    return "" if end is None else end.get("link", "")
+
+
 def link_placement(tree: KinematicTree, urdf: str, link: str) -> LinkPlacement:
     """The placement of ``link`` (a moving body's link or one welded to it) in its body's frame.
 
@@ -58,18 +64,14 @@ def link_placement(tree: KinematicTree, urdf: str, link: str) -> LinkPlacement:
     if link not in {own.name for own in tree.links}:
         raise ValueError(f"{tree.source} has no link {link!r}")
     data, _ = read_urdf_text(urdf)
-    parent_joint = {
-        joint.find("child").get("link"): joint
-        for joint in ET.fromstring(data).findall("joint")
-        if joint.find("child") is not None
-    }
+    parent_joint = {_link(joint, "child"): joint for joint in ET.fromstring(data).findall("joint")}
     chain, current = [], link
     while current not in bodies:
         joint = parent_joint.get(current)
         if joint is None or joint.get("type") != "fixed":
             raise ValueError(f"link {link!r} of {tree.source} never moves (it is the root or welded to it)")
         chain.append(joint)
-        current = joint.find("parent").get("link")
+        current = _link(joint, "parent")
     rotation, translation = np.eye(3), np.zeros(3)
     for joint in reversed(chain):  # from the body's link down to ``link``
         r, p = _origin(joint)

@@ -220,9 +220,11 @@ def _link_inertial(link: ET.Element) -> LinkInertial:
     return LinkInertial(name, float(mass), com, rotation @ inertia @ rotation.T)
 
 
-def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translation: np.ndarray) -> Body:
-    """The :class:`Body` a moving joint starts (inertial filled in later)."""
-    name, kind = joint.get("name"), joint.get("type")
+def _moving_body(
+    joint: ET.Element, child: str, parent: int, rotation: np.ndarray, translation: np.ndarray
+) -> Body:
+    """The :class:`Body` a moving joint (to link ``child``) starts (inertial filled in later)."""
+    name, kind = joint.get("name", ""), joint.get("type", "")
     axis = _floats(joint.find("axis"), "xyz", (1.0, 0.0, 0.0), f"joint {name!r} <axis>")
     norm = np.linalg.norm(axis)
     if norm < 1e-12:
@@ -235,22 +237,19 @@ def _moving_body(joint: ET.Element, parent: int, rotation: np.ndarray, translati
         lo = _floats(limit, "lower", (0.0,), f"joint {name!r} <limit>")[0]
         hi = _floats(limit, "upper", (0.0,), f"joint {name!r} <limit>")[0]
         limits = None if hi == lo else (float(lo), float(hi))  # both absent: 0, 0 (no limit)
-    child = joint.find("child").get("link")
     max_velocity = float(velocity) if velocity > 0 else None
-    kind, axis = MOVING[kind], axis / norm
-    effort = effort if effort > 0 else None
     return Body(
         name,
         child,
-        kind,
+        MOVING[kind],
         parent,
         rotation,
         translation,
-        axis,
+        axis / norm,
         np.zeros(10),
         limits,
         max_velocity=max_velocity,
-        effort=effort,
+        effort=effort if effort > 0 else None,
     )
 
 
@@ -281,46 +280,19 @@ def _tree(robot: ET.Element, label: str) -> KinematicTree:
     """The :class:`KinematicTree` of a parsed ``<robot>`` element (``label``: its source)."""
     if robot.tag != "robot":
         raise ValueError(f"root element is <{robot.tag}>, expected <robot>")
+    for element in (*robot.findall("link"), *robot.findall("joint")):
+        if element.get("name") is None:
+            raise ValueError(f"a <{element.tag}> has no name attribute (parameters are named after them)")
     own = [_link_inertial(link) for link in robot.findall("link")]
-    links = {link.get("name"): link for link in robot.findall("link")}
     inertial_of = {link.name: link for link in own}
-    children: dict[str, list[ET.Element]] = {name: [] for name in links}
-    parent_of: dict[str, str] = {}
-    for joint in robot.findall("joint"):
-        name, kind = joint.get("name"), joint.get("type")
-        if kind in UNSUPPORTED:
-            raise ValueError(f"joint {name!r} has type {kind!r}: {UNSUPPORTED[kind]}")
-        if kind not in MOVING and kind != "fixed":
-            raise ValueError(
-                f"joint {name!r} has unknown type {kind!r} "
-                "(supported: revolute, continuous, prismatic, fixed)"
-            )
-        if joint.find("mimic") is not None:
-            raise ValueError(f"joint {name!r} has <mimic>: mimic joints are not supported")
-        parent = joint.find("parent")
-        child = joint.find("child")
-        parent_link = None if parent is None else parent.get("link")
-        child_link = None if child is None else child.get("link")
-        for role, link_name in (("parent", parent_link), ("child", child_link)):
-            if link_name not in links:
-                raise ValueError(f"joint {name!r}: {role} link {link_name!r} is not defined")
-        if child_link in parent_of:
-            raise ValueError(
-                f"link {child_link!r} is the child of two joints ({parent_of[child_link]!r}, "
-                f"{name!r}): closed loops are not supported"
-            )
-        parent_of[child_link] = name
-        children[parent_link].append(joint)
-    roots = [name for name in links if name not in parent_of]
-    if len(roots) != 1:
-        raise ValueError(f"expected one root link, found {roots or 'none (a loop)'}")
+    children, root = _joint_graph(robot, [link.get("name", "") for link in robot.findall("link")])
     bodies: list[Body] = []
     inertials: list[np.ndarray] = []
     welded: list[list[str]] = []
     # Depth-first walk. A stack entry is (link, owning body, pose of the link in that body, the
     # Body its moving parent joint starts — or None when it hangs on a fixed joint).
     stack: list[tuple[str, int, np.ndarray, np.ndarray, Body | None]] = [
-        (roots[0], -1, np.eye(3), np.zeros(3), None)
+        (root, -1, np.eye(3), np.zeros(3), None)
     ]
     while stack:
         link, owner, rot, pos, body = stack.pop()
@@ -335,16 +307,14 @@ def _tree(robot: ET.Element, label: str) -> KinematicTree:
         if owner >= 0:
             com, inertia = rot @ inertial.com + pos, rot @ inertial.inertia @ rot.T
             inertials[owner] += standard_parameters(inertial.mass, com, inertia)
-        pending = []
-        for joint in children[link]:
-            name = joint.get("name")
-            j_rot, j_pos = _origin(joint, f"joint {name!r}")
+        pending: list[tuple[str, int, np.ndarray, np.ndarray, Body | None]] = []
+        for joint, child in children[link]:
+            j_rot, j_pos = _origin(joint, f"joint {joint.get('name')!r}")
             rot_c, pos_c = rot @ j_rot, rot @ j_pos + pos  # joint frame in the owning body frame
-            child = joint.find("child").get("link")
             if joint.get("type") == "fixed":
                 pending.append((child, owner, rot_c, pos_c, None))
             else:
-                pending.append((child, owner, rot_c, pos_c, _moving_body(joint, owner, rot_c, pos_c)))
+                pending.append((child, owner, rot_c, pos_c, _moving_body(joint, child, owner, rot_c, pos_c)))
         stack.extend(reversed(pending))  # children in document order
     if not bodies:
         raise ValueError("has no revolute, continuous or prismatic joint")
@@ -353,4 +323,46 @@ def _tree(robot: ET.Element, label: str) -> KinematicTree:
         for b, inertial, w in zip(bodies, inertials, welded, strict=True)
     ]
     fixed = tuple(joint.get("name", "") for joint in robot.findall("joint") if joint.get("type") == "fixed")
-    return KinematicTree(robot.get("name", ""), roots[0], tuple(bodies), label, tuple(own), fixed)
+    return KinematicTree(robot.get("name", ""), root, tuple(bodies), label, tuple(own), fixed)
+
+
+def _joint_graph(robot: ET.Element, links: list[str]) -> tuple[dict[str, list[tuple[ET.Element, str]]], str]:
+    """Each link's joints to its children, with the child link's name, and the root link; every joint
+    checked (:func:`_check_joint`) and every link with one parent at most."""
+    children: dict[str, list[tuple[ET.Element, str]]] = {name: [] for name in links}
+    parent_of: dict[str, str] = {}
+    for joint in robot.findall("joint"):
+        name = joint.get("name", "")
+        _check_joint(joint)
+        ends = []
+        for role in ("parent", "child"):
+            end = joint.find(role)
+            link_name = None if end is None else end.get("link")
+            if link_name is None or link_name not in children:
+                raise ValueError(f"joint {name!r}: {role} link {link_name!r} is not defined")
+            ends.append(link_name)
+        parent_link, child_link = ends
+        if child_link in parent_of:
+            raise ValueError(
+                f"link {child_link!r} is the child of two joints ({parent_of[child_link]!r}, "
+                f"{name!r}): closed loops are not supported"
+            )
+        parent_of[child_link] = name
+        children[parent_link].append((joint, child_link))
+    roots = [name for name in children if name not in parent_of]
+    if len(roots) != 1:
+        raise ValueError(f"expected one root link, found {roots or 'none (a loop)'}")
+    return children, roots[0]
+
+
+def _check_joint(joint: ET.Element) -> None:
+    """Refuse a joint idkit does not model: an unsupported or unknown type, a ``<mimic>``."""
+    name, kind = joint.get("name", ""), joint.get("type")
+    if kind in UNSUPPORTED:
+        raise ValueError(f"joint {name!r} has type {kind!r}: {UNSUPPORTED[kind]}")
+    if kind not in MOVING and kind != "fixed":
+        raise ValueError(
+            f"joint {name!r} has unknown type {kind!r} (supported: revolute, continuous, prismatic, fixed)"
+        )
+    if joint.find("mimic") is not None:
+        raise ValueError(f"joint {name!r} has <mimic>: mimic joints are not supported")

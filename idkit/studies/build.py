@@ -101,9 +101,9 @@ def _config_value(value: Any) -> tuple[bool, Any]:
         items = [_config_value(v) for v in value]
         return all(ok for ok, _ in items), [v for _, v in items]
     if isinstance(value, Mapping):
-        items = {k: _config_value(v) for k, v in value.items()}
-        ok = all(isinstance(k, str) and good for k, (good, _) in items.items())
-        return ok, {k: v for k, (_, v) in items.items()}
+        entries = {k: _config_value(v) for k, v in value.items()}
+        ok = all(isinstance(k, str) and good for k, (good, _) in entries.items())
+        return ok, {k: v for k, (_, v) in entries.items()}
     return False, None
 
 

@@ -128,12 +128,17 @@ def consistency(robot: URDFRobot, params: Tensor) -> dict[str, float | int]:
     return {"min_eig": float(eigenvalues.min()), "links_negative": int((eigenvalues < -1e-10).sum())}
 
 
-def data_check(samples: Samples, times: np.ndarray) -> dict[str, float]:
+def data_check(samples: Samples, times: np.ndarray | None) -> dict[str, float]:
     """How clean the accelerations are: content above 10 Hz, and agreement with ``d(qd)/dt``.
 
     Returns the worst joint's share of the RMS acceleration above 10 Hz, and the RMS of
     ``qdd − gradient(qd, t)`` relative to the RMS of ``qdd`` (a lag or noise in ``qdd`` shows here).
+
+    Raises:
+        ValueError: no ``times`` (a recording without timestamps).
     """
+    if times is None:
+        raise ValueError("kuka: a recording without timestamps; the data check needs its sampling times")
     qdd, qd = samples.qdd.numpy(), samples.qd.numpy()
     spectrum = np.abs(np.fft.rfft(qdd - qdd.mean(0), axis=0)) ** 2
     freq = np.fft.rfftfreq(len(times), d=float(np.median(np.diff(times))))

@@ -59,9 +59,9 @@ def plausible_alternative(
     if not held_out or not implausible or getattr(estimator, "plausible", True) is not False:
         return None
     other = copy.copy(estimator)  # options are resolved at every fit
-    other.plausible = True  # type: ignore[attr-defined]
+    other.plausible = True  # type: ignore[attr-defined]  # it has the option: checked above
     if "prior_weight" in fitted.details:  # the same pull towards CAD: the comparison is the bounds alone
-        other.prior_weight = fitted.details["prior_weight"]  # type: ignore[attr-defined]
+        other.prior_weight = fitted.details["prior_weight"]  # type: ignore[attr-defined]  # its fit reported one
     estimate = other.fit(problem)
     scores = validate_files(IdentifiedModel(problem.robot, estimate), held_out)
     return PlausibleAlternative(estimate, scores, implausible)

@@ -552,8 +552,8 @@ def run(
         # Chunk-major order: an interrupted study has the same trials in every scenario.
         for start in range(mine.start, mine.stop, chunk):
             chosen = range(start, min(start + chunk, mine.stop))
-            for scenario in scenarios:
-                fit_chunk(scenario, chosen)
+            for name in scenarios:  # not `scenario`: that is the option overriding the presets
+                fit_chunk(name, chosen)
             done += len(chosen)
             bar.update(len(chosen))
             if (

@@ -358,8 +358,9 @@ def run(
         seed=seed,
         data=source,
         plugins={
-            kind: describe(kind, spec)
-            for kind, spec in (("robot", robot), ("estimator", estimator), ("cost", cost))
+            "robot": describe("robot", robot),
+            "estimator": describe("estimator", estimator),
+            "cost": describe("cost", cost),
         },
     )
     model = IdentifiedModel(robot_obj, replace(fitted, estimator=label))

@@ -184,7 +184,7 @@ def score(
     raw = float(np.linalg.norm(error) / np.linalg.norm(measured))
     band = scoring_band(times)
     reference = measured
-    if band is not None:
+    if band is not None and times is not None:  # a band needs times
         error, reference = band_limit(times, error, band), band_limit(times, measured, band)
     rms = np.sqrt((error**2).mean(0))
     scale = np.sqrt((reference**2).mean(0))

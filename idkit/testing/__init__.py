@@ -133,7 +133,7 @@ def build_for_checks(kind: str, name: str, **options: Any) -> Any:
     """Create a registered plugin with ``options``, or else its class's ``conformance_options``."""
     from idkit import registry
 
-    factory = registry.load(kind, name)  # type: ignore[arg-type]
+    factory = registry.load(kind, name)
     return factory(**(options or options_for_checks(factory)))
 
 

@@ -57,7 +57,7 @@ def conformance_check(func: F) -> F:
             message = f"{func.__name__} failed for {label(plugin)}: {err}"
             raise ConformanceError(message).with_traceback(err.__traceback__) from err.__cause__
 
-    return wrapper  # type: ignore[return-value]
+    return wrapper  # type: ignore[return-value]  # wraps() keeps func's signature; F cannot say so
 
 
 def call(description: str, function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:

@@ -302,7 +302,8 @@ def _comparable(a: Any, b: Any) -> bool | None:
     of its own: a lock, a generator)."""
     if isinstance(a, Tensor) and isinstance(b, Tensor):
         return a.shape == b.shape and a.dtype == b.dtype and bool(torch.equal(a.cpu(), b.cpu()))
-    if type(a) is type(b) and type(a).__eq__ is object.__eq__:
+    equality: object = type(a).__eq__  # only compared by identity: any callable will do
+    if type(a) is type(b) and equality is object.__eq__:
         return None
     return same(a, b)
 
@@ -341,33 +342,9 @@ def check_estimator_params(estimator: Estimator, problem_factory: ProblemFactory
     cls = type(estimator)
     stored = get_params(estimator)
     if hasattr(estimator, "get_params"):
-        reported = call(f"{cls.__name__}.get_params()", estimator.get_params)
-        if not isinstance(reported, dict) or list(reported) != list(stored):
-            keys = list(reported) if isinstance(reported, dict) else type(reported).__name__
-            fail(f"get_params() returned keys {keys}; expected the constructor's keywords {list(stored)}")
-        for name, value in stored.items():
-            if not same(reported[name], value):
-                fail(f"get_params()[{name!r}] is {reported[name]!r} but self.{name} is {value!r}")
-        rebuilt = call(f"{cls.__name__}(**get_params())", cls, **reported)
-        for name, value in rebuilt.get_params().items():
-            if not same(value, stored[name]):
-                fail(f"{cls.__name__}(**get_params()) has {name}={value!r}, expected {stored[name]!r}")
+        _check_get_params(estimator, stored)
     if hasattr(estimator, "set_params"):
-        twin = call(f"{cls.__name__}(**options)", cls, **stored)
-        try:
-            returned = twin.set_params(**stored)
-        except (AttributeError, TypeError):  # a frozen object refuses every assignment
-            returned = twin
-        except Exception as exc:
-            fail(f"set_params(**get_params()) raised {type(exc).__name__} on valid input: {exc}")
-        if returned is not twin:
-            fail("set_params must return the estimator itself (scikit-learn's convention)")
-        try:
-            twin.set_params(no_such_option=1)
-        except (ValueError, TypeError):
-            pass
-        else:
-            fail("set_params(no_such_option=1) was accepted; an unknown option must raise a ValueError")
+        _check_set_params(cls, stored)
     parameters = inspect.signature(cls).parameters
     if any(parameters[name].default is inspect.Parameter.empty for name in stored):
         return  # check_hyperparameters says which option has no default
@@ -399,6 +376,42 @@ def check_estimator_params(estimator: Estimator, problem_factory: ProblemFactory
                 f"building with them: {getattr(after, what)!r} vs {getattr(direct, what)!r}; read the "
                 "options in fit (idkit.hyperparameters), not values derived from them in __init__"
             )
+
+
+def _check_get_params(estimator: Any, stored: dict[str, Any]) -> None:
+    """``get_params()`` gives the stored constructor keywords, and ``cls(**get_params())`` rebuilds."""
+    cls = type(estimator)
+    reported = call(f"{cls.__name__}.get_params()", estimator.get_params)
+    if not isinstance(reported, dict) or list(reported) != list(stored):
+        keys = list(reported) if isinstance(reported, dict) else type(reported).__name__
+        fail(f"get_params() returned keys {keys}; expected the constructor's keywords {list(stored)}")
+    for name, value in stored.items():
+        if not same(reported[name], value):
+            fail(f"get_params()[{name!r}] is {reported[name]!r} but self.{name} is {value!r}")
+    rebuilt = call(f"{cls.__name__}(**get_params())", cls, **reported)
+    for name, value in rebuilt.get_params().items():
+        if not same(value, stored[name]):
+            fail(f"{cls.__name__}(**get_params()) has {name}={value!r}, expected {stored[name]!r}")
+
+
+def _check_set_params(cls: type, stored: dict[str, Any]) -> None:
+    """``set_params(**options)`` returns the estimator (or refuses every assignment: a frozen object)
+    and refuses an unknown option."""
+    twin = call(f"{cls.__name__}(**options)", cls, **stored)
+    try:
+        returned = twin.set_params(**stored)
+    except (AttributeError, TypeError):  # a frozen object refuses every assignment
+        returned = twin
+    except Exception as exc:
+        fail(f"set_params(**get_params()) raised {type(exc).__name__} on valid input: {exc}")
+    if returned is not twin:
+        fail("set_params must return the estimator itself (scikit-learn's convention)")
+    try:
+        twin.set_params(no_such_option=1)
+    except (ValueError, TypeError):
+        pass
+    else:
+        fail("set_params(no_such_option=1) was accepted; an unknown option must raise a ValueError")
 
 
 ESTIMATOR_CHECKS: tuple[Callable[..., None], ...] = (

@@ -92,15 +92,15 @@ def _read_urdf(urdf: str | bytes | Path) -> bytes:
 
 def _parse(xml: bytes) -> tuple[dict[str, ET.Element], dict[str, LinkInertia]]:
     root = ET.fromstring(xml)
-    joints = {j.get("name"): j for j in root.findall("joint")}
+    joints = {j.get("name", ""): j for j in root.findall("joint")}
     inertias = {}
     for link in root.findall("link"):
         inertial = link.find("inertial")
         if inertial is None:
             continue
-        name = link.get("name")
+        name = link.get("name", "")
         mass_el, inertia_el = inertial.find("mass"), inertial.find("inertia")
-        mass = float(mass_el.get("value")) if mass_el is not None else 0.0
+        mass = float(mass_el.get("value", 0.0)) if mass_el is not None else 0.0
         frame = _origin(inertial.find("origin"), f"link {name!r} inertial")
         inertia = torch.zeros(3, 3, dtype=torch.float64)
         if inertia_el is not None:

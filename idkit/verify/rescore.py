@@ -31,6 +31,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -49,7 +50,7 @@ class IdentifiedFile:
         coulomb, viscous, offset: per joint in that order (0 where the file has none).
     """
 
-    model: object
+    model: Any  # pinocchio.Model: pinocchio ships no types
     joints: tuple[str, ...]
     coulomb: np.ndarray
     viscous: np.ndarray
@@ -72,14 +73,20 @@ def read_identified(path: str | Path) -> IdentifiedFile:
             found["fc"] = float(dynamics.get("friction", 0.0))
             found["fv"] = float(dynamics.get("damping", 0.0))
         for child in joint:
-            if child.tag is ET.Comment and "idkit:" in (child.text or ""):
-                found.update({k: float(v) for k, v in COMMENT_TERM.findall(child.text or "")})
+            comment = _comment(child)
+            if comment is not None and "idkit:" in comment:
+                found.update({k: float(v) for k, v in COMMENT_TERM.findall(comment)})
         terms[joint.get("name", "")] = found
 
     def column(key: str) -> np.ndarray:
         return np.array([terms.get(name, {}).get(key, 0.0) for name in joints])
 
     return IdentifiedFile(model, joints, column("fc"), column("fv"), column("offset"))
+
+
+def _comment(element: ET.Element[Any]) -> str | None:
+    """The text of an XML comment (parsed with comments kept), ``None`` for any other element."""
+    return (element.text or "") if element.tag is ET.Comment else None
 
 
 def predicted_torques(

@@ -58,6 +58,9 @@ def test_mimic_joint_is_refused():
         ),
         (chain().replace('<axis xyz="1 0 0"/>', '<axis xyz="0 0 0"/>'), "joint 'p3' has a zero axis"),
         (chain().replace('xyz="0.4 0 0"', 'xyz="0.4 0"'), "joint 'p3' <origin>: xyz needs 3 numbers"),
+        (chain().replace('<joint name="r2"', "<joint"), "a <joint> has no name attribute"),
+        (chain().replace('<link name="l3">', "<link>"), "a <link> has no name attribute"),
+        (chain().replace('<child link="l2"/>', ""), "joint 'r2': child link None is not defined"),
     ],
 )
 def test_malformed_urdf_is_explained(text, message):

@@ -189,8 +189,8 @@ def stacked_rls_closed_form(W: Tensor, tau: Tensor, rho: Sequence[float]) -> lis
                 IdentificationError("RLS: W is rank deficient and rho = 0 — the minimiser is not unique"), t
             )
         roots.append((mu, iterations))
-    mu = np.array([m for m, _ in roots])[:, None]  # [T, 1]
-    alpha = (Vh.swapaxes(-1, -2) @ (b * S / (S * S + mu))[..., None])[..., 0]  # α = V diag(s/(s²+μ)) b
+    mus = np.array([m for m, _ in roots])[:, None]  # [T, 1]
+    alpha = (Vh.swapaxes(-1, -2) @ (b * S / (S * S + mus))[..., None])[..., 0]  # α = V diag(s/(s²+μ)) b
     alpha_t = torch.from_numpy(alpha).to(device=W.device, dtype=W.dtype)
     return [RLSSolution(alpha_t[t], m, iterations) for t, (m, iterations) in enumerate(roots)]
 
@@ -278,7 +278,7 @@ def rls_cvxpy(
     scale = max(bound, 1e-6 * float(np.linalg.norm(tn))) or 1.0
     alpha = cp.Variable(Wn.shape[1])
     lam, gamma = cp.Variable(), cp.Variable()
-    constraints = [
+    constraints: list[cp.Constraint] = [
         cp.SOC(lam, (Wn / scale) @ alpha - tn / scale),
         cp.SOC(gamma, cp.hstack([alpha, np.ones(1)])),
     ]
