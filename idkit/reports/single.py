@@ -130,11 +130,16 @@ def _uncertainty_lines(uncertainty: Mapping[str, Any] | None, base: Mapping[str,
     if not uncertainty:
         return []
     rel = uncertainty.get("std_rel_pct") or {}
-    lines = ["", f"{'base parameter':<24}{'estimate':>12}{'std':>12}"]
+    std = uncertainty.get("std") or {}
+    # the std itself beside its share of the estimate: a share alone reads 1e10 % for a friction
+    # coefficient held at its bound 0 (a value of 1e-9) whose std is small
+    lines = ["", f"{'base parameter':<24}{'estimate':>12}{'std':>12}{'relative':>12}"]
     for name, pct in rel.items():
         value = base.get(name)
         shown = "" if value is None else f"{value:12.5g}"
-        lines.append(f"{name:<24}{shown:>12}{_percent(pct):>12}")
+        spread = std.get(name)
+        spread_shown = "" if spread is None else f"{spread:12.3g}"
+        lines.append(f"{name:<24}{shown:>12}{spread_shown:>12}{_percent(pct):>12}")
     cond = uncertainty.get("cond", float("nan"))
     lines.append(f"regressor rank {uncertainty.get('rank')} · condition number {cond:.3g}")
     unidentifiable = uncertainty.get("unidentifiable") or []
