@@ -1,13 +1,20 @@
 """The fast kernel of another revision against this one, interleaved in one process.
 
-Run: ``python bench/kernel_ab.py [REVISION] [--runs 1 10 200] [--rounds 30]`` (default ``main``). Both
-versions of ``idkit/optim/kernel.py`` — ``git show REVISION:idkit/optim/kernel.py`` and the working
-tree's — are loaded as standalone modules (compiled by numba in a new temporary folder: about half
-a minute per version), checked to give bitwise the same history on the benchmark's problem (f13 on
-``torque_noise``, paper preset, 20 particles × 300 iterations, one thread), and timed in rounds: each
-round calls every version once per batch size in turn, so the machine's load falls on both alike.
-CPU time per call (``time.process_time``: other jobs on a shared machine count less), median and
-minimum over the rounds, and nanoseconds per evaluation. The kernel alone: no estimator around it.
+Run: ``python bench/kernel_ab.py [REVISION] [--runs 1 10 200] [--rounds 30] [--costs f13 ...]
+[--preset paper|default] [--trials 1]`` (default ``main``, f13, paper preset). Both versions of
+``idkit/optim/kernel.py`` — ``git show REVISION:idkit/optim/kernel.py`` and the working tree's — are
+loaded as standalone modules (compiled by numba in a new temporary folder: about half a minute per
+version), checked to give bitwise the same histories and final states (positions, velocities,
+personal bests and their costs, swarm bests) on the benchmark's problem (``torque_noise``, 20
+particles × 300 iterations, one thread), and timed in rounds: each round calls every version once
+per batch size in turn, so the machine's load falls on both alike. CPU time per call
+(``time.process_time``: other jobs on a shared machine count less), median and minimum over the
+rounds, and nanoseconds per evaluation. The kernel alone: no estimator around it.
+
+Several ``--costs`` are evaluated side by side as the slots of one call, ``runs`` swarms each, as
+the robustness study's PSO does (one kernel call per trial: ``--costs f1 f9 f13 f14 huber trimmed
+--preset default --runs 10``); each row also times every cost alone. ``--trials`` calls per timed
+round, each on its own noise draw (``seed`` = trial).
 """
 
 from __future__ import annotations
@@ -26,15 +33,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from idkit.costs import paper
 from idkit.data.scenarios import simulate
 from idkit.estimators.objective import Objective
 from idkit.estimators.pso import ParticleSwarm
-from idkit.optim import codes
+from idkit.optim import swarm
 from idkit.problem import Problem
 from idkit.robots.cylindrical import CylindricalRobot
+from idkit.studies.build import build
 
 ROOT = Path(__file__).resolve().parents[1]
+PARTICLES, ITERATIONS = 20, 300
 
 
 def standalone(source: str, name: str, folder: Path):  # noqa: ANN201
@@ -55,11 +63,43 @@ def standalone(source: str, name: str, folder: Path):  # noqa: ANN201
     return module
 
 
+def problem_arrays(costs: list[str], trials: int, rules: swarm.SwarmRules) -> list[tuple]:
+    """Per trial, the kernel's fixed arguments for ``costs`` as slots (``idkit.optim.fast.run``'s)."""
+    robot = CylindricalRobot()
+    found = []
+    for trial in range(trials):
+        cost_objects = [build("cost", name) for name in costs]
+        problem = Problem(robot, simulate(robot, "torque_noise", seed=trial), None, seed=trial)
+        objective = Objective(problem, cost_objects)
+        spec = objective.spec()
+        arrays = spec.arrays
+        found.append(
+            (
+                objective.lower.numpy(),
+                objective.upper.numpy(),
+                (
+                    arrays.linear, arrays.offset, arrays.codes, arrays.parameters, spec.joints,
+                    objective.lower.numpy(), objective.upper.numpy(),
+                    np.array([rules.c1, rules.c2, rules.velocity_limit or 0.0]),
+                    np.array(
+                        [swarm.BOUNDARIES.index(rules.boundary), int(rules.per_particle), arrays.mode],
+                        dtype=np.int64,
+                    ),
+                    arrays.tape.ops, arrays.tape.constants, arrays.tape.outputs, np.zeros((0, 0, 0)),
+                ),
+            )
+        )  # fmt: skip
+    return found
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("revision", nargs="?", default="main")
     parser.add_argument("--runs", type=int, nargs="+", default=[1, 10, 200])
     parser.add_argument("--rounds", type=int, default=30)
+    parser.add_argument("--costs", nargs="+", default=["f13"], help="registered cost names, side by side")
+    parser.add_argument("--preset", default="paper", help="the PSO preset whose rules are used")
+    parser.add_argument("--trials", type=int, default=1, help="calls (noise draws) per timed round")
     args = parser.parse_args()
     torch.set_num_threads(1)
     old = subprocess.run(
@@ -76,56 +116,64 @@ def main() -> None:
             (ROOT / "idkit/optim/kernel.py").read_text(), "kernel_after", folder
         ).run_trial,
     }
-    cost = paper.f13()
-    robot = CylindricalRobot()
-    objective = Objective(Problem(robot, simulate(robot, "torque_noise", seed=0), cost, seed=0), [cost])
-    rules = ParticleSwarm(preset="paper").resolve().rules
-    spec = objective.spec()
-    linear, offset = spec.linear.contiguous().numpy(), spec.offset.contiguous().numpy()
-    factor_codes, parameters = (
-        np.array([[codes.FORMS[name] for name in cost.norms] + [0, 0]]),
-        np.zeros((1, 4)),
-    )
-    lower, upper = objective.lower.numpy(), objective.upper.numpy()
-    weights = np.array([rules.weight(m) for m in range(299)])
+    rules = ParticleSwarm(preset=args.preset).resolve().rules
+    weights = np.array([rules.weight(m) for m in range(ITERATIONS - 1)])
+    groups = {" + ".join(args.costs): args.costs}
+    if len(args.costs) > 1:
+        groups.update({name: [name] for name in args.costs})
     load = os.getloadavg()[0]
     print(
-        "| runs | kernel | CPU per call, median (min) | ns per evaluation (min) |\n| --- | --- | --- | --- |"
+        f"{args.preset} preset, {args.trials} trial(s) per round, {PARTICLES} particles × {ITERATIONS} "
+        "iterations\n\n| costs | runs per cost | kernel | CPU per round, median (min) "
+        "| ns per evaluation (min) |\n| --- | --- | --- | --- | --- |"
     )
-    for runs in args.runs:
-        start = lower + (upper - lower) * np.random.default_rng(0).random((runs, 20, 4))
-        fixed = (
-            linear, offset, np.zeros(runs, dtype=np.int64), factor_codes, parameters, 3, lower, upper,
-            np.array([rules.c1, rules.c2, 0.0]), np.array([codes.CLAMP, 0, codes.MAP_TAPE], dtype=np.int64),
-            spec.tape.ops, spec.tape.constants, spec.tape.outputs, np.zeros((0, 0, 0)),
-        )  # fmt: skip
+    for label, costs in groups.items():
+        setting = problem_arrays(costs, args.trials, rules)
+        for runs in args.runs:
+            swarms = runs * len(costs)
+            starts = [
+                lower + (upper - lower) * np.random.default_rng(trial).random((swarms, PARTICLES, 4))
+                for trial, (lower, upper, _) in enumerate(setting)
+            ]
 
-        def call(kernel, start=start, runs=runs, fixed=fixed):  # noqa: ANN001, ANN202
-            x = start.copy()
-            history = np.empty((300, runs))
-            kernel(
-                np.random.Generator(np.random.SFC64(1)), 0, runs, weights, True, history, x, np.zeros_like(x),
-                x.copy(), np.full((runs, 20), np.inf), np.empty((runs, 4)), *fixed,
-            )  # fmt: skip
-            return history
+            def call(kernel, swarms=swarms, runs=runs, starts=starts, setting=setting):  # noqa: ANN001, ANN202
+                found = []
+                for trial, (start, (_, _, fixed)) in enumerate(zip(starts, setting, strict=True)):
+                    x = start.copy()
+                    v, pbest, pcost = np.zeros_like(x), x.copy(), np.full((swarms, PARTICLES), np.inf)
+                    history, gpos = np.empty((ITERATIONS, swarms)), np.empty((swarms, 4))
+                    slot_of = np.repeat(np.arange(swarms // runs, dtype=np.int64), runs)
+                    linear, offset, *rest = fixed
+                    kernel(
+                        np.random.Generator(np.random.SFC64(trial + 1)), 0, swarms, weights, True, history,
+                        x, v, pbest, pcost, gpos, linear, offset, slot_of, *rest,
+                    )  # fmt: skip
+                    found.append((history, x, v, pbest, pcost, gpos))
+                return found
 
-        histories = [call(kernel) for kernel in kernels.values()]
-        if not all(np.array_equal(histories[0], h) for h in histories[1:]):
-            sys.exit(f"runs={runs}: the kernels give different histories")
-        times: dict[str, list[float]] = {name: [] for name in kernels}
-        repeat = max(1, 2000 // (runs * 20))
-        for _ in range(args.rounds):
-            for name, kernel in kernels.items():
-                started = time.process_time()
-                for _ in range(repeat):
-                    call(kernel)
-                times[name].append((time.process_time() - started) / repeat)
-        for name, spent in times.items():
-            print(
-                f"| {runs} | {name} | {statistics.median(spent) * 1e3:.3f} ms ({min(spent) * 1e3:.3f}) "
-                f"| {min(spent) / (runs * 6000) * 1e9:.1f} |"
-            )
-    print(f"\nSame histories, bitwise. Load average {load:.1f} before, {os.getloadavg()[0]:.1f} after.")
+            results = [call(kernel) for kernel in kernels.values()]
+            for trial in range(args.trials):
+                for a, b in zip(results[0][trial], results[1][trial], strict=True):
+                    if not np.array_equal(a, b, equal_nan=True):
+                        sys.exit(f"{label}, runs={runs}, trial {trial}: the kernels give different results")
+            times: dict[str, list[float]] = {name: [] for name in kernels}
+            repeat = max(1, 2000 // (swarms * PARTICLES * args.trials))
+            for _ in range(args.rounds):
+                for name, kernel in kernels.items():
+                    started = time.process_time()
+                    for _ in range(repeat):
+                        call(kernel)
+                    times[name].append((time.process_time() - started) / repeat)
+            evaluations = swarms * PARTICLES * ITERATIONS * args.trials
+            for name, spent in times.items():
+                print(
+                    f"| {label} | {runs} | {name} | {statistics.median(spent) * 1e3:.3f} ms "
+                    f"({min(spent) * 1e3:.3f}) | {min(spent) / evaluations * 1e9:.1f} |"
+                )
+    print(
+        f"\nSame histories and final states, bitwise. Load average {load:.1f} before, "
+        f"{os.getloadavg()[0]:.1f} after."
+    )
 
 
 if __name__ == "__main__":
