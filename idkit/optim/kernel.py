@@ -79,6 +79,9 @@ numba.core.config.CACHE_DIR = str(FOLDER)
 
 jit = njit(cache=True, nogil=True, error_model="numpy")
 
+#: Particles side by side in a trimmed mean's selection (``_trimmed_mean``): vector-wide passes
+#: over a scratch ``[M, LANES]`` that stays small for long recordings.
+LANES = 64
 #: Particles evaluated together (the swarms of one slot side by side): long loops for the vector
 #: units, while the error matrix stays in the cache (30 entries × 256 × 8 B = 60 kB).
 TILE = 256
@@ -174,38 +177,51 @@ def _errors(alpha, linear, offset, slot, n, e):  # noqa: ANN001, ANN202
 
 
 @jit
-def _spectral3(e, k: int, samples: int) -> float:  # noqa: ANN001
-    """Largest singular value of the 3 × N matrix of particle ``k``: Smith's closed form for the top
-    eigenvalue of its Gram matrix, as ``idkit.optim.fused.spectral_norm_3``."""
-    g00 = g11 = g22 = g01 = g12 = g20 = 0.0
+def _spectral3(e, n: int, samples: int, gram, out) -> None:  # noqa: ANN001
+    """``out[:n]``: the largest singular value of each particle's 3 × N matrix in ``e[3N, :n]``:
+    Smith's closed form for the top eigenvalue of its Gram matrix, as
+    ``idkit.optim.fused.spectral_norm_3``. The Gram matrices are summed for all particles at once
+    (``gram[6, ≥ n]``, particles innermost, so the loop vectorises), each in sample order."""
+    g00, g11, g22, g01, g12, g20 = gram[0], gram[1], gram[2], gram[3], gram[4], gram[5]
+    for k in range(n):
+        g00[k] = g11[k] = g22[k] = g01[k] = g12[k] = g20[k] = 0.0
     for j in range(samples):
-        a, b, c = e[j, k], e[samples + j, k], e[2 * samples + j, k]
-        g00 += a * a
-        g11 += b * b
-        g22 += c * c
-        g01 += a * b
-        g12 += b * c
-        g20 += c * a
-    q = (g00 + g11 + g22) / 3
-    x, y, z = g00 - q, g11 - q, g22 - q
-    off = g01 * g01 + g20 * g20 + g12 * g12
-    p = math.sqrt((x * x + y * y + z * z + 2 * off) / 6)
-    det = x * (y * z - g12 * g12) - g01 * (g01 * z - g12 * g20) + g20 * (g01 * g12 - y * g20)
-    if not p > 0:
-        top = q
-    else:
-        r = det / (2 * p * p * p)
-        r = -1.0 if r < -1.0 else (1.0 if r > 1.0 else r)
-        top = q + 2 * p * math.cos(math.acos(r) / 3)
-    return math.sqrt(top) if top > 0 else (top if top != top else 0.0)
+        first, second, third = e[j], e[samples + j], e[2 * samples + j]
+        for k in range(n):
+            a, b, c = first[k], second[k], third[k]
+            g00[k] += a * a
+            g11[k] += b * b
+            g22[k] += c * c
+            g01[k] += a * b
+            g12[k] += b * c
+            g20[k] += c * a
+    for k in range(n):
+        q = (g00[k] + g11[k] + g22[k]) / 3
+        x, y, z = g00[k] - q, g11[k] - q, g22[k] - q
+        off = g01[k] * g01[k] + g20[k] * g20[k] + g12[k] * g12[k]
+        p = math.sqrt((x * x + y * y + z * z + 2 * off) / 6)
+        det = (
+            x * (y * z - g12[k] * g12[k])
+            - g01[k] * (g01[k] * z - g12[k] * g20[k])
+            + g20[k] * (g01[k] * g12[k] - y * g20[k])
+        )
+        if not p > 0:
+            top = q
+        else:
+            r = det / (2 * p * p * p)
+            r = -1.0 if r < -1.0 else (1.0 if r > 1.0 else r)
+            top = q + 2 * p * math.cos(math.acos(r) / 3)
+        out[k] = math.sqrt(top) if top > 0 else (top if top != top else 0.0)
 
 
 @jit
-def _factor(code, parameter, e, n, joints, out, row, column):  # noqa: ANN001, ANN202
+def _factor(code, parameter, e, n, joints, out, work, squares):  # noqa: ANN001, ANN202
     """``out[:n]``: factor ``code`` of each particle's error matrix ``e[M, :n]`` (joint-major rows);
-    ``row`` (``≥ n``) and ``column`` (``M``) are scratch. Every loop over particles is innermost."""
+    ``work`` (``[6, ≥ n]``) and ``squares`` (``[M, LANES]``) are scratch. Every loop over particles
+    is innermost."""
     entries = e.shape[0]
     samples = entries // joints
+    row = work[0]
     if code == FRO:
         for k in range(n):
             out[k] = 0.0
@@ -215,8 +231,7 @@ def _factor(code, parameter, e, n, joints, out, row, column):  # noqa: ANN001, A
         for k in range(n):
             out[k] = math.sqrt(out[k])
     elif code == SPECTRAL:
-        for k in range(n):
-            out[k] = _spectral3(e, k, samples)
+        _spectral3(e, n, samples, work, out)
     elif code == COLUMN_SUM:  # the largest column (sample) absolute sum
         for k in range(n):
             out[k] = -math.inf
@@ -268,41 +283,70 @@ def _factor(code, parameter, e, n, joints, out, row, column):  # noqa: ANN001, A
             out[k] /= entries
     else:  # TRIMMED: the parameter is the number of smallest squares kept
         keep = int(parameter)
-        for k in range(n):
-            finite = True
-            for m in range(entries):
-                column[m] = e[m, k] * e[m, k]
-                finite = finite and column[m] == column[m]
-            out[k] = _smallest_sum(column, keep) / keep if finite else math.nan  # NaN never trimmed away
+        for group in range(0, n, LANES):
+            _trimmed_mean(e, group, min(LANES, n - group), keep, squares, work, out)
 
 
 @jit
-def _smallest_sum(values, keep):  # noqa: ANN001, ANN202
-    """The sum of the ``keep`` smallest of ``values`` (no NaN), which it reorders.
+def _trimmed_mean(e, first, width, keep, squares, work, out):  # noqa: ANN001, ANN202
+    """``out[first : first + width]``: the mean of the ``keep`` smallest squares of each particle's
+    entries ``e[M, first : first + width]`` (NaN if one is NaN: NaN is never trimmed away), the
+    particles side by side in ``squares[M, ≥ width]`` so that every pass vectorises.
 
     A selection, not a sort: whichever of the kept or the dropped entries are fewer are moved to one
-    end, one extreme per pass. A trimmed mean drops a few entries, so this is a few passes where
-    numba's sort took most of an evaluation's time; the kept entries are summed in their own order,
-    a rounding difference from sorted order that ``torch.topk`` has too."""
-    entries = values.shape[0]
+    end, one extreme per pass (``_select``). A trimmed mean drops a few entries, so this is a few
+    passes where numba's sort took most of an evaluation's time; the kept entries are summed in
+    their own order, a rounding difference from sorted order that ``torch.topk`` has too.
+    ``work[0:4]``: each particle's extreme, its index, whether its entries are all numbers, its sum.
+    """
+    entries = e.shape[0]
+    extreme, index, finite, total = work[0], work[1], work[2], work[3]
+    for w in range(width):
+        finite[w] = 1.0
+    for m in range(entries):
+        source, target = e[m, first:], squares[m]
+        for w in range(width):
+            target[w] = source[w] * source[w]
+            finite[w] = finite[w] if target[w] == target[w] else 0.0
     if keep <= entries - keep:  # move the kept (smallest) to the front
         for j in range(keep):
-            best = j
-            for m in range(j + 1, entries):
-                if values[m] < values[best]:
-                    best = m
-            values[j], values[best] = values[best], values[j]
+            _select(squares, width, j, j + 1, entries, True, extreme, index)
     else:  # move the dropped (largest) to the back
         for j in range(entries - 1, keep - 1, -1):
-            best = j
-            for m in range(j):
-                if values[m] > values[best]:
-                    best = m
-            values[j], values[best] = values[best], values[j]
-    total = 0.0
+            _select(squares, width, j, 0, j, False, extreme, index)
+    for w in range(width):
+        total[w] = 0.0
     for m in range(keep):
-        total += values[m]
-    return total
+        row = squares[m]
+        for w in range(width):
+            total[w] += row[w]
+    for w in range(width):
+        out[first + w] = total[w] / keep if finite[w] else math.nan
+
+
+@jit
+def _select(squares, width, j, start, stop, smallest, extreme, index):  # noqa: ANN001, ANN202
+    """One pass of the selection, for each particle (column of ``squares``): swap row ``j`` with the
+    first row of ``[start, stop)`` holding a smaller (``smallest``) or larger value than every
+    other there and than row ``j``'s, if any (``extreme``, ``index``: scratch ``[≥ width]``)."""
+    end = squares[j]
+    for w in range(width):
+        extreme[w], index[w] = end[w], j
+    for m in range(start, stop):
+        row = squares[m]
+        if smallest:
+            for w in range(width):
+                better = row[w] < extreme[w]
+                extreme[w] = row[w] if better else extreme[w]
+                index[w] = m if better else index[w]
+        else:
+            for w in range(width):
+                better = row[w] > extreme[w]
+                extreme[w] = row[w] if better else extreme[w]
+                index[w] = m if better else index[w]
+    for w in range(width):
+        squares[int(index[w]), w] = end[w]
+        end[w] = extreme[w]
 
 
 @jit
@@ -330,15 +374,15 @@ def _evaluate(
     alpha,
     e,
     cost,
-    row,
-    column,
+    work,
+    squares,
 ):  # noqa: ANN001, ANN202
     """Evaluate swarms ``[first, first + count)`` (their points are rows of ``points``: the positions,
     or the base parameters given by the caller): personal bests where strictly lower, each swarm's
     best (the first particle with the lowest personal best) into ``gpos`` and its cost into
     ``history[move, s − first]``. Swarms of one slot are evaluated side by side, up to ``TILE``
     particles at a time: long loops for the vector units, an error matrix that stays in the cache.
-    The work arrays (``registers``, ``alpha``, ``e``, ``cost``) are ``[rows, ≥ tile]``; only their
+    The work arrays (``registers``, ``alpha``, ``e``, ``cost``, ``work``) are ``[rows, ≥ tile]``; only their
     first ``n`` columns are used, indexed without slicing (a slice would cost a reference count
     per use, more than a small tile's arithmetic)."""
     particles, dimension = x.shape[1], x.shape[2]
@@ -354,7 +398,7 @@ def _evaluate(
         for f in range(codes.shape[1]):
             if codes[slot, f] == 0:
                 break
-            _factor(codes[slot, f], params[slot, f], e, n, joints, cost[min(f, 1)], row, column)
+            _factor(codes[slot, f], params[slot, f], e, n, joints, cost[min(f, 1)], work, squares)
             if f > 0:
                 for k in range(n):
                     cost[0, k] = cost[0, k] * cost[1, k]
@@ -501,14 +545,14 @@ def run_trial(  # noqa: ANN201, PLR0913
     alpha = np.empty((base, tile))
     e = np.empty((entries, tile))
     cost = np.empty((2, tile))
-    row = np.empty(tile)
-    column = np.empty(entries)
+    work = np.empty((6, tile))
+    squares = np.empty((entries, LANES))
     flat_x, flat_v, flat_best = x.reshape(x.size), v.reshape(v.size), pbest.reshape(pbest.size)
     u = _unowned
     _moves(
         rng, first, count, weights, last, u(history), u(x), u(pbest), u(pcost), u(gpos), u(linear), u(offset),
         u(slot_of), u(codes), u(params), joints, mode, u(tape), u(tape_constants), u(outputs), u(points),
-        u(registers), u(alpha), u(e), u(cost), u(row), u(column), u(random), u(box), u(scratch), u(flat_x),
+        u(registers), u(alpha), u(e), u(cost), u(work), u(squares), u(random), u(box), u(scratch), u(flat_x),
         u(flat_v), u(flat_best), boundary, per_particle, kinds, block, per_tile, width,
     )  # fmt: skip
 
@@ -516,8 +560,8 @@ def run_trial(  # noqa: ANN201, PLR0913
 @jit
 def _moves(
     rng, first, count, weights, last, history, x, pbest, pcost, gpos, linear, offset, slot_of, codes, params,
-    joints, mode, tape, tape_constants, outputs, points, registers, alpha, e, cost, row, column, random, box,
-    scratch, flat_x, flat_v, flat_best, boundary, per_particle, kinds, block, per_tile, width,
+    joints, mode, tape, tape_constants, outputs, points, registers, alpha, e, cost, work, squares, random,
+    box, scratch, flat_x, flat_v, flat_best, boundary, per_particle, kinds, block, per_tile, width,
 ):  # fmt: skip  # noqa: ANN001, ANN202
     """The loop of ``run_trial``, on views that carry no reference count (``_unowned``)."""
     particles, dimension = x.shape[1], x.shape[2]
@@ -527,7 +571,7 @@ def _moves(
     for m in range(moves + (1 if last else 0)):
         _evaluate(
             points, x, first, count, pbest, pcost, gpos, history, m, linear, offset, slot_of, codes, params,
-            joints, mode, tape, tape_constants, outputs, registers, alpha, e, cost, row, column,
+            joints, mode, tape, tape_constants, outputs, registers, alpha, e, cost, work, squares,
         )  # fmt: skip
         if m == moves:
             break
