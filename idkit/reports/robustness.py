@@ -9,7 +9,8 @@ from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.reports.tables import markdown_table
 from idkit.reports.units import format_time
-from idkit.studies.robustness import TRIALS_FILE, RobustnessStudy
+from idkit.studies import robustness_trials
+from idkit.studies.robustness import RobustnessStudy
 
 
 def _pct(value: float | None, digits: int = 2) -> str:
@@ -102,19 +103,8 @@ def write(study: RobustnessStudy, out_dir: str | Path, plots: bool = True) -> di
         "markdown": str(files.write_text(out / "robustness.md", text(study))),
         "csv": str(files.write_csv(out / "robustness.csv", header, ([r[k] for k in header] for r in rows))),
     }
-    trial_rows = []
-    for scenario, by_label in study.params.items():
-        for label, values in by_label.items():
-            err = study.errors(scenario, label)
-            trial_rows += [
-                [scenario, study.first_trial + t, label, *values[t].tolist(), err[t]]
-                for t in range(len(values))
-            ]
-    written["trials_csv"] = str(
-        files.write_csv(
-            out / TRIALS_FILE, ["scenario", "trial", "estimator", *study.param_names, "error"], trial_rows
-        )
-    )
+    trials_file = out / robustness_trials.FILE
+    written["trials_csv"] = str(files.write_csv(trials_file, *robustness_trials.table(study)))
     if plots and study.trials:
         errors = {s: {label: study.errors(s, label) for label in by} for s, by in study.params.items()}
         written["boxplot"] = str(

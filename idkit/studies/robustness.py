@@ -46,13 +46,12 @@ from idkit.data.presets import PAPER_SCENARIOS
 from idkit.estimators.aggregate import average_label, average_params
 from idkit.memory import check_memory
 from idkit.seeds import Seed, trial_seed
+from idkit.studies import robustness_trials as trials_csv
 from idkit.studies.build import Spec, build, describe, name_and_options
 from idkit.studies.labels import unique_labels
 from idkit.studies.metrics import parameter_error
 from idkit.studies.result import Provenance, StudyInterrupted, new_run_id
 
-#: Per-trial parameters and errors, written by ``idkit.reports.robustness`` and read by :func:`load`.
-TRIALS_FILE = "robustness_trials.csv"
 #: Trials per step of the study (``run(chunk=...)``).
 DEFAULT_CHUNK = 50
 CONFIDENCE = 0.95
@@ -206,26 +205,24 @@ class RobustnessStudy:
 
 
 def load(run_dir: str | Path) -> RobustnessStudy:
-    """Read a study back from its run directory (``result.json`` + ``robustness_trials.csv``).
+    """Read a study back from its run directory (``result.json`` + the per-trial CSV,
+    ``idkit.studies.robustness_trials``).
 
     Works on the files of an interrupted study too; use it to re-render tables and plots or to
     :func:`merge` parts that ran in parallel.
+
+    Raises:
+        ValueError: the per-trial CSV does not hold the trials ``result.json`` says were done.
     """
-    import csv
     import json
 
     run_dir = Path(run_dir)
     document = json.loads((run_dir / "result.json").read_text())
-    meta = document["payload"]
-    found: dict[str, dict[str, list]] = {}
-    with open(run_dir / TRIALS_FILE, newline="") as handle:
-        reader = csv.reader(handle)
-        header = next(reader)
-        names = header[3:-1]
-        for row in reader:
-            found.setdefault(row[0], {}).setdefault(row[2], []).append([float(v) for v in row[3:-1]])
+    meta, progress = document["payload"], document["progress"]
+    first = (meta.get("sharding") or {}).get("first_trial", 0)
+    names = list(meta["param_names"])
+    params = trials_csv.read(run_dir / trials_csv.FILE, names, range(first, first + progress["done"]))
     fit_time = {r["estimator"]: r["mean_fit_time_s"] for r in meta["summary"] if r.get("mean_fit_time_s")}
-    progress = document["progress"]
     provenance = Provenance(
         task="robustness",
         label=document["label"],
@@ -242,7 +239,7 @@ def load(run_dir: str | Path) -> RobustnessStudy:
         provenance=provenance,
         param_names=names,
         truth=np.asarray(meta["truth"], dtype=float),
-        params={s: {k: np.asarray(v, dtype=float) for k, v in by.items()} for s, by in found.items()},
+        params=params,
         baseline=meta["baseline"],
         focus=meta["focus"],
         skipped=meta.get("skipped", []),
