@@ -2,8 +2,8 @@
 
 torch's default intra-op pool uses every core. On a small problem (a few hundred particles × a
 3 × 10 error matrix) each op is a few microseconds of work, and waking a second thread costs more
-than it saves: on the 2-core development machine a paper-sized PSO fit was erratic and several times
-slower with the default pool. Large batches (thousands of runs) do gain from two threads. So the
+than it saves: a paper-sized PSO fit was erratic and much slower with the default pool
+(docs/speed.md). Large batches (thousands of runs) do gain from two threads. So the
 estimators take a ``threads`` option, resolve it with ``resolve_threads`` and run inside
 ``torch_threads``; the count used is recorded in ``Estimate.details["threads"]``.
 """
@@ -17,7 +17,7 @@ from contextlib import contextmanager
 import torch
 
 #: Elements per iteration (particles × parameters-sized work, see ``resolve_threads``) above which
-#: a second thread pays for itself. Measured on the 2-core development machine (bench/estimators.py).
+#: a second thread pays for itself, on the 2-core development machine (``bench/estimators.py``).
 MULTITHREAD_WORK = 2_000_000
 
 

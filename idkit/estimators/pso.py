@@ -15,15 +15,11 @@ Presets (every field can be overridden by its own keyword):
   the wall and zeroes that velocity component (``"clamp"``), the common textbook rule.
 - ``"default"`` — the same budget (20 particles × 300 evaluations per run) and update with Clerc
   and Kennedy's constriction coefficients (ref. [12] of the paper: c1 = c2 = 1.49618, w = 0.7298,
-  here lowered linearly to 0.5 over the 300 moves) and reflecting walls. Measured on the
-  cylindrical robot (``torque_noise``, f1, 200 runs on each of 6 noise draws, a hit = within 0.1 %
-  of the LS cost): ``"paper"`` hits 86–90 % of runs; reflecting walls alone 95–97 %; constriction
-  with reflecting walls 100 % (0 misses in 1,200 runs), with or without the lowered inertia. The
-  lowered inertia is for precision: on noise-free data, where f1 is a cone at the truth, PSO-f1
-  ends within 1e-3 of the true parameters on 10/10 seeds (constant w = 0.7298: 8/10; ``"paper"``:
-  median run 7e-2 off). Constriction also reaches the best known value of most other costs more
-  often than ``"paper"`` (bench/estimators.py prints the f1 hit rates). A velocity limit made no
-  difference with constriction, so there is none.
+  here lowered linearly to 0.5 over the 300 moves) and reflecting walls: its runs reach the least
+  squares cost's minimum of f1 far more often than ``"paper"``'s, and the lowered inertia ends
+  them closer to it (the measurements: docs/estimators.md, "The PSO presets";
+  ``bench/estimators.py`` prints the hit rates). A velocity limit made no difference with
+  constriction, so there is none.
 
 PSO's update (per-dimension ``r1``/``r2``, walls per dimension) is invariant to an affine rescaling
 of each coordinate, so searching a box normalised to [0, 1]^P would change nothing but rounding;
@@ -315,8 +311,8 @@ class ParticleSwarm(Estimator):
 
         def run_chunk(problem: Problem) -> int:
             """Runs per chunk: big batches run as consecutive chunks of runs whose tensors stay in
-            the CPU cache (elementwise ops on [10,000 × 20 × 4] run ~4× slower per element than on
-            [500 × 20 × 4])."""
+            the CPU cache (elementwise ops on big tensors are much slower per element: docs/speed.md,
+            "Measurements behind design choices")."""
             return max(1, CHUNK_ELEMENTS // per_run(problem))
 
         def trials_per_batch(problem: Problem) -> int:

@@ -66,8 +66,8 @@ from idkit.seeds import torch_generator
 METHODS = ("pso", "adam", "pso+adam")
 
 #: States (candidates × samples, noise draws included) per batch of the objective: small enough
-#: that the regressor's intermediate vectors stay in cache (a whole swarm at once was ~1.7 times
-#: slower per state for the KUKA, measured with bench/excitation.py's profile).
+#: that the regressor's intermediate vectors stay in cache (a whole swarm at once was slower per
+#: state for the KUKA: docs/excitation.md, "Speed: what bounds the search").
 CHUNK_STATES = 4096
 
 #: The swarm's update rule: constriction coefficients with reflecting walls (idkit's PSO default).
@@ -473,7 +473,8 @@ def _adam_search(
     """Adam from ``starts[S, C]`` (independent, projected on the unit cube); each start's best point.
 
     The update is written out (``torch.optim.Adam``'s algorithm, tested equal to it): the
-    optimiser module imports ``torch._dynamo``, about 2.4 s of CPU on the first call.
+    optimiser module imports ``torch._dynamo`` on the first call, which costs seconds of CPU
+    (docs/speed.md, "Measurements behind design choices").
     """
     unit = starts.clone().requires_grad_(True)
     (beta1, beta2), moment, square = ADAM_BETAS, torch.zeros_like(starts), torch.zeros_like(starts)

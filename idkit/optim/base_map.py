@@ -1,13 +1,14 @@
 """A map from search positions to base parameters, translated into a tape the fast kernel runs.
 
-Why: with the map in torch, each move of the fast engine costs a handful of tensor ops (~20 µs) —
-more than the kernel's own work for a paper-sized swarm. Most robots' ``base_params`` are short
-elementwise formulas (products, sums and squares of the physical parameters), so the map is traced
-once with ``make_fx`` (the aten ops it runs, on a ``[1, P]`` example) and, when every op is one of a
-few elementwise ones, written as a ``Tape``: rows ``[op, register, a, b]`` that the kernel
-(``idkit.optim.kernel._base_params``) executes for all particles of a swarm, op by op. Node by
-node, in the same order: the same rounding as torch's ops. Anything else (a shape op, a matmul, a
-constant tensor) gives ``None`` and the kernel is handed the map's output from torch each move.
+Why: with the map in torch, each move of the fast engine costs a handful of tensor ops — more than
+the kernel's own work for a paper-sized swarm (docs/speed.md, "Measurements behind design choices").
+Most robots' ``base_params`` are short elementwise formulas (products, sums and squares of the
+physical parameters), so the map is traced once with ``make_fx`` (the aten ops it runs, on a
+``[1, P]`` example) and, when every op is one of a few elementwise ones, written as a ``Tape``: rows
+``[op, register, a, b]`` that the kernel (``idkit.optim.kernel._base_params``) executes for all
+particles of a swarm, op by op. Node by node, in the same order: the same rounding as torch's ops.
+Anything else (a shape op, a matmul, a constant tensor) gives ``None`` and the kernel is handed the
+map's output from torch each move.
 
 A tape is data, not code: it is cached on disk as JSON (``cached_tape``), so a later process skips
 the trace (seconds, for torch's tracer import) without loading anything executable.

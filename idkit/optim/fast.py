@@ -41,7 +41,8 @@ from idkit.optim import codes, swarm
 from idkit.optim.base_map import Tape, identity
 from idkit.optim.cache import CacheWarning
 
-#: Cost evaluations per kernel call: ≈ 20–80 ms, so Ctrl-C and threads act between calls.
+#: Cost evaluations per kernel call: a call returns within a fraction of a second (docs/speed.md),
+#: so Ctrl-C and threads act between calls.
 EVALUATIONS_PER_CALL = 1 << 20
 #: Cost evaluations per thread below which a call does not use another thread.
 EVALUATIONS_PER_THREAD = 20_000

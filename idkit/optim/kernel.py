@@ -1,11 +1,11 @@
 """The fast swarm kernel: PSO moves of one trial's swarms as machine code, compiled by numba.
 
 Why: an eager PyTorch move of a paper-sized swarm (20 particles × 4 parameters × a 3 × 10 error
-matrix) is ~120 tensor ops of a few microseconds of dispatch each, while the work is a few thousand
-flops. Here a whole block of moves is one call of loops that LLVM compiles for this CPU — through
-numba, so no C compiler is needed on the user's machine (this module points numba's cache at
-idkit's checked cache directory, ``idkit.optim.cache``; ``docs/speed.md`` has the measurements
-behind the choice of numba over a C extension).
+matrix) is ~120 tensor ops, each paying torch's dispatch, while the work is a few thousand flops
+(``docs/speed.md`` times both). Here a whole block of moves is one call of loops that LLVM compiles
+for this CPU — through numba, so no C compiler is needed on the user's machine (this module points
+numba's cache at idkit's checked cache directory, ``idkit.optim.cache``; ``docs/speed.md`` has the
+measurements behind the choice of numba over a C extension).
 
 What one call does, for the swarms ``[first, first + count)`` of one trial, ``moves`` times:
 evaluate every particle (base parameters, error ``E = offset + alpha · linear``, the product of
@@ -295,7 +295,7 @@ def _trimmed_mean(e, first, width, keep, squares, work, out):  # noqa: ANN001, A
 
     A selection, not a sort: whichever of the kept or the dropped entries are fewer are moved to one
     end, one extreme per pass (``_select``). A trimmed mean drops a few entries, so this is a few
-    passes where numba's sort took most of an evaluation's time; the kept entries are summed in
+    passes instead of a sort of every entry (``docs/speed.md``); the kept entries are summed in
     their own order, a rounding difference from sorted order that ``torch.topk`` has too.
     ``work[0:4]``: each particle's extreme, its index, whether its entries are all numbers, its sum.
     """

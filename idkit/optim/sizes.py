@@ -9,8 +9,9 @@ A search's time is about ``steps × (a + b × width)``: ``width`` evaluations pe
 ``b``, and a fixed ``a`` per step (the swarm update and kernel call; Adam's autograd pass). The cap
 counts a step as the evaluations it costs (``bench/step_cost.py``): ``iterations=1e8`` of 4
 particles is 4e8 evaluations but takes as long as 2.4e9. An evaluation's time grows with the
-residuals it reads (samples × joints: 2–9 ns each on the fast kernel), so a search that will take
-minutes (a big recording, many trials) says so up front (:func:`announce_long_search`).
+residuals it reads (samples × joints), so a search that will take minutes (a big recording, many
+trials) says so up front (:func:`announce_long_search`). The measurements behind the constants:
+docs/estimators.md, "Sizes".
 """
 
 from __future__ import annotations
@@ -25,16 +26,15 @@ from idkit.memory import check_memory as check_machine_memory
 #: kernel on the paper's problem, many on the eager engine or on big recordings. A bigger request
 #: is refused when the estimator is built, rather than running for hours unasked.
 MAX_EVALUATIONS = 10**9
-#: The fixed time of one swarm iteration (over all runs) on the fast kernel, in evaluations: 21–30
-#: on the paper's problem, where an evaluation is the cheapest (``bench/step_cost.py``).
+#: The fixed time of one swarm iteration (over all runs) on the fast kernel, in evaluations, on the
+#: paper's problem, where an evaluation is the cheapest (``bench/step_cost.py``).
 PSO_STEP_EVALUATIONS = 20
-#: The fixed time of one Adam step (eager torch, autograd) in evaluations: 1,000–1,250 measured
-#: likewise.
+#: The fixed time of one Adam step (eager torch, autograd) in evaluations, measured likewise.
 ADAM_STEP_EVALUATIONS = 1000
 #: Nanoseconds of one core per residual (sample × joint) of one cost evaluation, about the fewest
-#: measured on 30 to 30,000 residuals (``bench/step_cost.py``): the fast kernel's (1.9–9 ns) and
-#: Adam's (eager torch with autograd, 47–290 ns). A long search's notice estimates its time with
-#: them, so its estimate is a lower bound.
+#: measured on 30 to 30,000 residuals (``bench/step_cost.py``): the fast kernel's and Adam's (eager
+#: torch with autograd). A long search's notice estimates its time with them, so its estimate is a
+#: lower bound.
 PSO_RESIDUAL_NS = 2.0
 ADAM_RESIDUAL_NS = 50.0
 #: A search whose estimated time passes this says so in one line before it starts (seconds).

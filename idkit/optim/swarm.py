@@ -213,8 +213,9 @@ def step(
 class Uniform:
     """Uniform [0, 1) numbers for the swarm, from ``generator`` (the problem's seed).
 
-    On the CPU torch's Mersenne Twister makes about 50 M doubles/s, which alone would take most of
-    a big batch's time (10,000 runs need 480 M numbers). So on the CPU the numbers come from a
+    On the CPU torch's Mersenne Twister is slow enough that drawing alone would take most of a big
+    batch's time (10,000 runs need 480 M numbers; the rates: docs/speed.md, "Measurements behind
+    design choices"). So on the CPU the numbers come from a
     numpy ``Generator`` on the SFC64 bit generator, seeded by one draw from ``generator``:
     ``Generator.random`` in float64, one ``next_double`` of the bit generator per number — the
     call the fast kernel (``idkit.optim.kernel``) makes through numba's support for ``Generator``

@@ -58,11 +58,10 @@ CONFIDENCE = 0.95
 ALPHA = 1 - CONFIDENCE
 #: The study's memory model, in bytes per trial. The draws of every scenario stay for the whole
 #: study: 17 B per sample component (one joint's q, qd, qdd or tau at one sample: the noisy value
-#: and the drawn error in float64, the outlier flag), and drawing one scenario needs ~40 B per
-#: component more for a moment (measured with ``/proc`` and ``ru_maxrss``: 100,000 trials). The
-#: estimates kept per trial, scenario and label are a row of Python floats and, at the end, an array.
-#: Checked on 20,000 trials of the paper's scenarios and four LS/RLS estimators: 22.1 kB per trial
-#: measured (peak RSS growth), 19.8 kB by the model.
+#: and the drawn error in float64, the outlier flag), and drawing one scenario needs about 40 B per
+#: component more for a moment. The estimates kept per trial, scenario and label are a row of Python
+#: floats and, at the end, an array. How the constants were measured, and the model checked against
+#: a study's peak memory: docs/studies.md, "The robustness study in batches and in shards".
 DRAW_BYTES_KEPT = 17
 DRAW_BYTES_PEAK = 40
 ESTIMATE_BYTES = 64

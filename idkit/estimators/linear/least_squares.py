@@ -108,8 +108,8 @@ class LinearEstimator(Estimator):
         max_cond: warn above this column-equilibrated condition number of ``W``; ``None`` =
             ``1/√eps`` of the problem's dtype (see ``idkit.estimators.linear.observation``).
         threads: torch intra-op threads during the fit; ``None`` = ``idkit.runtime``'s size rule
-            (one thread for the paper's problems: with the default pool an SVD of a 60 × 4 ``W``
-            took ~0.3 s instead of ~30 µs on the loaded 2-core development machine).
+            (one thread for the paper's problems; docs/speed.md, "Measurements behind design
+            choices").
     """
 
     label: ClassVar[str]

@@ -42,7 +42,8 @@ Facts used (all from the formulas above):
 
 The closed form works in numpy float64 on the CPU (see ``stacked_rls_closed_form`` for why), on a
 stack of trials at once (one batched SVD); the root find runs per trial on Python floats over the
-``B`` singular values (~20 µs: cheaper than any vectorised form for the few iterations it takes).
+``B`` singular values: for the few iterations it takes, cheaper than any vectorised form (its time
+per trial: docs/speed.md, "Measurements behind design choices").
 """
 
 from __future__ import annotations
