@@ -382,6 +382,9 @@ def run(
             draws.streams[trial].numpy, first, per_trial, weights[start:stop], last, rows,
             x, v, pbest, pcost, gpos, *fixed, given,
         )  # fmt: skip
+        if stride == 1:  # every iteration kept: one block copy, much cheaper than fancy indexing
+            history[start : stop + last, first : first + per_trial] = rows
+            return
         # the kept iterations of this block (every stride-th, and the last) into their history rows
         iteration = np.arange(start, start + len(rows))
         keep = (iteration % stride == 0) | (iteration == iterations - 1)

@@ -45,9 +45,10 @@ from idkit import registry
 from idkit.data.presets import PAPER_SCENARIOS
 from idkit.estimators.aggregate import average_label, average_params
 from idkit.memory import check_memory
+from idkit.registry import NAME_KEY
 from idkit.seeds import Seed, trial_seed
 from idkit.studies import robustness_trials as trials_csv
-from idkit.studies.build import Spec, build, describe, name_and_options
+from idkit.studies.build import Spec, build, constructor_options, describe, name_and_options
 from idkit.studies.labels import unique_labels
 from idkit.studies.metrics import parameter_error
 from idkit.studies.result import Provenance, StudyInterrupted, new_run_id
@@ -332,6 +333,16 @@ def _installed(kind: registry.Kind, spec: Any, optional: Sequence[str], skipped:
     return True
 
 
+def _without_history(spec: Spec | None) -> Spec | None:
+    """``spec`` with ``history=False`` where its estimator takes that option: the study reports each
+    fit's parameters only, never its record of every run's convergence, which would cost a share of
+    its time (docs/speed.md). A ready object is kept as it is."""
+    name, options = name_and_options("estimator", spec) if spec is not None else (None, {})
+    if name is None or "history" not in constructor_options(registry.load("estimator", name)):
+        return spec
+    return {NAME_KEY: name, **options, "history": False}
+
+
 def shard_trials(trials: int, shard: int, shards: int) -> range:
     """The trials shard ``shard`` of ``shards`` fits: a contiguous slice of ``range(trials)``.
 
@@ -461,6 +472,7 @@ def run(
     est_objs = [build("estimator", s) for s in est_specs]
     cost_objs = [build("cost", c) for c in cost_specs]
     cost_names = [name_and_options("cost", c)[0] for c in cost_specs]
+    estimator = _without_history(estimator)
     search = build("estimator", estimator) if cost_objs else None
     focus = average_label(average_of) if average_of and set(average_of) <= set(cost_names) else None
     columns = len(labels) + (focus is not None)

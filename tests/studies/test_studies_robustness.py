@@ -167,6 +167,27 @@ def test_batched_trials_equal_fitting_each_trial_alone():
                 np.testing.assert_array_equal(by[label][t], list(e.params.values()))
 
 
+def test_the_search_runs_without_its_convergence_record(monkeypatch):
+    """The study reports parameters only: a search estimator built from a spec fits with
+    ``history=False`` (set or not; provenance says so), a ready object as it was given."""
+    from idkit.estimators.pso import ParticleSwarm
+
+    seen = []
+    fit_trials = ParticleSwarm.fit_trials
+
+    def spy(self, problems, costs=None, chunk=None):
+        seen.append(self.history)
+        return fit_trials(self, problems, costs, chunk)
+
+    monkeypatch.setattr(ParticleSwarm, "fit_trials", spy)
+    study = robustness.run(trials=2, **{**SMALL, "estimator": {**TINY_PSO, "history": True}})
+    assert seen and not any(seen)
+    assert study.provenance.plugins["estimator"]["options"]["history"] is False
+    seen.clear()
+    robustness.run(trials=2, **{**SMALL, "estimator": ParticleSwarm(runs=2, particles=6, iterations=15)})
+    assert seen and all(seen)
+
+
 def test_shards_merge_into_the_one_process_study(tmp_path):
     """Two shards written and read back, merged: the same numbers as one process over all trials."""
     whole = robustness.run(trials=5, **MIXED)
