@@ -13,8 +13,8 @@ from hypothesis.extra import numpy as hnp
 
 from idkit.reports.files import write_csv
 from idkit.studies import robustness_trials
-from idkit.studies.robustness import RobustnessStudy
 from idkit.studies.result import Provenance
+from idkit.studies.robustness import RobustnessStudy
 
 NAMES = ["m1", "m2", "I1", "I2"]
 
@@ -59,7 +59,8 @@ def test_the_rows_are_one_per_scenario_estimate_and_trial_with_the_error(tmp_pat
     header, rows = robustness_trials.table(study({"outliers": {"LS": values}}, first=7))
     assert header == ["scenario", "trial", "estimator", *NAMES, "error"]
     assert [row[:3] for row in rows] == [["outliers", 7, "LS"], ["outliers", 8, "LS"]]
-    assert [row[-1] for row in rows] == [0.25, 0.25]  # mean |p - truth| / |truth|: one of four is off by 100 %
+    # the parameter error, mean |p - truth| / |truth|: one of the four parameters is off by 100 %
+    assert [row[-1] for row in rows] == [0.25, 0.25]
 
 
 def test_columns_are_found_by_name_not_position(tmp_path):
