@@ -53,11 +53,11 @@ def _error(seed: int, slots: int, particles: int, samples: int) -> torch.Tensor:
     return torch.randint(-(2**10), 2**10, (slots, particles, 3, samples), generator=generator).double() / 2**8
 
 
-def _check(seed: int, samples: int) -> None:
+def _check(seed: int, samples: int, particles: int = 5) -> None:
     structures = [NormStructure((name,), parameters=(value,)) for name, value in CASES]
     structures.append(NormStructure(("huber", "2", "trimmed"), parameters=(0.7, 0.0, 0.1)))  # a product
     structures.append(NormStructure(("1", "inf", "fro", "max_abs")))
-    e = _error(seed, len(structures), 5, samples)
+    e = _error(seed, len(structures), particles, samples)
     kernel = _kernel_costs(structures, e)
     for slot, structure in enumerate(structures):
         reference = torch.ones(e.shape[1], dtype=torch.float64)
@@ -76,6 +76,15 @@ def test_fused_and_kernel_forms_agree_with_the_reference(seed):
 
 def test_forms_agree_on_a_long_recording():
     _check(0, samples=400)
+
+
+def test_forms_agree_for_many_particles_side_by_side():
+    """150 particles in one tile: the kernel's trimmed mean selects for ``LANES`` of them at a time
+    (two full groups and a remainder), the spectral norm sums their Gram matrices side by side."""
+    from idkit.optim.kernel import LANES, TILE
+
+    assert 2 * LANES < 150 <= TILE
+    _check(1, samples=10, particles=150)
 
 
 @pytest.mark.parametrize("name", FACTORS)
