@@ -28,6 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -92,6 +93,30 @@ def problem_arrays(costs: list[str], trials: int, rules: swarm.SwarmRules) -> li
     return found
 
 
+def same_results(first: list[tuple], second: list[tuple]) -> bool:
+    """Whether two kernels' per-trial arrays (histories and final states) are bitwise equal."""
+    return all(
+        np.array_equal(a, b, equal_nan=True)
+        for one, other in zip(first, second, strict=True)
+        for a, b in zip(one, other, strict=True)
+    )
+
+
+def interleaved_cpu_times(
+    kernels: dict[str, Callable], call: Callable, rounds: int, repeat: int
+) -> dict[str, list[float]]:
+    """CPU seconds per ``call(kernel)``, each round timing every kernel in turn (``repeat`` calls), so
+    that a change of load touches both alike."""
+    times: dict[str, list[float]] = {name: [] for name in kernels}
+    for _ in range(rounds):
+        for name, kernel in kernels.items():
+            started = time.process_time()
+            for _ in range(repeat):
+                call(kernel)
+            times[name].append((time.process_time() - started) / repeat)
+    return times
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("revision", nargs="?", default="main")
@@ -152,18 +177,10 @@ def main() -> None:
                 return found
 
             results = [call(kernel) for kernel in kernels.values()]
-            for trial in range(args.trials):
-                for a, b in zip(results[0][trial], results[1][trial], strict=True):
-                    if not np.array_equal(a, b, equal_nan=True):
-                        sys.exit(f"{label}, runs={runs}, trial {trial}: the kernels give different results")
-            times: dict[str, list[float]] = {name: [] for name in kernels}
+            if not same_results(*results):
+                sys.exit(f"{label}, runs={runs}: the kernels give different results")
             repeat = max(1, 2000 // (swarms * PARTICLES * args.trials))
-            for _ in range(args.rounds):
-                for name, kernel in kernels.items():
-                    started = time.process_time()
-                    for _ in range(repeat):
-                        call(kernel)
-                    times[name].append((time.process_time() - started) / repeat)
+            times = interleaved_cpu_times(kernels, call, args.rounds, repeat)
             evaluations = swarms * PARTICLES * ITERATIONS * args.trials
             for name, spent in times.items():
                 print(
