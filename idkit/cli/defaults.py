@@ -13,6 +13,7 @@ import warnings
 from collections.abc import Sequence
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.errors import OverrideParseException
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from idkit.cli.nodes import plugin_node
@@ -36,7 +37,10 @@ def preselect_estimator(words: list[str]) -> list[str]:
     options are the real-robot estimator's (``prior_weight``), and Hydra would check them against the
     paper's."""
     overrides = [word for word in words if "=" in word and not word.startswith("-")]
-    parsed = OverridesParser.create().parse_overrides(overrides)
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except OverrideParseException:
+        return words  # Hydra refuses it in its own words, in one line (idkit.cli.errors)
     keys = {override.key_or_group: override for override in parsed}
     robot = keys.get("robot")
     task = keys.get("task")

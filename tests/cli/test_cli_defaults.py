@@ -85,6 +85,7 @@ def test_options_of_the_default_estimator_typed_without_naming_it_are_its():
         typed[:2] + typed[3:],  # no measured data
         [*typed, "task=kuka"],  # a study with its own estimators
         typed[:3],  # no estimator option
+        ["robot=urdf", "data=[a", "estimator.prior_weight=1"],  # unreadable: Hydra says so itself
     ):
         assert preselect_estimator(untouched) == untouched
 
