@@ -27,7 +27,7 @@ from hydra.errors import CompactHydraException
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
-from idkit.cli import command_line, errors, output, provenance
+from idkit.cli import INTERRUPTED, command_line, errors, output, provenance
 from idkit.cli.defaults import apply_real_robot_defaults, preselect_estimator
 from idkit.cli.source import RegistryConfigSource, RegistrySearchPath
 from idkit.cli.tasks import arguments, get_task
@@ -44,9 +44,6 @@ TRACEBACKS_REQUESTED = os.environ.get(FULL_ERROR) == "1" or output.debugging()
 
 #: The first word that runs ``idkit compare`` (:mod:`idkit.cli.compare`) instead of a task.
 COMPARE = "compare"
-
-#: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
-INTERRUPTED = 130
 
 
 def _uid() -> str:

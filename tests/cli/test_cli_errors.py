@@ -114,3 +114,18 @@ def test_a_full_disk_is_one_line_and_leaves_what_was_written_intact(run_idkit, t
     with pytest.raises(files.WriteError):  # over an earlier result: the earlier one stays
         files.write_json(earlier / "result.json", {"new": 1})
     assert (earlier / "result.json").read_text() == before and json.loads(before)["task"] == "single"
+
+
+def test_ctrl_c_while_composing_the_config_is_one_line_and_exit_130(monkeypatch, capsys):
+    """Ctrl-C in the first seconds (importing torch, Hydra composing the config: before any task, which
+    says what it wrote) printed a hundred lines of Hydra's and torch's frames."""
+    import idkit.cli
+
+    def interrupted() -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(app, "main", interrupted)
+    with pytest.raises(SystemExit) as stop:
+        idkit.cli.main()
+    assert stop.value.code == idkit.cli.INTERRUPTED == 130
+    assert capsys.readouterr().err.splitlines() == ["idkit: interrupted"]
