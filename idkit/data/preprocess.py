@@ -243,9 +243,11 @@ def preprocess_recording(recording: Recording, options: PreprocessOptions | None
         segments.append(Segment(float(t[rows][0]), float(t[rows][-1]), rows.stop - rows.start, times.size))
     if not parts:
         what = "a segment" if len(segments) == 1 else f"any of the {len(segments)} segments between gaps"
+        option = "preprocess.trim" if options.trim is not None else "preprocess.trim=null: 3 / cutoff"
         raise ValueError(
             f"preprocess ({recording.source}): {t[-1]:.3g} s of data leaves no samples after trimming "
-            f"{trim:g} s at each end of {what} (a segment needs {shortest} samples at {rate:g} Hz)"
+            f"{trim:g} s ({option}) at each end of {what} (a segment needs {shortest} samples at "
+            f"{rate:g} Hz)"
         )
     if options.min_speed > 0 and not any(a[0].size for a, _ in parts):
         raise ValueError(

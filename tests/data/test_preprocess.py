@@ -94,7 +94,7 @@ def test_measured_velocities_are_filtered_not_differentiated():
         (PreprocessOptions(rate=50.0, cutoff=30.0), r"cutoff 30 Hz is not below the Nyquist frequency 25 Hz"),
         (PreprocessOptions(rate=200.0, cutoff=30.0, decimate=4), r"decimated Nyquist frequency 25 Hz"),
         (PreprocessOptions(velocities="measured"), "has no qd columns"),
-        (PreprocessOptions(trim=30.0), "leaves no samples after trimming"),
+        (PreprocessOptions(trim=30.0), r"leaves no samples after trimming 30 s \(preprocess\.trim\) at"),
         (PreprocessOptions(min_speed=100.0), "drops every sample"),
     ],
 )
