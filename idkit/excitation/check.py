@@ -12,6 +12,12 @@ What is checked, on every sample of the file (``.csv`` or ``.npz``, joints by na
 * at rest at both ends: ``|qd|``, ``|qdd| <= --rest-tolerance`` (1e-6) at the first and last sample;
 * time that moves forwards (a repeated or earlier time is named with its sample) and a regular sample
   rate: every step within 1e-6 of the median step;
+* velocities and accelerations that are the derivatives of the positions and velocities: a robot
+  follows the positions, so ``qd`` columns in another unit (or ``t`` in milliseconds) would check
+  a motion the robot does not make. Between two samples the change of ``q`` over the step must match
+  the mean of their ``qd`` (the trapezoid rule), within :data:`DERIVATIVE_TOLERANCE` of the joint's
+  peak rate (a sampled smooth motion misses it by ``(ω Δt)² / 12``: 1 % at an eighth of the rate);
+  the same for ``qdd`` and ``qd``;
 * no self-collision, where pinocchio + coal are installed and the URDF has collision geometry
   (``idkit.excitation.collision``; otherwise the report says it was not checked, and why).
 
@@ -44,6 +50,13 @@ REST_TOLERANCE = 1e-6
 #: Largest relative deviation of a time step from the median step.
 RATE_TOLERANCE = 1e-6
 
+#: Largest mismatch between a derivative column and the change of what it is the derivative of, as
+#: a share of the joint's peak rate over the file (module doc).
+DERIVATIVE_TOLERANCE = 0.05
+
+#: The derivative columns: which column is the rate of change of which, and what the quantity is called.
+DERIVATIVES = (("qd", "q", "velocity"), ("qdd", "qd", "acceleration"))
+
 #: Exit status for a file with violations, and for an input that cannot be checked.
 VIOLATED, UNUSABLE = 1, 2
 
@@ -55,7 +68,9 @@ class Violation:
     Attributes:
         subject: a joint name, a pair of links (``a–b``), or ``t``.
         quantity: ``position``, ``velocity``, ``acceleration``, ``effort``, ``qd at rest``,
-            ``qdd at rest``, ``time order``, ``sample rate`` or ``self-collision``.
+            ``qdd at rest``, ``time order``, ``sample rate``, ``qd derivative``, ``qdd derivative`` or
+            ``self-collision``.
+        value, limit: for a derivative, the column's mean over the step and the rate of change.
         time: the (first or worst) offending instant, seconds.
         value, limit: the offending value and the limit it breaks (``None`` for a contact).
         samples: how many samples break it.
@@ -88,6 +103,14 @@ class Violation:
             return (
                 f"t: time {how} at sample {self.index}: t = {self.value:.9g} s after t = {self.limit:.9g} s"
                 f"{more}"
+            )
+        if self.quantity.endswith("derivative"):
+            column = self.quantity.split()[0]
+            source = dict((d, v) for d, v, _ in DERIVATIVES)[column]
+            return (
+                f"{self.subject}: {column} {self.value:.4g} at t = {self.time:.6g} s where {source} changes "
+                f"at {self.limit:.4g}/s{more}: not {source}'s derivative ({column} in another unit, or t "
+                "not in seconds?)"
             )
         if self.quantity == "sample rate":
             return (
@@ -266,6 +289,36 @@ def _rate(t: np.ndarray) -> tuple[float, list[Violation]]:
     return 1.0 / step, violations
 
 
+def _derivatives(trajectory: Trajectory) -> list[Violation]:
+    """Each derivative column against the change of its source between two samples (module doc); steps
+    off the regular rate (backwards, repeated, irregular) are left to :func:`_rate`, which names them."""
+    dt = np.diff(trajectory.t)
+    step = float(np.median(dt[dt > 0])) if (dt > 0).any() else float("nan")
+    forward = np.abs(dt - step) <= RATE_TOLERANCE * abs(step)
+    mid = trajectory.t[:-1][forward] + dt[forward] / 2
+    violations = []
+    for column, source, _ in DERIVATIVES:
+        values, of = getattr(trajectory, column), getattr(trajectory, source)
+        rate = np.diff(of, axis=0)[forward] / dt[forward, None]  # [S, n]
+        mean = ((values[:-1] + values[1:]) / 2)[forward]
+        miss = np.abs(rate - mean)
+        peak = np.maximum(np.abs(rate).max(0, initial=0.0), np.abs(mean).max(0, initial=0.0))
+        wrong = miss > DERIVATIVE_TOLERANCE * peak
+        for j in np.flatnonzero(wrong.any(0)):
+            k = int(np.argmax(miss[:, j]))
+            violations.append(
+                Violation(
+                    trajectory.joint_names[j],
+                    f"{column} derivative",
+                    float(mid[k]),
+                    float(mean[k, j]),
+                    float(rate[k, j]),
+                    int(wrong[:, j].sum()),
+                )
+            )
+    return violations
+
+
 def _contacts(trajectory: Trajectory, collision: SelfCollision) -> list[Violation]:
     first: dict[tuple[str, str], list[float]] = {}
     for contact in collision.contacts(trajectory.q):
@@ -322,7 +375,7 @@ def check_trajectory(
     rest, broken = _rest(trajectory, rest_tolerance)
     violations += broken
     rate, broken = _rate(t)
-    violations += broken
+    violations += broken + _derivatives(trajectory)
     if isinstance(collision, SelfCollision):
         violations += _contacts(trajectory, collision)
     return TrajectoryCheck(

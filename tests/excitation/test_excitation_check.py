@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import subprocess
 import sys
 
@@ -141,6 +142,33 @@ def test_time_going_backwards_is_named_by_its_sample_not_as_a_step_size():
     found = check_trajectory(repeated, LIMITS, None, None, NotChecked("x")).violations
     lines = [v.line() for v in found if v.subject == "t"]
     assert lines[0] == "t: time repeats at sample 30: t = 0.29 s after t = 0.29 s"
+
+
+@pytest.mark.parametrize("rate", [100.0, 1000.0])
+def test_derivative_columns_that_are_not_the_derivatives_are_violations(rate):
+    """A robot follows the positions: ``qd`` in another unit, or ``t`` in milliseconds with ``qd`` per
+    second, made the check pass a motion ten times faster than its limits ("all checks passed")."""
+    trajectory = sine_trajectory(0.2, rate)
+    assert check_trajectory(trajectory, LIMITS, None, None, NotChecked("x"), margins=NO_MARGIN).ok
+    t, q, qd, qdd = trajectory.t, trajectory.q, trajectory.qd, trajectory.qdd
+    for wrong, flagged in (
+        (Trajectory(JOINTS, t / 10, q, qd, qdd), {"qd", "qdd"}),  # the same samples, ten times as fast
+        (Trajectory(JOINTS, t, q, np.degrees(qd), qdd), {"qd", "qdd"}),
+        (Trajectory(JOINTS, t, q, qd, qdd / 2), {"qdd"}),
+    ):
+        found = check_trajectory(wrong, LIMITS, None, None, NotChecked("x"), margins=NO_MARGIN).violations
+        derivatives = [v for v in found if v.quantity.endswith("derivative")]
+        assert {v.quantity.split()[0] for v in derivatives} == flagged
+        assert {v.subject for v in derivatives} == set(JOINTS)
+    (first, *_) = check_trajectory(
+        Trajectory(JOINTS, t / 10, q, qd, qdd), LIMITS, None, None, NotChecked("x"), margins=NO_MARGIN
+    ).violations
+    assert re.fullmatch(
+        r"a: qd \S+ at t = \S+ s where q changes at \S+/s \(\d+ samples\): not q's derivative \(qd in "
+        r"another unit, or t not in seconds\?\)",
+        first.line(),
+    )
+    assert first.limit == pytest.approx(10 * first.value, rel=0.02)
 
 
 def test_contacts_are_violations_with_their_first_time():
