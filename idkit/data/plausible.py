@@ -19,9 +19,11 @@ of another robot, or damaged. Each check says the file, the joint, the value and
   preprocessing splits) is refused — no joint
   moves that far in one sample; an angle wrapped at ±π (unwrap it) or a glitch, which the
   differentiation would turn into spikes of velocity and acceleration;
-* **velocities**, where the fit uses the file's own (a samples file, or
-  ``preprocess.velocities=measured``), against the velocity limits: said, with the unit mistake that
-  would explain them (URDF velocity limits are often nominal);
+* **velocities** against the velocity limits: the file's own where the fit uses them (a samples file,
+  or ``preprocess.velocities=measured``), else the positions' rate of change over
+  :data:`RATE_WINDOW` (long enough that encoder noise does not reach a limit) — so that positions in
+  degrees on a joint without position limits (a continuous joint) are said too: said, with the unit
+  mistake that would explain them (URDF velocity limits are often nominal);
 * **torques** (joint torques: after ``effort_scale``): more than :data:`EFFORT_FACTOR` times a joint's
   effort limit (``Robot.effort_limits``) is said — a wrong ``effort_scale`` or another unit — and so
   is a joint whose torques are all exactly zero: an empty effort column or topic, unless the joint is
@@ -43,6 +45,8 @@ from torch import Tensor
 from idkit.data.load import Source
 from idkit.interfaces import Robot
 
+#: Seconds over which a raw recording's positions are differenced to check their speed (module doc).
+RATE_WINDOW = 0.05
 #: Unit mistakes a limit check recognises: the factor the values are too large by, and what it means.
 UNIT_FACTORS = {180.0 / math.pi: "degrees where radians are due", 1000.0: "millimetres where metres are due"}
 #: Torques beyond this many times a joint's effort limit are said (module doc).
@@ -88,10 +92,14 @@ def check_recording(
     if limits is not None:
         lower, upper = limits.lower.double().numpy(), limits.upper.double().numpy()
         _check_box(where, "position", q, lower[0], upper[0], joints, refuse=True)
-        if qd is not None:
-            _check_box(where, "velocity", qd, lower[1], upper[1], joints, refuse=False)
     if source.recording is not None:
         _check_jumps(where, source.recording.t, q, joints, max_gap)
+    if limits is not None:
+        quantity = "velocity"
+        if qd is None and source.recording is not None:
+            qd, quantity = _rates(source.recording.t, q), "velocity (the positions' rate of change)"
+        if qd is not None:
+            _check_box(where, quantity, qd, lower[1], upper[1], joints, refuse=False)
     effort = getattr(robot, "effort_limits", None)
     if effort is not None:
         _check_effort(where, tau, np.asarray(effort, dtype=np.float64), joints)
@@ -123,6 +131,18 @@ def _check_times(where: str, times: np.ndarray) -> None:
     )
 
 
+def _rates(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The positions' ``[N, n]`` change over :data:`RATE_WINDOW` (at least one step) per second: a speed
+    to check against the limits, not a velocity to fit (steps that do not move forwards are skipped)."""
+    dt = np.diff(t)
+    span = max(1, int(round(RATE_WINDOW / float(np.median(dt))))) if dt.size else 1
+    if len(t) <= span:
+        return np.zeros((0, q.shape[1]))
+    elapsed = t[span:] - t[:-span]
+    forward = elapsed > 0
+    return (q[span:] - q[:-span])[forward] / elapsed[forward, None]
+
+
 def _check_jumps(where: str, t: np.ndarray, q: np.ndarray, joints: Sequence[str], max_gap: float) -> None:
     """Refuse a position step over π between two samples of a raw recording (module doc); a step across
     a gap in the timestamps (``max_gap`` median steps: preprocessing splits there) may be anything."""
@@ -149,6 +169,8 @@ def _check_box(
 ) -> None:
     """Say values ``[N, n]`` beyond ``[lower, upper]`` in one line each, with a unit mistake that
     explains them; ``refuse``: raise instead where they are far beyond (module doc)."""
+    if not values.size:
+        return
     low, high = values.min(0), values.max(0)
     for j, joint in enumerate(joints):
         lo, hi = float(lower[j]), float(upper[j])

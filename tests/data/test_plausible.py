@@ -139,6 +139,31 @@ def test_velocities_beyond_their_limits_are_said_with_the_unit(robot, tmp_path):
         read(robot, path)
 
 
+def test_degrees_on_a_joint_without_position_limits_are_said_by_their_speed(tmp_path):
+    """A continuous joint has no position limits to catch degrees (fitted without a word before); its
+    velocity limit does, on the positions' rate of change where the file's velocities are not used."""
+    urdf = tmp_path / "continuous.urdf"
+    urdf.write_text(
+        ASSET.read_text().replace('name="theta1" type="revolute"', 'name="theta1" type="continuous"')
+    )
+    robot = URDFRobot(str(urdf), friction=True, offset=True)
+    arrays = recording(robot)
+    arrays["q"][:, 0] = np.degrees(arrays["q"][:, 0])
+    path = write(tmp_path / "degrees.csv", arrays)
+    with pytest.warns(LimitWarning) as said:
+        read(robot, path)
+    (line,) = [str(w.message) for w in said if issubclass(w.category, LimitWarning)]
+    assert line.startswith(f"data file {path}: joint theta1's velocity (the positions' rate of change) ")
+    assert "beyond the robot's limits [-4, 4] by" in line and line.endswith(
+        ": degrees where radians are due?"
+    )
+    with warnings.catch_warnings():  # in radians: nothing to say, encoder noise and all
+        warnings.simplefilter("error")
+        noisy = recording(robot)
+        noisy["q"] += 1e-3 * np.random.default_rng(0).standard_normal(noisy["q"].shape)
+        read(robot, write(tmp_path / "radians.csv", noisy))
+
+
 def test_torques_beyond_the_effort_limits_or_all_zero_are_said(robot, tmp_path):
     arrays = recording(robot)
     arrays["tau"][:, 2] = 0.0
