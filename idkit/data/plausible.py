@@ -193,7 +193,10 @@ def _check_box(
         if units:
             cause = f"{units[0]}?"
         elif beyond > hi - lo:
-            cause = "far beyond: another unit (motor-side positions?), joint order or robot?"
+            side = "positions" if quantity == "position" else "speeds"
+            cause = f"far beyond: another unit (motor-side {side}?), joint order or robot?"
+        elif quantity != "position":
+            cause = "a URDF's velocity limit below the robot's (they are often nominal)?"
         else:
             cause = "another zero, a calibration offset, or limits not the robot's?"
         warnings.warn(f"{said} by {beyond:.3g}: {cause}", LimitWarning, stacklevel=4)
