@@ -85,9 +85,21 @@ def searches_cost(estimator: Any) -> bool:
 
 
 def describe(options: Mapping[str, Any]) -> str:
-    """The note's text for the options applied."""
+    """The note's text for the options applied: what they are, in words, and nothing the user set
+    (``estimator=ls`` typed: not "a physically consistent fit")."""
     shown = " ".join(f"{key}={'null' if v is None else str(v).lower()}" for key, v in options.items())
+    terms = " and ".join(
+        name
+        for key, name in (("robot.friction", "friction"), ("robot.offset", "torque offsets"))
+        if key in options
+    )
+    if "estimator" in options:
+        what = "a physically consistent fit" + (f" with {terms}" if terms else "")
+    elif terms:
+        what = f"{terms} in the model"
+    else:
+        what = "no cost: the estimator minimises its own criterion"
     return (
-        f"measured data on a model robot: {shown} (a physically consistent fit with friction and torque "
-        "offsets); set any of them to change it, e.g. estimator=ls robot.friction=false"
+        f"measured data on a model robot: {shown} ({what}); set any of them to change it, e.g. "
+        "estimator=ls robot.friction=false"
     )

@@ -14,7 +14,7 @@ from hydra.core.global_hydra import GlobalHydra
 
 from idkit.cli.app import setup
 from idkit.cli.defaults import apply_real_robot_defaults, preselect_estimator
-from idkit.studies.defaults import RealRobotNote, applies, chosen, searches_cost
+from idkit.studies.defaults import RealRobotNote, applies, chosen, describe, searches_cost
 
 URDF = str(files("idkit") / "robots/assets/cylindrical.urdf")
 
@@ -63,9 +63,20 @@ def test_the_composed_config_is_changed_in_place_with_one_note():
     assert cfg.cost is None and cfg.robot.friction is True and cfg.robot.offset is False
     assert [str(w.message) for w in said] == [
         "measured data on a model robot: estimator=pcls cost=null robot.friction=true (a physically "
-        "consistent fit with friction and torque offsets); set any of them to change it, e.g. "
-        "estimator=ls robot.friction=false"
+        "consistent fit with friction); set any of them to change it, e.g. estimator=ls robot.friction=false"
     ]
+
+
+def test_the_note_describes_only_what_was_applied():
+    """``estimator=ls`` typed: the note said "(a physically consistent fit …)" of a least-squares fit."""
+    assert describe(chosen({"estimator"})).startswith(
+        "measured data on a model robot: cost=null robot.friction=true robot.offset=true (friction and "
+        "torque offsets in the model); "
+    )
+    assert "(a physically consistent fit with friction and torque offsets)" in describe(chosen(set()))
+    assert "(no cost: the estimator minimises its own criterion)" in describe(
+        chosen({"estimator", "robot.friction", "robot.offset"})
+    )
 
 
 def test_options_of_the_default_estimator_typed_without_naming_it_are_its():
