@@ -19,6 +19,7 @@ any order; extra joints are ignored and a joint the robot needs and the file lac
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,7 +29,7 @@ import numpy as np
 
 from idkit.data.delay import shift_torques
 from idkit.data.io import FLOBAROID_KEYS, samples_from_table
-from idkit.data.logs import is_log, read_log
+from idkit.data.logs import LogWarning, is_log, read_log
 from idkit.data.options import RecordingOptions
 from idkit.data.preprocess import PreprocessOptions, preprocess_recording
 from idkit.data.raw import Recording
@@ -158,6 +159,7 @@ def read_source(
         recording, description = read_log(path, joints, log)
         _refuse_zero_torques(path, recording.tau)
         return Source(str(path), recording, log=description)
+    _say_topics_unused(path, log)
     table = read_table(path)
     kind = file_kind(table)
     run = apply == "on" or (apply == "auto" and not kind.samples)
@@ -186,6 +188,21 @@ def read_source(
     recording = recording_from_table(table, FLOBAROID_RECORDING_KEYS if kind.flobaroid else None, joints)
     _refuse_zero_torques(path, recording.tau)
     return Source(str(path), recording)
+
+
+def _say_topics_unused(path: str | Path, log: RecordingOptions | None) -> None:
+    """A topic option given for a table (CSV, npz) does nothing there: say so rather than let the user
+    think the efforts came from the topic named."""
+    given = [
+        f"recording.{name}" for name in ("topic", "effort_topic") if getattr(log, name, None) is not None
+    ]
+    if given:
+        warnings.warn(
+            f"{path}: {' and '.join(given)} {'name' if len(given) > 1 else 'names'} a ROS log's topics; this "
+            "file is a table, read from its own columns",
+            LogWarning,
+            stacklevel=3,
+        )
 
 
 def _refuse_zero_torques(path: str | Path, tau: np.ndarray) -> None:

@@ -82,3 +82,20 @@ def test_torques_that_are_all_zero_are_refused_naming_the_file(tmp_path, name, a
     values["tau"][7, 1] = 1e-9  # one non-zero torque is a measurement, however small
     np.savez(tmp_path / name, **{k: values[k] for k in arrays})
     assert load_data_file(tmp_path / name, PreprocessOptions(cutoff=5.0)).samples.n_samples > 0
+
+
+def test_a_topic_option_given_for_a_table_is_said_to_do_nothing(tmp_path):
+    """``recording.effort_topic=/efforts`` with a CSV was ignored without a word."""
+    from idkit.data.logs import LogWarning
+    from idkit.data.options import RecordingOptions
+
+    t, q, _, _ = sines()
+    np.savez(tmp_path / "r.npz", t=t, q=q, tau=q)
+    with pytest.warns(LogWarning) as said:
+        load_data_file(
+            tmp_path / "r.npz", PreprocessOptions(cutoff=5.0), log=RecordingOptions(effort_topic="/e")
+        )
+    assert [str(w.message) for w in said] == [
+        f"{tmp_path / 'r.npz'}: recording.effort_topic names a ROS log's topics; this file is a table, read "
+        "from its own columns"
+    ]
