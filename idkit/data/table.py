@@ -73,7 +73,9 @@ def check_table_path(path: str | os.PathLike[str]) -> Path:
     """
     path = Path(path)
     if path.is_dir():
-        found = sorted(p.name for p in path.iterdir() if p.suffix.lower() in (".npz", ".csv"))
+        # and idkit.data.logs.LOG_SUFFIXES (not imported: it brings torch): read without metadata.yaml
+        readable = (".npz", ".csv", ".mcap", ".db3", ".bag")
+        found = sorted(p.name for p in path.iterdir() if p.suffix.lower() in readable)
         inside = f"; data files in it: {', '.join(found[:5])}{' …' * (len(found) > 5)}" if found else ""
         raise ValueError(
             f"{path} is a directory, not a data file (.npz, .csv) nor a ROS 2 bag folder (no metadata.yaml)"

@@ -143,11 +143,12 @@ def test_kuka_recording_loads(kuka_dir):
 
 def test_directory_is_refused_and_its_data_files_listed(tmp_path):
     write_npz(tmp_path / "run1.npz")
+    (tmp_path / "run2.mcap").write_bytes(b"")  # a bag's file without its metadata.yaml: readable alone
     with pytest.raises(ValueError) as err:
         load_samples(tmp_path)
     assert (
         str(err.value) == f"{tmp_path} is a directory, not a data file (.npz, .csv) nor a ROS 2 bag folder "
-        "(no metadata.yaml); data files in it: run1.npz"
+        "(no metadata.yaml); data files in it: run1.npz, run2.mcap"
     )
 
 
