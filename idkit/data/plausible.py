@@ -92,9 +92,10 @@ def check_recording(
     if limits is not None:
         lower, upper = limits.lower.double().numpy(), limits.upper.double().numpy()
         _check_box(where, "position", q, lower[0], upper[0], joints, refuse=True)
-    if source.recording is not None:
+    if source.recording is not None:  # before the speed: a wrapped angle is a jump, not a fast joint
         _check_jumps(where, source.recording.t, q, joints, max_gap)
     if limits is not None:
+        lower, upper = limits.lower.double().numpy(), limits.upper.double().numpy()
         quantity = "velocity"
         if qd is None and source.recording is not None:
             qd, quantity = _rates(source.recording.t, q), "velocity (the positions' rate of change)"
