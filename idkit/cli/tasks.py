@@ -44,6 +44,7 @@ TASKS: dict[str, Task] = {
     "robustness": Task("idkit.studies.robustness:run", "idkit.reports.robustness", "robustness"),
     "kuka": Task("idkit.studies.kuka:run", "idkit.reports.kuka", "kuka"),
     "excitation": Task("idkit.studies.excitation:run", "idkit.reports.excitation", "excitation"),
+    "rollout": Task("idkit.studies.rollout:run", "idkit.reports.rollout", "rollout"),
 }
 
 #: Top-level keys read by the command line itself, not by a study.
