@@ -35,7 +35,7 @@ from idkit.interfaces import Estimator
 from idkit.optim.blocks import SearchResult, cooperative_search
 from idkit.optim.levenberg import least_squares
 from idkit.optim.robust import LOSSES, TUNING, Loss, channel_log_scales, mad_scale
-from idkit.options import OptionError
+from idkit.runtime import torch_threads
 from idkit.sim.initial import robust_states
 from idkit.sim.problem import RolloutProblem
 from idkit.sim.shooting import Shooting
@@ -46,8 +46,11 @@ CONFORMANCE_PROBLEM = "idkit.sim.cases:conformance_problem"
 #: A robust scale re-estimated within ``exp(±SETTLED)`` of the last is settled (Huber's estimate hardly
 #: moves with its scale; a re-solve costs Jacobians).
 SETTLED = 0.3
-#: Scale re-estimates at most, per phase of the polish.
+#: Solves at most in a robust stage of the polish (the scale re-estimated before each).
 ROUNDS = 3
+#: Relative loss reduction below which a solve stops: the last (about a tenth of a standard deviation
+#: of the best-determined unknown), and the others.
+TIGHT, LOOSE = 1e-6, 1e-4
 #: Residuals below this many channel scales (the noise, or a millionth of the spread) fit exactly: a
 #: noiseless log, for which a robust scale and free initial states have nothing left to do.
 EXACT = 0.1
@@ -87,17 +90,17 @@ class RolloutEstimator(Estimator):
         threads: int | None = None,
     ) -> None:
         if (particles is not None and particles < 1) or (iterations is not None and iterations < 0):
-            raise OptionError(
+            raise ValueError(
                 f"rollout: particles >= 1 and iterations >= 0 (or null), got {particles}, {iterations}"
             )
         if polish_iterations < 0:
-            raise OptionError(f"rollout: polish_iterations must be >= 0, got {polish_iterations}")
+            raise ValueError(f"rollout: polish_iterations must be >= 0, got {polish_iterations}")
         if not 0 < search_share <= 1:
-            raise OptionError(f"rollout: search_share must be in (0, 1], got {search_share}")
+            raise ValueError(f"rollout: search_share must be in (0, 1], got {search_share}")
         if loss not in LOSSES:
-            raise OptionError(f"rollout: loss must be one of {', '.join(LOSSES)}, got {loss!r}")
+            raise ValueError(f"rollout: loss must be one of {', '.join(LOSSES)}, got {loss!r}")
         if threads is not None and threads < 1:
-            raise OptionError(f"rollout: threads must be >= 1 or null, got {threads}")
+            raise ValueError(f"rollout: threads must be >= 1 or null, got {threads}")
         self.particles = particles
         self.iterations = iterations
         self.cooperative = cooperative
@@ -108,6 +111,10 @@ class RolloutEstimator(Estimator):
         self.threads = threads
 
     def fit(self, problem: Any) -> Estimate:
+        with torch_threads(1):  # the swarm's and the costs' tensors are small (idkit.runtime)
+            return self._fit(problem)
+
+    def _fit(self, problem: Any) -> Estimate:
         if not isinstance(problem, RolloutProblem):
             raise ValueError(
                 "estimator rollout identifies a simulator from logged commands and joint states, not from "
@@ -238,42 +245,38 @@ def _search(
 def _polish(
     problem: RolloutProblem, simulators: tuple[Any, Any], z: np.ndarray, options: RolloutEstimator
 ) -> dict[str, Any]:
-    """Robust Levenberg–Marquardt, coarse to fine: on the search's segments with their start states
-    fixed (cheap, from far), then on every segment, their initial states free (``free_initial``), the
-    robust scale re-estimated until it settles (``ROUNDS`` solves at most)."""
+    """Levenberg–Marquardt, coarse to fine (``_STAGES``): least squares on the search's segments from
+    their start states (fast from far; exact on a noiseless log, which ends the polish), then the robust
+    loss with the initial states free (``free_initial``) on those segments, then on every segment. In a
+    robust stage the scale is re-estimated until it settles (``ROUNDS`` solves at most); the very last
+    solve has a tight tolerance."""
     search_sim, full_sim = simulators
     record: list[dict[str, Any]] = []
-    x = z
-    stages = [(search_sim, False, 1), (full_sim, options.free_initial, ROUNDS)]
-    if search_sim is full_sim:
-        stages = stages[1:]
-    for simulator, free, rounds in stages:
-        shooting = Shooting(problem, simulator, free)
-        x = shooting.start(x[: len(z)])
+    x, offsets = z, {}
+    stages = _STAGES if search_sim is not full_sim else _STAGES[:1] + _STAGES[2:]
+    for subset, robust in stages:
+        simulator = search_sim if subset else full_sim
+        shooting = Shooting(problem, simulator, options.free_initial and robust)
+        x = shooting.start(x[: len(z)], offsets)
         scales = None
-        for round_ in range(rounds):
+        for round_ in range(ROUNDS if robust else 1):
             new = _robust_scales(problem, shooting, x)
             if np.all(new < EXACT):
-                return _finish(problem, _whole(problem, full_sim, free), x, record, options, exact=True)
+                return _finish(problem, Shooting(problem, full_sim, False), x[: len(z)], record, options, True)
             settled = scales is not None and bool(np.all(np.abs(np.log(new / scales)) < SETTLED))
             scales = scales if settled else new
-            robust = simulator is full_sim
-            last = settled or round_ == rounds - 1 or options.loss == "linear"
-            x = _solve(shooting, x, scales, options, robust, 1e-6 if last else 1e-4, record)
-            if last:
+            last = settled or round_ == ROUNDS - 1 or not robust
+            tight = last and not subset
+            x = _solve(shooting, x, scales, options, robust, tight, record)
+            if last or options.loss == "linear":
                 break
-    return _finish(
-        problem,
-        shooting,
-        x,
-        record,
-        options,
-        exact=bool(np.all(_robust_scales(problem, shooting, x) < EXACT)),
-    )
+        offsets = shooting.offsets(x)
+    exact = bool(np.all(_robust_scales(problem, shooting, x) < EXACT))
+    return _finish(problem, shooting, x, record, options, exact)
 
 
-def _whole(problem: RolloutProblem, simulator: Any, free: bool) -> Shooting:
-    return Shooting(problem, simulator, free)
+#: The polish's stages: (on the search's segments only, robust loss with free initial states).
+_STAGES = ((True, False), (True, True), (False, True))
 
 
 def _robust_scales(problem: RolloutProblem, shooting: Shooting, x: np.ndarray) -> np.ndarray:
@@ -287,11 +290,12 @@ def _solve(
     scales: np.ndarray,
     options: RolloutEstimator,
     robust: bool,
-    ftol: float,
+    tight: bool,
     record: list,
 ) -> np.ndarray:
-    """One Levenberg–Marquardt solve at fixed channel scales: least squares on the way (``robust=False``:
-    converges fast from far, and fully on a noiseless log), the robust loss at the end."""
+    """One Levenberg–Marquardt solve at fixed channel scales: least squares (``robust=False``: fast from
+    far, and exact on a noiseless log) or the robust loss; the last (``tight``) with Huber's own Hessian
+    and a tight tolerance, the others with the IRLS Hessian (steadier while the scale still moves)."""
     loss = options.loss if robust else "linear"
     root = np.sqrt(shooting.measured.size)
     shooting.divisor = scales * root
@@ -306,9 +310,9 @@ def _solve(
         TUNING[loss] / root,
         dense=shooting.n_unknowns,
         blocks=shooting.blocks(),
-        hessian="newton",
+        hessian="newton" if tight else "irls",
         max_iter=options.polish_iterations,
-        ftol=ftol,
+        ftol=TIGHT if tight else LOOSE,
         xtol=1e-7,
     )
     record.append(

@@ -354,9 +354,10 @@ def _unknown(
         elif value > 0:
             limits = (box[0] * value, box[1] * value)
         else:
+            origin = "its start" if given is not None else "the model's value"
             raise ValueError(
-                f"{name} starts at {value:g} (the model's value{' or start' if given is not None else ''}): give "
-                f"its bounds (bounds.{name}=[lower, upper]) or a positive start"
+                f"{name} starts at {value:g} ({origin}): give its bounds ({name}: [lower, upper] in bounds) "
+                "or a positive start"
             )
     if len(limits) != 2:
         raise ValueError(f"bounds of {name} must be [lower, upper], got {list(limits)}")

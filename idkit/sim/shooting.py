@@ -62,9 +62,24 @@ class Shooting:
         extra = self.size - self.n_unknowns
         return np.r_[lower, np.full(extra, -STATE_RANGE)], np.r_[upper, np.full(extra, STATE_RANGE)]
 
-    def start(self, z: np.ndarray) -> np.ndarray:
-        """The variables at coordinates ``z`` with the initial states where the simulator starts them."""
-        return np.r_[z, np.zeros(self.size - self.n_unknowns)]
+    def start(self, z: np.ndarray, offsets: dict[int, np.ndarray] | None = None) -> np.ndarray:
+        """The variables at coordinates ``z``, each segment's initial state offset by ``offsets[first
+        sample]`` (in channel scales; 0 where not given: where the simulator starts it)."""
+        x = np.r_[z, np.zeros(self.size - self.n_unknowns)]
+        if self.free_initial and offsets:
+            c = self.n_channels
+            for s, (first, _) in enumerate(self.simulator.segments):
+                if first in offsets:
+                    x[self.n_unknowns + s * c : self.n_unknowns + (s + 1) * c] = offsets[first]
+        return x
+
+    def offsets(self, x: np.ndarray) -> dict[int, np.ndarray]:
+        """``{first sample: offset [2n]}`` of each segment's initial state at variables ``x``."""
+        if not self.free_initial:
+            return {}
+        c = self.n_channels
+        block = x[self.n_unknowns :].reshape(self.n_segments, c)
+        return {first: block[s] for s, (first, _) in enumerate(self.simulator.segments)}
 
     def split(self, x: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
         """``(values [B, P], initial states ([B, S, n], [B, S, n]) or None)`` of variables ``x[size, B]``."""

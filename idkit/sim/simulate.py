@@ -8,7 +8,6 @@ thread between calls, so a swarm's iterations and a Jacobian's columns only writ
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,18 +16,11 @@ import numpy as np
 
 from idkit.data.commands import RobotLog
 from idkit.robots.mjcf import import_mujoco
+from idkit.runtime import available_cores
 from idkit.sim.drive import Drive, match_commands
 from idkit.sim.model import SimModel, logged_state
 from idkit.sim.quantities import Unknowns
 from idkit.sim.timing import Readout, held_averages, interpolate, readout
-
-
-def default_threads() -> int:
-    """The CPUs this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
 
 
 @dataclass
@@ -83,7 +75,7 @@ class BatchSimulator:
         self._starts = self.log.t[starts]
         self._commands = self.log.commands[:, list(self.drive.columns)]
         self._fixed = None if self.unknowns.delay_index is not None else self._controls(np.zeros(1))
-        self._threads = self.threads or default_threads()
+        self._threads = self.threads or available_cores()
         from mujoco import rollout
 
         self._pool = rollout.Rollout(nthread=self._threads if self._threads > 1 else 0)

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from idkit.estimate import Estimate
+from idkit.optim.robust import mad_scale
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
@@ -49,18 +50,29 @@ class Replay:
 
     @property
     def rms(self) -> np.ndarray:
-        """``[2n]`` RMS error per channel."""
+        """``[2n]`` RMS error per channel (glitched samples included)."""
         return np.sqrt(np.mean((self.measured - self.simulated) ** 2, axis=0))
+
+    @property
+    def robust(self) -> np.ndarray:
+        """``[2n]`` robust error per channel: 1.4826 × the median absolute error (the RMS of Gaussian
+        errors, whatever a few glitched samples do)."""
+        return mad_scale(self.measured - self.simulated, axis=0)
 
     def scores(self) -> dict[str, Any]:
         n = len(self.joints)
-        rms, noise = self.rms, self.noise
+
+        def per_joint(values: np.ndarray) -> dict[str, dict[str, float]]:
+            return {
+                "q": dict(zip(self.joints, values[:n].tolist(), strict=True)),
+                "qd": dict(zip(self.joints, values[n:].tolist(), strict=True)),
+            }
+
         return {
             "segments": self.segments,
-            "rms_q": dict(zip(self.joints, rms[:n].tolist(), strict=True)),
-            "rms_qd": dict(zip(self.joints, rms[n:].tolist(), strict=True)),
-            "noise_q": dict(zip(self.joints, noise[:n].tolist(), strict=True)),
-            "noise_qd": dict(zip(self.joints, noise[n:].tolist(), strict=True)),
+            "rms": per_joint(self.rms),
+            "robust": per_joint(self.robust),
+            "noise": per_joint(self.noise),
         }
 
 
