@@ -55,6 +55,7 @@ from idkit.sim.model import load_model
 from idkit.sim.quantities import select_unknowns
 
 SUCCESS = 0.05
+COLUMNS = ("median err", "max err", "held-out", "wall med", "wall sum", "logs sim")
 DELAY_SLACK = 1e-4
 
 
@@ -252,15 +253,17 @@ def truth_f_scale(case: cases.Case) -> float:
 
 def table(rows: list[tuple[str, list[Run]]], case: cases.Case, reference: float) -> str:
     lines = [
-        f"case {case.name}: {len(case.truth)} unknowns, {case.fit.n_samples} samples; the truth's held-out error {reference:.3g} rad",
-        f"{'tool':<28}{'success':>9}{'median err':>12}{'max err':>10}{'held-out':>10}{'wall med':>10}{'wall sum':>10}{'logs sim':>10}",
+        f"case {case.name}: {len(case.truth)} unknowns, {case.fit.n_samples} samples; "
+        f"the truth's held-out error {reference:.3g} rad",
+        f"{'tool':<28}{'success':>9}" + "".join(f"{h:>10}" for h in COLUMNS),
     ]
     for label, runs in rows:
         errors = [relative_errors(case, r.values) for r in runs]
         ok = sum(bool((e < SUCCESS).all()) for e in errors)
         held = [held_out_error(case, dict(zip(case.truth, r.values, strict=True))) for r in runs]
         lines.append(
-            f"{label:<28}{f'{ok}/{len(runs)}':>9}{statistics.median(float(np.median(e)) for e in errors):>12.2e}"
+            f"{label:<28}{f'{ok}/{len(runs)}':>9}"
+            f"{statistics.median(float(np.median(e)) for e in errors):>10.2e}"
             f"{statistics.median(float(e.max()) for e in errors):>10.2e}{statistics.median(held):>10.2e}"
             f"{statistics.median(r.wall for r in runs):>9.1f}s{sum(r.wall for r in runs):>9.0f}s"
             f"{statistics.median(r.rollouts for r in runs):>10.0f}"

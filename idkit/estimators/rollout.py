@@ -193,7 +193,8 @@ def _simulators(problem: RolloutProblem, share: float, threads: int | None) -> t
 
 
 def _parts(problem: RolloutProblem, error: np.ndarray, rows: list[np.ndarray], measured: np.ndarray) -> tuple:
-    """``(parts [B, G], total [B])`` of the search score of errors ``E[B, C, k]``; ``rows``: each part's channels."""
+    """``(parts [B, G], total [B])`` of the search score of errors ``E[B, C, k]`` (``rows``: the channels
+    of each part)."""
     if problem.cost is None:
         channels = default_score(error)
         return np.stack([channels[:, r].sum(axis=1) for r in rows], axis=1), channels.sum(axis=1)
@@ -262,7 +263,9 @@ def _polish(
         for round_ in range(ROUNDS if robust else 1):
             new = _robust_scales(problem, shooting, x)
             if np.all(new < EXACT):
-                return _finish(problem, Shooting(problem, full_sim, False), x[: len(z)], record, options, True)
+                return _finish(
+                    problem, Shooting(problem, full_sim, False), x[: len(z)], record, options, True
+                )
             settled = scales is not None and bool(np.all(np.abs(np.log(new / scales)) < SETTLED))
             scales = scales if settled else new
             last = settled or round_ == ROUNDS - 1 or not robust

@@ -3,7 +3,8 @@
 The table lists each unknown's start, estimate, standard deviation and 95 % interval, then the flat
 directions (what the log cannot separate), then per log the RMS error of each joint's position beside
 the log's noise level (robust: 1.4826 × the median absolute error, which glitched samples do not
-move; it is the noise level when the model reproduces the log within the noise). Plots: per log, each joint's logged and simulated position and the residual
+move; it is the noise level when the model reproduces the log within the noise). Plots: per log, each
+joint's logged and simulated position and the residual
 below it (``fit.png``; ``validation_<k>.png``), and the search's convergence (``convergence.png``).
 """
 
@@ -36,7 +37,8 @@ def text(result: RolloutResult) -> str:
         low, high = interval.get(name, [math.nan, math.nan])
         start = result.unknowns[name]["start"]
         lines.append(
-            f"{name:<22}{start:11.4g}{value:12.6g}{sigma.get(name, math.nan):11.3g}  [{low:11.5g}, {high:11.5g}]"
+            f"{name:<22}{start:11.4g}{value:12.6g}{sigma.get(name, math.nan):11.3g}"
+            f"  [{low:11.5g}, {high:11.5g}]"
         )
     flat = est.details.get("flat_directions") or []
     lines.append("flat directions: " + ("none" if not flat else ""))
@@ -58,7 +60,10 @@ def _errors(replayed: Replay) -> str:
     """Per joint: the robust and RMS error of position and velocity, beside the log's noise level."""
     n = len(replayed.joints)
     rms, robust, noise = replayed.rms, replayed.robust, replayed.noise
-    rows = [f"{'joint':<12}" + "".join(f"{h:>10}" for h in ("q robust", "q RMS", "q noise", "qd robust", "qd RMS", "qd noise"))]
+    rows = [
+        f"{'joint':<12}"
+        + "".join(f"{h:>10}" for h in ("q robust", "q RMS", "q noise", "qd robust", "qd RMS", "qd noise"))
+    ]
     for j, joint in enumerate(replayed.joints):
         cells = (robust[j], rms[j], noise[j], robust[n + j], rms[n + j], noise[n + j])
         rows.append(f"{joint:<12}" + "".join(f"{c:10.3g}" for c in cells))

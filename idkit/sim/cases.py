@@ -82,7 +82,8 @@ def _arm7() -> str:
         inertia = f"{mass * length**2 / 3:.6g} {mass * length**2 / 3:.6g} {mass * 0.03**2:.6g}"
         pos = "0 0 0.1" if i == 1 else f"0 0 {_ARM7_JOINTS[i - 2][2]}"
         bodies += (
-            f'<body name="l{i}" pos="{pos}"><inertial pos="0 0 {length / 2}" mass="{mass}" diaginertia="{inertia}"/>'
+            f'<body name="l{i}" pos="{pos}">'
+            f'<inertial pos="0 0 {length / 2}" mass="{mass}" diaginertia="{inertia}"/>'
             f'<joint name="j{i}" axis="{axis}" armature="{armature}" damping="{damping}" '
             f'frictionloss="{friction}"/><geom fromto="0 0 0 0 0 {length}"/>'
         )

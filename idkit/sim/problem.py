@@ -150,7 +150,8 @@ class RolloutProblem:
         equations = 2 * self.samples.n_joints * (self.samples.n_samples - len(self.segments()))
         if equations < self.n_identifiable:
             raise IdentificationError(
-                f"{self.samples.source}: {equations} equations (2 × {self.samples.n_joints} joints × predicted "
+                f"{self.samples.source}: {equations} equations (2 × {self.samples.n_joints} joints × "
+                "predicted "
                 f"samples) < {self.n_identifiable} unknowns; give a longer log"
             )
 

@@ -303,7 +303,8 @@ def select_unknowns(
         stray = sorted(set(table) - known)
         if stray:
             raise ValueError(
-                f"{option}: {', '.join(stray)} name(s) no unknown; the unknowns: {', '.join(u.name for u in items)}"
+                f"{option}: {', '.join(stray)} name(s) no unknown; the unknowns: "
+                + ", ".join(u.name for u in items)
             )
     return Unknowns(tuple(items))
 
@@ -318,7 +319,8 @@ def _expand(
         elements = _elements(sim, entry, joints)
         if not elements:
             raise ValueError(
-                f"params: no element of kind {entry!r} among the joints {', '.join(joints)} and their actuators"
+                f"params: no element of kind {entry!r} among the joints {', '.join(joints)} "
+                "and their actuators"
             )
         if entry in shared:
             return [(entry, entry, tuple(index for _, index in elements))]

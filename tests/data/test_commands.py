@@ -83,7 +83,13 @@ def test_commands_drive_actuators_by_name_or_by_their_joints_servo(arm7):
     assert drive.describe(sim, arm7)["p3"] == "j3.q_ref"
     assert drive.describe(sim, arm7)["v3"] == "j3.qd_ref"
     renamed = RobotLog(
-        arm7.t, arm7.q, arm7.qd, arm7.t, arm7.commands[:, :7], arm7.joint_names, [f"j{i}.q_ref" for i in range(1, 8)]
+        arm7.t,
+        arm7.q,
+        arm7.qd,
+        arm7.t,
+        arm7.commands[:, :7],
+        arm7.joint_names,
+        [f"j{i}.q_ref" for i in range(1, 8)],
     )
     with pytest.raises(ValueError, match="no command for actuator 'v1'.*j1.qd_ref"):
         match_commands(sim, renamed)

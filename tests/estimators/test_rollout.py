@@ -47,7 +47,9 @@ def test_is_robust_to_glitches_without_a_tuned_scale():
     q, qd = corrupt(q, qd, (1e-4, 1e-2), 0.03, np.random.default_rng(5))
     log = RobotLog(t, q, qd, t, ctrl, ("joint1", "joint2"), ("act1.ctrl", "act2.ctrl"), "glitched pendulum")
     truth = {"joint1.armature": 0.5, "joint2.armature": 0.4, "joint1.damping": 1.0, "joint2.damping": 0.8}
-    case = Case("p", PENDULUM, ("armature", "damping"), truth, log, log, {}, {k: 2 * v for k, v in truth.items()})
+    case = Case(
+        "p", PENDULUM, ("armature", "damping"), truth, log, log, {}, {k: 2 * v for k, v in truth.items()}
+    )
     robust = RolloutEstimator().fit(cases.problem_of(case, threads=1))
     plain = RolloutEstimator(loss="linear").fit(cases.problem_of(case, threads=1))
     assert _errors(robust, truth).max() < 0.02
@@ -56,13 +58,20 @@ def test_is_robust_to_glitches_without_a_tuned_scale():
 
 def test_reports_uncertainty_and_names_a_flat_direction():
     """A position servo's damping term and the joint's damping are one force: the pair is flat."""
-    text = PENDULUM.replace('<motor name="act1" joint="joint1"/>', '<position name="act1" joint="joint1" kp="30" kv="2"/>')
+    text = PENDULUM.replace(
+        '<motor name="act1" joint="joint1"/>', '<position name="act1" joint="joint1" kp="30" kv="2"/>'
+    )
     t = np.arange(400) * 0.002
     ctrl = np.column_stack([0.5 * np.sin(2 * np.pi * 1.1 * t), 2 * np.cos(2 * np.pi * 1.7 * t)])
     q, qd = simulate(text, ctrl)
     log = RobotLog(t, q, qd, t, ctrl, ("joint1", "joint2"), ("joint1.q_ref", "act2.ctrl"), "servo pendulum")
     sim = load_model(text)
-    unknowns = select_unknowns(sim, log.joint_names, ["joint1.damping", "act1.kv", "joint2.armature"], start={"joint1.damping": 0.8, "act1.kv": 2.5})
+    unknowns = select_unknowns(
+        sim,
+        log.joint_names,
+        ["joint1.damping", "act1.kv", "joint2.armature"],
+        start={"joint1.damping": 0.8, "act1.kv": 2.5},
+    )
     problem = RolloutProblem(SimRobot(sim, unknowns, log.joint_names), log, threads=1)
     estimate = RolloutEstimator().fit(problem)
     flat = estimate.details["flat_directions"]
@@ -94,7 +103,9 @@ def test_a_registered_cost_is_what_the_search_minimises_and_reports():
     values = [estimate.params[name] for name in problem.robot.param_names]
     import torch
 
-    assert estimate.cost == pytest.approx(float(problem.evaluate(torch.tensor(values, dtype=torch.float64))), rel=1e-9)
+    assert estimate.cost == pytest.approx(
+        float(problem.evaluate(torch.tensor(values, dtype=torch.float64))), rel=1e-9
+    )
     assert estimate.details["criterion"] == "problem cost"
 
 

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from idkit.sim import cases
 from idkit.sim.model import load_model
-from idkit.sim.quantities import servo_kind, select_unknowns
+from idkit.sim.quantities import select_unknowns, servo_kind
 
 SERVO = """<mujoco><worldbody><body><joint name="a" axis="0 1 0" damping="0.5"/><geom size="0.1" mass="1"/>
 <body pos="0 0 -0.3"><joint name="b" axis="0 1 0"/><geom size="0.1" mass="1"/></body></body></worldbody>
@@ -39,7 +39,9 @@ def test_starts_are_the_models_values_and_bounds_a_box_around_them(servo):
 
 
 def test_shared_kind_is_one_unknown(servo):
-    unknowns = select_unknowns(servo, ("a", "b"), ["damping"], shared=["damping"], bounds={"damping": [0.0, 5]})
+    unknowns = select_unknowns(
+        servo, ("a", "b"), ["damping"], shared=["damping"], bounds={"damping": [0.0, 5]}
+    )
     assert unknowns.names == ("damping",)
     assert len(unknowns.items[0].targets) == 2
     assert unknowns.vector("start")[0] == pytest.approx(0.25)  # the mean of 0.5 and 0
@@ -79,7 +81,14 @@ def test_written_model_compiles_to_the_values_set_in_place(factors):
     spec = sim.copy_spec()
     unknowns.write(spec, sim, values)
     compiled = spec.compile()
-    for field in ("dof_armature", "dof_damping", "dof_frictionloss", "dof_invweight0", "actuator_gainprm", "actuator_biasprm"):
+    for field in (
+        "dof_armature",
+        "dof_damping",
+        "dof_frictionloss",
+        "dof_invweight0",
+        "actuator_gainprm",
+        "actuator_biasprm",
+    ):
         np.testing.assert_allclose(getattr(model, field), getattr(compiled, field), rtol=1e-12, err_msg=field)
 
 

@@ -38,7 +38,9 @@ def _problem(case_model: str, log: RobotLog, params, start=None, segment=0.5) ->
 def test_a_fit_at_the_truth_has_zero_error(arm7_log, segment):
     """MuJoCo's sensor row k is computed before step k, its state row k after: the log pairs the state
     at t_k with the command from t_k, and the simulator reproduces it exactly, in any segments."""
-    problem = _problem(cases.ARM7, arm7_log, ["armature", "damping", "frictionloss", "kp", "kv", "delay"], segment=segment)
+    problem = _problem(
+        cases.ARM7, arm7_log, ["armature", "damping", "frictionloss", "kp", "kv", "delay"], segment=segment
+    )
     truth = problem.robot.unknowns.vector("start")
     simulator = problem.simulator()
     try:

@@ -35,7 +35,10 @@ def files(tmp_path_factory):
 def test_the_study_fits_writes_and_the_written_model_reproduces_a_held_out_log(files, tmp_path):
     folder, case = files
     result = run(
-        str(folder / "arm.xml"), str(folder / "fit.csv"), params=PARAMS, validate=[str(folder / "held_out.csv")]
+        str(folder / "arm.xml"),
+        str(folder / "fit.csv"),
+        params=PARAMS,
+        validate=[str(folder / "held_out.csv")],
     )
     truth = {**case.truth, "joint1.damping": 1.0, "joint2.damping": 0.8, "joint3.damping": 0.6}
     truth |= {"joint4.damping": 0.4, "joint5.damping": 0.2}
@@ -85,8 +88,9 @@ def test_the_command_line(files, tmp_path):
     folder, _ = files
     out = tmp_path / "cli"
     command = [
-        sys.executable, "-c", "from idkit.cli import main; main()", "+experiment=rollout", f"rollout.model={folder / 'arm.xml'}",
-        f"data={folder / 'fit.csv'}", f"validate=[{folder / 'held_out.csv'}]", "rollout.params=[armature,damping]",
+        sys.executable, "-c", "from idkit.cli import main; main()", "+experiment=rollout",
+        f"rollout.model={folder / 'arm.xml'}", f"data={folder / 'fit.csv'}",
+        f"validate=[{folder / 'held_out.csv'}]", "rollout.params=[armature,damping]",
         "rollout.bounds={joint1.damping:[0.1,5]}", f"hydra.run.dir={out}",
     ]  # fmt: skip
     done = subprocess.run(command, capture_output=True, text=True, timeout=300)
