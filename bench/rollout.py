@@ -1,6 +1,7 @@
 """Rollout identification: idkit's ``rollout`` estimator beside ``mujoco.sysid`` on the same models and logs.
 
-Run: ``python bench/rollout.py [--cases a b c] [--starts 20] [--threads 2] [--sysid mujoco scipy robust]``
+Run: ``python bench/rollout.py [--cases a b c] [--starts 20] [--threads 2] [--sysid mujoco scipy robust]
+[--labels physical|shifted|both]``
 (needs the ``bench`` extra: ``mujoco[sysid]``). The cases are :mod:`idkit.sim.cases`:
 
 * ``a``: ``mujoco.sysid``'s own integration-test arm (5 torque motors), its 5 armatures;
@@ -277,7 +278,12 @@ def main() -> None:
     parser.add_argument("--starts", type=int, default=20)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--sysid", nargs="*", default=["mujoco", "scipy", "robust"])
-    parser.add_argument("--shifted", action="store_true", help="also run sysid on the relabelled log")
+    parser.add_argument(
+        "--labels",
+        choices=["physical", "shifted", "both"],
+        default="both",
+        help="the log's times as given to sysid: physical, moved one step later (its convention), or both",
+    )
     args = parser.parse_args()
     logging.disable(logging.WARNING)
     from absl import logging as absl_logging
@@ -291,13 +297,14 @@ def main() -> None:
         if "robust" in args.sysid and name != "c":
             configurations = [c for c in configurations if not c[2]]
         f_scale = truth_f_scale(case) if name == "c" else None
+        conventions = {"physical": [False], "shifted": [True], "both": [False, True]}[args.labels]
         rows: dict[str, list[Run]] = {"idkit rollout": []}
-        for shifted in [False, True] if args.shifted else [False]:
+        for shifted in conventions:
             for label, _, _ in configurations:
                 rows[label + (" shifted" if shifted else "")] = []
         for i, start in enumerate(starts):
             rows["idkit rollout"].append(run_idkit(case, start, args.threads))
-            for shifted in [False, True] if args.shifted else [False]:
+            for shifted in conventions:
                 for label, optimizer, robust in configurations:
                     run = run_sysid(
                         case, start, optimizer, shifted, args.threads, f_scale if robust else None

@@ -156,6 +156,7 @@ class RolloutEstimator(Estimator):
             "segments": [list(s) for s in full_sim.segments],
             "initial_states": polished["initial"],
             "search_initial_states": {"q": initial[0], "qd": initial[1]},
+            "bodies": unknowns.bodies(problem.robot.sim, values),
             "rollouts": rollouts,
             "simulated_seconds": steps * problem.robot.sim.timestep,
         }

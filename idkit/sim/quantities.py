@@ -8,14 +8,21 @@ A quantity is a number of the compiled model, named ``<element>.<kind>``:
   (a velocity servo's gain, ``gainprm[0] = kv``, ``biasprm[2] = -kv``; or a position servo's damping
   ``biasprm[2] = -kv`` where the model gives it one), ``gear`` (the transmission ratio
   ``gear[0]``) and ``bias`` (a constant force ``biasprm[0]``);
+* per body moved by a joint in scope: ``inertia``, its mass, centre of mass and rotational inertia as
+  10 log-Cholesky coordinates (:mod:`idkit.sim.inertia`: every value is a physical body), named
+  ``<body>.inertia.alpha`` … ``<body>.inertia.t3``; ``<body>.inertia`` in ``params`` picks one body;
 * ``delay``: seconds by which the logged states trail the commands (:mod:`idkit.sim.timing`).
 
 ``params`` names the unknowns: a kind (``damping``: one unknown per joint in scope, or per actuator
-driving one) or a quantity's name (``j1.damping``). A kind listed in ``shared`` is one unknown for
-all its elements, named after the kind. Each unknown has a start (the model's value unless given)
-and bounds (given, or ``box`` times the start). Optimisers search in *coordinates*: ``log(value)``
-where the lower bound is positive (a factor counts the same at any size), ``value / (upper − lower)``
-otherwise.
+driving one) or a quantity's name (``j1.damping``). An actuator's quantity may also be named after the
+joint it drives (``j1.kp`` for ``p1.kp``) when no other actuator of that kind drives the joint; in
+``params`` that name is kept, in ``bounds`` and ``start`` either name is read. A kind listed in
+``shared`` is one unknown for all its elements, named after the kind. Each unknown has a start (the
+model's value unless given) and bounds (given, or ``box`` times the start). Optimisers search in
+*coordinates*: ``log(value)`` where the lower bound is positive (a factor counts the same at any
+size), ``value / (upper − lower)`` otherwise (always for ``bias``, ``delay`` and the inertia
+coordinates, which are logarithms or lengths already). An inertia's default bounds are ``±ln √10`` on
+``alpha`` and ``d`` (a factor 10 on the mass) and ``±2`` radii of gyration on ``s`` and ``t``.
 """
 
 from __future__ import annotations
@@ -26,14 +33,19 @@ from typing import Any
 
 import numpy as np
 
+from idkit.robots.inertia import centroidal
+from idkit.sim.inertia import COORDINATES, from_mujoco, mujoco_inertial, standard
 from idkit.sim.model import SimModel
 
 JOINT_KINDS = ("armature", "damping", "frictionloss", "stiffness")
 ACTUATOR_KINDS = ("kp", "kv", "gear", "bias")
 DELAY = "delay"
-KINDS = (*JOINT_KINDS, *ACTUATOR_KINDS, DELAY)
+INERTIA = "inertia"
+KINDS = (*JOINT_KINDS, *ACTUATOR_KINDS, INERTIA, DELAY)
 #: Kinds whose change needs ``mj_setConst`` (constants MuJoCo derives from the mass matrix at qpos0).
-MASS_KINDS = ("armature",)
+MASS_KINDS = ("armature", INERTIA)
+#: Kinds searched in their own units, never in logarithms.
+LINEAR_KINDS = ("bias", INERTIA, DELAY)
 #: Default search box of ``delay`` (s) when no bounds are given.
 DELAY_BOUNDS = (0.0, 0.05)
 #: MuJoCo's gain and bias types read here (``mjtGain``/``mjtBias``).
@@ -150,11 +162,12 @@ class Unknown:
     start: float
     lower: float
     upper: float
+    component: int = 0  #: which of a body's inertia coordinates
 
     @property
     def logarithmic(self) -> bool:
         """Whether the optimisers' coordinate is ``log(value)`` (a positive lower bound)."""
-        return self.lower > 0
+        return self.lower > 0 and self.kind not in LINEAR_KINDS
 
 
 @dataclass(frozen=True)
@@ -203,10 +216,11 @@ class Unknowns:
 
     def joints(self, sim: SimModel) -> list[int | None]:
         """The model joint each unknown belongs to (its own, or the one its actuator drives); ``None``
-        for ``delay``, a shared unknown, and an actuator that drives no joint directly."""
+        for ``delay``, a body's inertia (it moves every joint above it), a shared unknown, and an actuator
+        that drives no joint directly."""
         out: list[int | None] = []
         for unknown in self.items:
-            if len(unknown.targets) != 1:
+            if len(unknown.targets) != 1 or unknown.kind == INERTIA:
                 out.append(None)
             elif unknown.kind in JOINT_KINDS:
                 out.append(unknown.targets[0])
@@ -217,14 +231,51 @@ class Unknowns:
     def apply(self, model: Any, values: np.ndarray) -> None:
         """Write ``values[P]`` into a compiled model (every quantity but ``delay``)."""
         for unknown, value in zip(self.items, values, strict=True):
-            for target in unknown.targets:
-                set_quantity(model, unknown.kind, target, float(value))
+            if unknown.kind != INERTIA:
+                for target in unknown.targets:
+                    set_quantity(model, unknown.kind, target, float(value))
+        for body, theta in self.inertias(values).items():
+            mass, ipos, moments, iquat = mujoco_inertial(theta)
+            model.body_mass[body], model.body_ipos[body] = mass, ipos
+            model.body_inertia[body], model.body_iquat[body] = moments, iquat
 
     def write(self, spec: Any, sim: SimModel, values: np.ndarray) -> None:
         """Write ``values[P]`` into an ``MjSpec`` (every quantity but ``delay``)."""
         for unknown, value in zip(self.items, values, strict=True):
-            for target in unknown.targets:
-                write_quantity(spec, sim, unknown.kind, target, float(value))
+            if unknown.kind != INERTIA:
+                for target in unknown.targets:
+                    write_quantity(spec, sim, unknown.kind, target, float(value))
+        inertias = self.inertias(values)
+        if inertias:
+            import mujoco
+
+            spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_AUTO
+        for body, theta in inertias.items():
+            mass, ipos, moments, iquat = mujoco_inertial(theta)
+            element = spec.body(sim.model.body(body).name)
+            element.mass, element.ipos, element.inertia, element.iquat = mass, ipos, moments, iquat
+            element.fullinertia = np.full(6, np.nan)
+            element.explicitinertial = True
+
+    def inertias(self, values: np.ndarray) -> dict[int, np.ndarray]:
+        """``{body: θ[10]}`` of the fitted bodies at ``values[P]``."""
+        out: dict[int, np.ndarray] = {}
+        for unknown, value in zip(self.items, values, strict=True):
+            if unknown.kind == INERTIA:
+                out.setdefault(unknown.targets[0], np.zeros(10))[unknown.component] = value
+        return out
+
+    def bodies(self, sim: SimModel, values: np.ndarray) -> dict[str, dict[str, Any]]:
+        """Each fitted body's mass, centre of mass and inertia about it (3 × 3) at ``values[P]``."""
+        out = {}
+        for body, theta in self.inertias(values).items():
+            mass, com, about_com = centroidal(standard(theta))
+            out[sim.model.body(body).name] = {
+                "mass": mass,
+                "com": com.tolist(),
+                "inertia": about_com.tolist(),
+            }
+        return out
 
 
 def _elements(sim: SimModel, kind: str, joints: Sequence[str]) -> list[tuple[str, int]]:
@@ -232,6 +283,9 @@ def _elements(sim: SimModel, kind: str, joints: Sequence[str]) -> list[tuple[str
     ids = [sim.joint_id(j) for j in joints]
     if kind in JOINT_KINDS:
         return [(name, index) for name, index in zip(joints, ids, strict=True)]
+    if kind == INERTIA:
+        bodies = dict.fromkeys(int(sim.model.jnt_bodyid[j]) for j in ids)
+        return [(sim.model.body(b).name, b) for b in bodies]
     found = []
     for a in range(sim.model.nu):
         joint = sim.actuated_joint(a)
@@ -250,8 +304,28 @@ def _elements(sim: SimModel, kind: str, joints: Sequence[str]) -> list[tuple[str
     return found
 
 
-def _lookup(table: Mapping[str, Any], name: str, kind: str) -> Any:
-    return table[name] if name in table else table.get(kind)
+def _lookup(table: Mapping[str, Any], names: Sequence[str], kind: str) -> Any:
+    """The entry of the first of ``names`` in ``table``, else the kind's."""
+    return next((table[n] for n in names if n in table), table.get(kind))
+
+
+def _joint_alias(sim: SimModel, kind: str, actuator: int) -> str | None:
+    """``<joint>.<kind>`` for an actuator quantity when it is the only one of its kind on that joint."""
+    joint = sim.actuated_joint(actuator)
+    if joint is None:
+        return None
+    name = sim.model.joint(joint).name
+    same = [index for _, index in _elements(sim, kind, [name])]
+    return f"{name}.{kind}" if same == [actuator] else None
+
+
+def _aliases(sim: SimModel, name: str, kind: str, targets: tuple[int, ...]) -> list[str]:
+    """The other names an unknown answers to in ``bounds`` and ``start`` (module docstring)."""
+    if kind not in ACTUATOR_KINDS or len(targets) != 1:
+        return []
+    canonical = f"{sim.model.actuator(targets[0]).name}.{kind}"
+    alias = _joint_alias(sim, kind, targets[0])
+    return [n for n in (canonical, alias) if n is not None and n != name]
 
 
 def select_unknowns(
@@ -283,22 +357,26 @@ def select_unknowns(
     if len(box) != 2 or not 0 < box[0] < 1 < box[1]:
         raise ValueError(f"box must be (a, b) with 0 < a < 1 < b, got {list(box)}")
     for kind in shared:
-        if kind not in KINDS or kind == DELAY:
+        if kind not in KINDS or kind in (DELAY, INERTIA):
             raise ValueError(
                 f"shared: {kind!r} is not a kind of several elements; kinds: {', '.join(KINDS[:-1])}"
             )
     items: list[Unknown] = []
-    seen: dict[tuple[str, int], str] = {}
+    seen: dict[tuple[str, int, int], str] = {}
+    known: set[str] = set()
     for entry in params:
-        for name, kind, targets in _expand(sim, entry, joints, shared):
+        for name, kind, targets, component in _expand(sim, entry, joints, shared):
             for target in targets:
-                if (kind, target) in seen:
-                    raise ValueError(f"params: {name} repeats {seen[(kind, target)]} (listed twice?)")
-                seen[(kind, target)] = name
-            items.append(_unknown(sim, name, kind, targets, bounds, start, box))
+                if (kind, target, component) in seen:
+                    raise ValueError(
+                        f"params: {name} repeats {seen[(kind, target, component)]} (listed twice?)"
+                    )
+                seen[(kind, target, component)] = name
+            names = [name, *_aliases(sim, name, kind, targets)]
+            items.append(_unknown(sim, names, kind, targets, bounds, start, box, component))
+            known |= {*names, kind}
     if not items:
         raise ValueError("params: no unknowns to identify")
-    known = {u.name for u in items} | {u.kind for u in items}
     for option, table in (("bounds", bounds), ("start", start)):
         stray = sorted(set(table) - known)
         if stray:
@@ -311,10 +389,10 @@ def select_unknowns(
 
 def _expand(
     sim: SimModel, entry: str, joints: Sequence[str], shared: Sequence[str]
-) -> list[tuple[str, str, tuple[int, ...]]]:
-    """``(name, kind, targets)`` of one ``params`` entry."""
+) -> list[tuple[str, str, tuple[int, ...], int]]:
+    """``(name, kind, targets, component)`` of each unknown one ``params`` entry names."""
     if entry == DELAY:
-        return [(DELAY, DELAY, ())]
+        return [(DELAY, DELAY, (), 0)]
     if entry in KINDS:
         elements = _elements(sim, entry, joints)
         if not elements:
@@ -323,33 +401,48 @@ def _expand(
                 "and their actuators"
             )
         if entry in shared:
-            return [(entry, entry, tuple(index for _, index in elements))]
-        return [(f"{name}.{entry}", entry, (index,)) for name, index in elements]
+            return [(entry, entry, tuple(index for _, index in elements), 0)]
+        return [unknown for name, index in elements for unknown in _named(name, entry, index)]
     element, _, kind = entry.rpartition(".")
     if kind not in KINDS or not element:
         raise ValueError(f"params: {entry!r} is neither a kind ({', '.join(KINDS)}) nor <element>.<kind>")
-    scope = [j for j in sim.joint_names()]
+    scope = list(sim.joint_names())
     match = [index for name, index in _elements(sim, kind, scope) if name == element]
+    if not match and kind in ACTUATOR_KINDS:
+        match = [index for _, index in _elements(sim, kind, scope) if _joint_alias(sim, kind, index) == entry]
     if not match:
         raise ValueError(
             f"params: the model has no {kind} named {entry!r} (an element of that kind named {element!r})"
         )
-    return [(entry, kind, (match[0],))]
+    if kind == INERTIA:
+        return _named(element, kind, match[0])
+    return [(entry, kind, (match[0],), 0)]
+
+
+def _named(element: str, kind: str, index: int) -> list[tuple[str, str, tuple[int, ...], int]]:
+    """The unknowns of one element: one, or a body's ten inertia coordinates."""
+    if kind == INERTIA:
+        return [(f"{element}.{kind}.{c}", kind, (index,), i) for i, c in enumerate(COORDINATES)]
+    return [(f"{element}.{kind}", kind, (index,), 0)]
 
 
 def _unknown(
     sim: SimModel,
-    name: str,
+    names: Sequence[str],
     kind: str,
     targets: tuple[int, ...],
     bounds: Mapping[str, Sequence[float]],
     start: Mapping[str, float],
     box: Sequence[float],
+    component: int = 0,
 ) -> Unknown:
+    name = names[0]
+    if kind == INERTIA:
+        return _inertia_unknown(sim, name, targets[0], component, bounds, start)
     model_value = 0.0 if kind == DELAY else float(np.mean([_read(sim, kind, t) for t in targets]))
-    given = _lookup(start, name, kind)
+    given = _lookup(start, names, kind)
     value = model_value if given is None else float(given)
-    limits = _lookup(bounds, name, kind)
+    limits = _lookup(bounds, names, kind)
     if limits is None:
         if kind == DELAY:
             limits = DELAY_BOUNDS
@@ -371,3 +464,24 @@ def _unknown(
     if kind != DELAY and kind != "bias" and lower < 0:
         raise ValueError(f"bounds of {name}: a {kind} is not negative, got lower bound {lower:g}")
     return Unknown(name, kind, targets, value, lower, upper)
+
+
+def _inertia_unknown(
+    sim: SimModel, name: str, body: int, component: int, bounds: Mapping[str, Any], start: Mapping[str, float]
+) -> Unknown:
+    """One inertia coordinate of ``body``: its start (the model's body, unless given) and bounds."""
+    m = sim.model
+    theta = from_mujoco(m.body_mass[body], m.body_ipos[body], m.body_inertia[body], m.body_iquat[body])
+    value = float(start.get(name, theta[component]))
+    limits = bounds.get(name)
+    if limits is None:
+        gyration = float(np.sqrt(m.body_inertia[body].sum() / max(m.body_mass[body], 1e-300)))
+        reach = max(gyration, float(np.linalg.norm(m.body_ipos[body])), 1e-3)
+        half = 0.5 * np.log(10.0) if component < 4 else 2.0 * reach
+        limits = (value - half, value + half)
+    lower, upper = (float(x) for x in limits)
+    if not (np.isfinite(lower) and np.isfinite(upper) and lower < upper and lower <= value <= upper):
+        raise ValueError(
+            f"{name}: start {value:g} and bounds [{lower:g}, {upper:g}] must be finite, in order"
+        )
+    return Unknown(name, INERTIA, (body,), value, lower, upper, component)

@@ -120,3 +120,19 @@ def test_36_unknowns_under_servos_from_random_starts(corrupted):
         errors = {k: abs(estimate.params[k] / v - 1) for k, v in case.truth.items() if k != "delay"}
         assert max(errors.values()) < 0.05, max(errors, key=errors.get)
         assert abs(estimate.params["delay"] - case.truth["delay"]) < 1e-4
+
+
+def test_a_links_inertia_is_recovered_through_its_physical_coordinates():
+    """The last link's 10 inertial parameters from case a's log, started at a quarter of its mass: the
+    mass, centre of mass and inertia come back (the arm's 5 moving joints excite all 10)."""
+    case = cases.case_a()
+    sim = load_model(case.model)
+    start = {"link5.inertia.alpha": -1.5}
+    unknowns = select_unknowns(sim, case.fit.joint_names, ["link5.inertia"], start=start)
+    problem = RolloutProblem(SimRobot(sim, unknowns, case.fit.joint_names), case.fit, threads=1)
+    estimate = RolloutEstimator(iterations=0).fit(problem)  # the polish alone: the parametrisation
+    body = estimate.details["bodies"]["link5"]
+    assert body["mass"] == pytest.approx(0.2, rel=1e-6)
+    np.testing.assert_allclose(body["com"], [0, 0, 0.03], atol=1e-8)
+    np.testing.assert_allclose(body["inertia"], np.diag([0.002, 0.002, 0.001]), atol=1e-9)
+    assert not estimate.details["flat_directions"]

@@ -97,3 +97,18 @@ def test_coordinates_are_logarithmic_above_zero_and_linear_from_it(servo):
     z = unknowns.to_coordinates(np.array([0.5, 1.0]))
     np.testing.assert_allclose(z, [np.log(0.5), 0.25])
     np.testing.assert_allclose(unknowns.from_coordinates(z), [0.5, 1.0])
+
+
+def test_an_actuator_quantity_answers_to_its_joints_name(servo):
+    """``a.kp`` is ``pa.kp`` (the only position servo on joint a); ``a.kv`` is ambiguous (two actuators
+    give joint a a velocity gain) and ``b.gear`` is ``mb.gear``."""
+    unknowns = select_unknowns(
+        servo, ("a", "b"), ["a.kp", "mb.gear"], start={"b.gear": 3.0}, bounds={"a.kp": [1, 99]}
+    )
+    assert unknowns.names == ("a.kp", "mb.gear")
+    assert unknowns.items[0].targets == (0,) and unknowns.items[0].upper == 99
+    assert unknowns.vector("start")[1] == 3.0
+    named = select_unknowns(servo, ("a",), ["kp"], start={"a.kp": 60.0})
+    assert named.names == ("pa.kp",) and named.vector("start")[0] == 60.0
+    with pytest.raises(ValueError, match="no kv named 'a.kv'"):
+        select_unknowns(servo, ("a",), ["a.kv"])
