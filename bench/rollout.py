@@ -256,7 +256,7 @@ def table(rows: list[tuple[str, list[Run]]], case: cases.Case, reference: float)
     lines = [
         f"case {case.name}: {len(case.truth)} unknowns, {case.fit.n_samples} samples; "
         f"the truth's held-out error {reference:.3g} rad",
-        f"{'tool':<28}{'success':>9}" + "".join(f"{h:>10}" for h in COLUMNS),
+        f"{'tool':<28}{'success':>9}" + "".join(f"{h:>11}" for h in COLUMNS),
     ]
     for label, runs in rows:
         errors = [relative_errors(case, r.values) for r in runs]
@@ -264,10 +264,10 @@ def table(rows: list[tuple[str, list[Run]]], case: cases.Case, reference: float)
         held = [held_out_error(case, dict(zip(case.truth, r.values, strict=True))) for r in runs]
         lines.append(
             f"{label:<28}{f'{ok}/{len(runs)}':>9}"
-            f"{statistics.median(float(np.median(e)) for e in errors):>10.2e}"
-            f"{statistics.median(float(e.max()) for e in errors):>10.2e}{statistics.median(held):>10.2e}"
-            f"{statistics.median(r.wall for r in runs):>9.1f}s{sum(r.wall for r in runs):>9.0f}s"
-            f"{statistics.median(r.rollouts for r in runs):>10.0f}"
+            f"{statistics.median(float(np.median(e)) for e in errors):>11.2e}"
+            f"{statistics.median(float(e.max()) for e in errors):>11.2e}{statistics.median(held):>11.2e}"
+            f"{statistics.median(r.wall for r in runs):>10.1f}s{sum(r.wall for r in runs):>10.0f}s"
+            f"{statistics.median(r.rollouts for r in runs):>11.0f}"
         )
     return "\n".join(lines)
 
