@@ -75,6 +75,8 @@ class RolloutEstimator(Estimator):
         threads: rollout threads (``None``: the problem's).
     """
 
+    #: The command line's task that runs it (``idkit +experiment=rollout``); other tasks refuse it.
+    task: ClassVar[str] = "rollout"
     conformance_problem: ClassVar[str] = CONFORMANCE_PROBLEM
     conformance_options: ClassVar[dict[str, Any]] = {"particles": 4, "iterations": 3, "polish_iterations": 5}
 
@@ -118,7 +120,7 @@ class RolloutEstimator(Estimator):
         if not isinstance(problem, RolloutProblem):
             raise ValueError(
                 "estimator rollout identifies a simulator from logged commands and joint states, not from "
-                "torques: run it as `idkit +experiment=rollout model=<MJCF or URDF> data=<log>` "
+                "torques: run it as `idkit +experiment=rollout rollout.model=<MJCF or URDF> data=<log>` "
                 "(or hand it an idkit.sim.problem.RolloutProblem)"
             )
         problem.check_identifiable()

@@ -98,3 +98,12 @@ def test_the_command_line(files, tmp_path):
     assert (out / "identified.xml").is_file()
     payload = json.loads((out / "result.json").read_text())["payload"]
     assert payload["estimate"]["params"]["joint1.damping"] == pytest.approx(1.0, rel=1e-6)
+
+
+def test_the_single_task_refuses_the_rollout_estimator_naming_the_experiment(files):
+    from idkit.cli.tasks import arguments, get_task
+
+    study = get_task("single").study_function()
+    config = {"task": "single", "estimator": {"_name_": "rollout"}, "robot": {"_name_": "mjcf"}}
+    with pytest.raises(ValueError, match=r"runs in the rollout task.*\+experiment=rollout"):
+        arguments("single", config, study)
