@@ -314,8 +314,6 @@ def _solve(
         upper,
         loss,
         TUNING[loss] / root,
-        dense=shooting.n_unknowns,
-        blocks=shooting.blocks(),
         hessian="newton" if tight else "irls",
         max_iter=options.polish_iterations,
         ftol=TIGHT if tight else LOOSE,

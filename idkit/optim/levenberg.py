@@ -12,15 +12,13 @@ than ``ftol`` of it, moves ``z`` by less than ``xtol`` (relative), or after ``ma
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 
 from idkit.optim.robust import Loss, psi, psi_slope, rho, weights
-
-Blocks = Sequence[tuple[int, int, int, int]]  # (row_start, row_stop, column_start, column_stop)
 
 
 @dataclass
@@ -33,23 +31,56 @@ class Trace:
     status: str = "max_iter"
 
 
-def _system(
-    jac: np.ndarray, r: np.ndarray, loss: Loss, k: float, hessian: str, dense: int, blocks: Blocks
+@dataclass(frozen=True)
+class BlockJacobian:
+    """A Jacobian ``[M, p]`` stored as its dense columns and its blocks.
+
+    Attributes:
+        dense: ``[M, d]`` the columns of the variables every residual may depend on.
+        blocks: ``(row_start, row_stop, column_start, values [rows, k])``: the other columns, each
+            block zero outside its rows (the columns are ``d, d + 1, …`` in block order).
+    """
+
+    dense: np.ndarray
+    blocks: tuple[tuple[int, int, int, np.ndarray], ...] = ()
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.dense.shape[0], self.dense.shape[1] + sum(b[3].shape[1] for b in self.blocks)
+
+    def t_dot(self, v: np.ndarray) -> np.ndarray:
+        """``Jᵀ v`` ``[p]`` of ``v[M]``."""
+        out = np.zeros(self.shape[1])
+        out[: self.dense.shape[1]] = self.dense.T @ v
+        for row_start, row_stop, col_start, values in self.blocks:
+            out[col_start : col_start + values.shape[1]] = values.T @ v[row_start:row_stop]
+        return out
+
+    def gram(self, w: np.ndarray) -> np.ndarray:
+        """``Jᵀ diag(w) J`` ``[p, p]``, block by block."""
+        d = self.dense.shape[1]
+        weighted = w[:, None] * self.dense
+        out = np.zeros((self.shape[1], self.shape[1]))
+        out[:d, :d] = self.dense.T @ weighted
+        for row_start, row_stop, col_start, values in self.blocks:
+            columns = slice(col_start, col_start + values.shape[1])
+            cross = values.T @ weighted[row_start:row_stop]
+            out[columns, :d], out[:d, columns] = cross, cross.T
+            out[columns, columns] = values.T @ (w[row_start:row_stop, None] * values)
+        return out
+
+    def column_blocks(self) -> list[tuple[int, int]]:
+        """``(column_start, column_stop)`` of each block."""
+        return [(c, c + v.shape[1]) for _, _, c, v in self.blocks]
+
+
+def gauss_newton(
+    jac: BlockJacobian, r: np.ndarray, loss: Loss, k: float, hessian: str
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Gradient ``[p]`` and Gauss–Newton Hessian ``[p, p]``, assembled block by block."""
+    """Gradient ``[p]`` and Gauss–Newton Hessian ``[p, p]`` of ``Σ ρ(r)`` (``hessian``: ``"newton"``
+    weighs each residual by ``ρ''``, ``"irls"`` by ``ψ(r)/r``)."""
     w = weights(loss, r, k) if hessian == "irls" else np.maximum(psi_slope(loss, r, k), 0.0)
-    grad = jac.T @ psi(loss, r, k)
-    if not blocks:
-        return grad, jac.T @ (w[:, None] * jac)
-    weighted = w[:, None] * jac[:, :dense]
-    hess = np.zeros((jac.shape[1], jac.shape[1]))
-    hess[:dense, :dense] = jac[:, :dense].T @ weighted
-    for row_start, row_stop, col_start, col_stop in blocks:
-        block = jac[row_start:row_stop, col_start:col_stop]
-        cross = block.T @ weighted[row_start:row_stop]
-        hess[col_start:col_stop, :dense], hess[:dense, col_start:col_stop] = cross, cross.T
-        hess[col_start:col_stop, col_start:col_stop] = block.T @ (w[row_start:row_stop, None] * block)
-    return grad, hess
+    return jac.t_dot(psi(loss, r, k)), jac.gram(w)
 
 
 def _step(
@@ -60,18 +91,20 @@ def _step(
     lower: np.ndarray,
     upper: np.ndarray,
     dense: int,
-    blocks: Blocks,
+    blocks: list[tuple[int, int]],
 ) -> np.ndarray | None:
     """The damped step, the blocks eliminated, ``z`` kept in its box; ``None`` if not solvable."""
     damped = hess + mu * np.diag(np.maximum(np.diag(hess), 1e-12 * max(np.diag(hess).max(), 1e-300)))
     a, g = damped[:dense, :dense].copy(), grad[:dense].copy()
     solved = []
-    for _, _, col_start, col_stop in blocks:
+    for col_start, col_stop in blocks:
         c = damped[col_start:col_stop, col_start:col_stop]
         b = damped[:dense, col_start:col_stop]
         try:
             inverse_bt = np.linalg.solve(c, np.column_stack([b.T, grad[col_start:col_stop]]))
         except np.linalg.LinAlgError:
+            return None
+        if not np.isfinite(inverse_bt).all():
             return None
         a -= b @ inverse_bt[:, :-1]
         g -= b @ inverse_bt[:, -1]
@@ -91,7 +124,7 @@ def _step(
         return None
     step = np.zeros_like(x)
     step[:dense] = dz[:, 0]
-    for (_, _, col_start, col_stop), inverse_bt in zip(blocks, solved, strict=True):
+    for (col_start, col_stop), inverse_bt in zip(blocks, solved, strict=True):
         step[col_start:col_stop] = -(inverse_bt[:, -1] + inverse_bt[:, :-1] @ dz[:, 0])
     return step
 
@@ -99,13 +132,11 @@ def _step(
 def least_squares(
     x0: np.ndarray,
     residual: Callable[[np.ndarray], np.ndarray],
-    jacobian: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    jacobian: Callable[[np.ndarray, np.ndarray], BlockJacobian],
     lower: np.ndarray,
     upper: np.ndarray,
     loss: Loss,
     k: float,
-    dense: int | None = None,
-    blocks: Blocks = (),
     hessian: str = "newton",
     max_iter: int = 50,
     ftol: float = 1e-8,
@@ -116,15 +147,14 @@ def least_squares(
     Args:
         x0: ``[p]`` the start (its first ``dense`` entries clipped into ``[lower, upper]``).
         residual: ``[M, B]`` residuals of ``[p, B]`` points.
-        jacobian: ``[M, p]`` at ``x[p, 1]`` with residual ``r[M, 1]``.
-        lower, upper: ``[dense]`` the box of the dense variables.
+        jacobian: the Jacobian at ``x[p, 1]`` with residual ``r[M, 1]``; its dense columns are the
+            leading variables, the ones in the box.
+        lower, upper: ``[d]`` the box of the dense variables.
         loss, k: the loss and its threshold in the residual's units.
-        dense: how many leading variables are dense (default all: no blocks).
-        blocks: the other variables' ``(row_start, row_stop, column_start, column_stop)``.
         hessian: ``"newton"`` (``ρ''`` weights) or ``"irls"`` (``ψ(r)/r``).
         max_iter, ftol, xtol: the stopping rules.
     """
-    dense = x0.size if dense is None else dense
+    dense = lower.size
     x = np.array(x0, dtype=np.float64)
     x[:dense] = np.clip(x[:dense], lower, upper)
     trace = Trace()
@@ -136,7 +166,8 @@ def least_squares(
     for _ in range(max_iter):
         jac = jacobian(x[:, None], r[:, None])
         trace.jacobians += 1
-        grad, hess = _system(jac, r, loss, k, hessian, dense, blocks)
+        grad, hess = gauss_newton(jac, r, loss, k, hessian)
+        blocks = jac.column_blocks()
         while True:
             step = _step(hess, grad, mu, x, lower, upper, dense, blocks)
             if step is None:

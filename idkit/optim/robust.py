@@ -1,16 +1,15 @@
-"""Robust Gauss–Newton: losses for ``mujoco.minimize.least_squares`` and a scale that sets itself.
+"""Robust losses of residuals, and a scale that sets itself.
 
-``mujoco.minimize.least_squares`` (a bounded Levenberg–Marquardt) minimises ``norm.value(r)`` of a
-residual vector ``r``; its default norm is the quadratic one. The norms here bound the pull of a large
-residual — a glitched sample — on the fit:
+:mod:`idkit.optim.levenberg` minimises ``Σ ρ(r)`` of a residual vector ``r``; the losses here bound the
+pull of a large residual — a glitched sample — on the fit:
 
 - ``"huber"``: ``ρ(r) = r²/2`` within ``±k``, ``k(|r| − k/2)`` beyond (Huber 1964);
 - ``"cauchy"``: ``ρ(r) = (k²/2) log(1 + (r/k)²)``, whose pull vanishes for large ``r``;
 - ``"linear"``: least squares.
 
-Their Gauss–Newton Hessian weighs each residual by the IRLS weight ``ψ(r)/r`` (``"irls"``: positive, a
+A Gauss–Newton Hessian weighs each residual by the IRLS weight ``ψ(r)/r`` (:func:`weights`: positive, a
 majorizer of the loss — reliable far from the solution, but only linearly convergent) or by ``ρ''(r)``
-(``"newton"``: Huber's exact second derivative, zero for an outlier — fast near the solution).
+(:func:`psi_slope`: Huber's exact second derivative, zero for an outlier — fast near the solution).
 
 The residuals given are already divided by a scale ``σ`` (per channel) and ``k = K · σ`` in those units:
 :func:`mad_scale` is that scale, 1.4826 × the median absolute residual — the standard deviation of
@@ -23,7 +22,6 @@ from __future__ import annotations
 from typing import Literal, get_args
 
 import numpy as np
-from mujoco import minimize
 
 Loss = Literal["huber", "cauchy", "linear"]
 LOSSES: tuple[str, ...] = get_args(Loss)
@@ -77,54 +75,6 @@ def weights(loss: Loss, r: np.ndarray, k: float) -> np.ndarray:
         a = np.abs(r)
         return np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
     return 1.0 / (1.0 + (r / k) ** 2)
-
-
-class RobustNorm(minimize.Norm):
-    """``Σ ρ(r)`` for ``mujoco.minimize.least_squares``, with the IRLS Gauss–Newton Hessian.
-
-    Args:
-        loss, k: the loss and its threshold in the residual's units.
-        dense: with ``blocks``, how many leading variables every residual may depend on.
-        hessian: the Hessian's weights (module docstring).
-        blocks: ``(row_start, row_stop, column_start, column_stop)`` for the other variables: each
-            block's columns are zero outside its rows (e.g. a segment's initial state), so the Hessian
-            is assembled block by block instead of from the whole dense product.
-    """
-
-    def __init__(
-        self,
-        loss: Loss,
-        k: float,
-        dense: int | None = None,
-        blocks: list[tuple[int, int, int, int]] = (),
-        hessian: Literal["irls", "newton"] = "irls",
-    ) -> None:
-        if loss not in LOSSES:
-            raise ValueError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
-        self.loss, self.k = loss, float(k)
-        self.dense, self.blocks = dense, list(blocks)
-        self.hessian = hessian
-
-    def value(self, r: np.ndarray) -> np.float64:
-        return np.float64(rho(self.loss, r, self.k).sum())
-
-    def grad_hess(self, r: np.ndarray, proj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        w = weights(self.loss, r, self.k)
-        if self.hessian == "newton":
-            w = np.maximum(psi_slope(self.loss, r, self.k), 0.0)
-        grad = proj.T @ psi(self.loss, r, self.k)
-        if not self.blocks:
-            return grad, proj.T @ (w * proj)
-        d = self.dense
-        weighted = w * proj[:, :d]
-        hess = np.zeros((proj.shape[1], proj.shape[1]))
-        hess[:d, :d] = proj[:, :d].T @ weighted
-        for row_start, row_stop, col_start, col_stop in self.blocks:
-            block = proj[row_start:row_stop, col_start:col_stop]
-            cross = block.T @ weighted[row_start:row_stop]
-            hess[col_start:col_stop, :d], hess[:d, col_start:col_stop] = cross, cross.T
-            hess[col_start:col_stop, col_start:col_stop] = block.T @ (w[row_start:row_stop] * block)
-        return grad, hess
 
 
 def channel_log_scales(error: np.ndarray, trim: float = 0.1) -> np.ndarray:

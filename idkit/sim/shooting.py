@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from idkit.optim.levenberg import BlockJacobian
 from idkit.sim.problem import RolloutProblem
 from idkit.sim.simulate import BatchSimulator
 
@@ -46,8 +47,6 @@ class Shooting:
         self.measured = self.problem.measured(self.simulator)  # [C, k]
         self.scales = self.problem.scales()
         self.divisor = np.ones(self.n_channels)
-        segment_of = np.concatenate([np.full(v.samples.size, s) for s, v in enumerate(self.simulator.views)])
-        self._segment_of_entry = np.repeat(segment_of, self.n_channels)  # of each residual vector entry
         edges = np.cumsum([0, *(v.samples.size for v in self.simulator.views)]) * self.n_channels
         self._rows = list(zip(edges[:-1], edges[1:], strict=True))
         self._q0, self._qd0 = self.simulator.initial_states
@@ -106,16 +105,9 @@ class Shooting:
         k = self.measured.shape[1]
         return np.tile(np.arange(self.n_channels), k)
 
-    def blocks(self) -> list[tuple[int, int, int, int]]:
-        """``(row_start, row_stop, column_start, column_stop)`` of each segment's initial state (the
-        Jacobian is zero outside), for :class:`idkit.optim.robust.RobustNorm`."""
-        if not self.free_initial:
-            return []
-        p, c = self.n_unknowns, self.n_channels
-        return [(int(a), int(b), p + s * c, p + (s + 1) * c) for s, (a, b) in enumerate(self._rows)]
-
-    def jacobian(self, x: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """``[M, size]`` forward differences at ``x[size, 1]`` with residual ``r[M, 1]``."""
+    def jacobian(self, x: np.ndarray, r: np.ndarray) -> BlockJacobian:
+        """Forward differences at ``x[size, 1]`` with residual ``r[M, 1]``: the unknowns' columns dense,
+        each segment's initial state a block of its own rows."""
         lower, upper = self.unknowns.coordinate_bounds()
         p, c = self.n_unknowns, self.n_channels
         steps = np.where(x[:p, 0] > 0.5 * (lower + upper), -STEP, STEP)  # towards the box's inside
@@ -126,11 +118,9 @@ class Shooting:
             for channel in range(c):
                 shifted[p + np.arange(self.n_segments) * c + channel, p + channel] += STATE_STEP
         moved = self.residual(shifted) - r
-        jac = np.zeros((r.size, self.size))
-        jac[:, :p] = moved[:, :p] / steps
-        if self.free_initial:
-            rows = np.arange(r.size)
-            for channel in range(c):
-                column = p + self._segment_of_entry * c + channel
-                jac[rows, column] = moved[:, p + channel] / STATE_STEP
-        return jac
+        dense = moved[:, :p] / steps
+        if not self.free_initial:
+            return BlockJacobian(dense)
+        states = moved[:, p:] / STATE_STEP
+        blocks = tuple((a, b, p + s * c, states[a:b]) for s, (a, b) in enumerate(self._rows))
+        return BlockJacobian(dense, blocks)

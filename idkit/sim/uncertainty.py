@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from idkit.optim.levenberg import BlockJacobian
 from idkit.optim.robust import Loss, psi, psi_slope
 from idkit.sim.quantities import Unknowns
 
@@ -43,12 +44,12 @@ class Uncertainty:
 
 
 def uncertainty(
-    jac: np.ndarray, residual: np.ndarray, threshold: float, loss: Loss, unknowns: Unknowns, z: np.ndarray
+    jac: BlockJacobian, residual: np.ndarray, threshold: float, loss: Loss, unknowns: Unknowns, z: np.ndarray
 ) -> Uncertainty:
     """The uncertainty of the unknowns at coordinates ``z[P]`` (module docstring).
 
     Args:
-        jac: ``[M, p]`` Jacobian of the residual vector, the unknowns' columns first.
+        jac: the Jacobian of the residual vector, the unknowns' columns first (dense).
         residual: ``[M]`` the residual vector at the solution (standardised, divided by ``√M``).
         threshold: the loss's threshold in the residual's units.
         loss: the loss the polish minimised.
@@ -61,7 +62,7 @@ def uncertainty(
     u, k = residual * scale, threshold * scale
     slope = float(np.mean(psi_slope(loss, u, k)))
     kappa = float(np.mean(psi(loss, u, k) ** 2)) / max(slope, 1e-12) ** 2 * m / max(m - p, 1)
-    info = (jac.T @ jac) * m  # information per unit-variance residual: (J_u^T J_u) with J_u = √M J
+    info = jac.gram(np.ones(m)) * m  # information per unit-variance residual: J_uᵀ J_u with J_u = √M J
     a, b, c = info[:n, :n], info[:n, n:], info[n:, n:]
     profiled = a - b @ np.linalg.pinv(c, hermitian=True) @ b.T if p > n else a
     eigenvalues, vectors = np.linalg.eigh(0.5 * (profiled + profiled.T))
