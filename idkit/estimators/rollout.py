@@ -5,17 +5,18 @@ damping, friction loss, servo gains, delay, … with bounds and a start) and a l
 measured joint positions and velocities. The fit, in three steps:
 
 1. **Search.** A cooperative particle swarm (:mod:`idkit.optim.blocks` on :mod:`idkit.optim.swarm`):
-   one swarm per joint over that joint's unknowns (and one over the shared ones such as ``delay``),
+   one swarm per joint over that joint's unknowns (and one over the shared ones: ``delay``, inertias),
    scored on that joint's part of the error, every particle a full candidate rolled out with all the
    others at once (:mod:`idkit.sim.simulate`). It simulates a share (``search_share``) of the log's
-   segments, each started from a robust estimate of the logged state (:mod:`idkit.sim.initial`). The
-   score is the problem's cost (any registered cost of the scaled error ``E``), or by default the sum
-   over channels of the log of a trimmed RMS error: scale-free and blind to a few glitched samples.
-2. **Polish.** Levenberg–Marquardt (``mujoco.minimize.least_squares``, bounded) from the search's best
-   on the whole log, under a robust loss (``loss``, default Huber) whose scale is set, per channel, by
-   the median absolute residual (:mod:`idkit.optim.robust`) and re-estimated until it settles: first
-   on the unknowns alone, then with every segment's initial state free as well
-   (:mod:`idkit.sim.shooting`), so that the noise of a segment's first sample no longer biases the fit.
+   segments, each started from its logged state unless that is a glitch (:mod:`idkit.sim.initial`).
+   The score is the problem's cost (any registered cost of the scaled error ``E``), or by default the
+   sum over channels of the log of a trimmed RMS error: scale-free and blind to a few glitched samples.
+2. **Polish.** Levenberg–Marquardt (:mod:`idkit.optim.levenberg`, bounded) from the search's best,
+   coarse to fine: least squares on the search's segments (fast from far; exact on a noiseless log,
+   which ends the fit), then a robust loss (``loss``, default Huber) with every segment's initial state
+   free as well (:mod:`idkit.sim.shooting`: a segment's noisy first sample no longer biases the fit),
+   on the search's segments and then on all. The loss's scale is each channel's median absolute
+   residual (:mod:`idkit.optim.robust`), re-estimated until it settles; none is set by hand.
 3. **Uncertainty.** Standard deviations, 95 % intervals and flat directions from the polish's Jacobian
    (:mod:`idkit.sim.uncertainty`), in ``Estimate.details``.
 
@@ -71,7 +72,7 @@ class RolloutEstimator(Estimator):
         loss: the polish's loss: ``huber``, ``cauchy`` (its pull vanishes for large errors) or
             ``linear`` (least squares); its scale is the robust one, never set by hand.
         polish_iterations: Levenberg–Marquardt iterations at most per scale re-estimate.
-        free_initial: fit every segment's initial state in the polish's last phase.
+        free_initial: fit every segment's initial state in the polish's robust stages.
         threads: rollout threads (``None``: the problem's).
     """
 
@@ -134,13 +135,13 @@ class RolloutEstimator(Estimator):
             z = found.x if found is not None else start
             polished = _polish(problem, (search_sim, full_sim), z, self)
         finally:
-            for simulator in (search_sim, full_sim):
-                if simulator is not None:
-                    simulator.close()
+            for simulator in {id(s): s for s in (search_sim, full_sim) if s is not None}.values():
+                simulator.close()
         values = unknowns.from_coordinates(polished["z"])
         cost = _score(problem, values)
-        rollouts = sum(s.counter.rollouts for s in (search_sim, full_sim) if s is not None)
-        steps = sum(s.counter.steps for s in (search_sim, full_sim) if s is not None)
+        simulators = {id(s): s for s in (search_sim, full_sim)}.values()
+        rollouts = sum(s.counter.rollouts for s in simulators)
+        steps = sum(s.counter.steps for s in simulators)
         details = {
             "loss": self.loss,
             "criterion": "problem cost" if problem.cost is not None else f"sum of log trimmed RMS ({TRIM:g})",
@@ -180,7 +181,8 @@ class RolloutEstimator(Estimator):
 
 
 def _simulators(problem: RolloutProblem, share: float, threads: int | None) -> tuple[Any, Any, tuple]:
-    """The whole log's simulator and the search's (every few segments), both from robust start states."""
+    """The whole log's simulator and the search's (every few segments; the same one when that is every
+    segment), both from the start states of :func:`idkit.sim.initial.robust_states`."""
     segments = problem.segments()
     starts = np.array([s for s, _ in segments])
     log = problem.samples
@@ -189,6 +191,8 @@ def _simulators(problem: RolloutProblem, share: float, threads: int | None) -> t
     full = problem.simulator(segments, initial=initial, threads=threads)
     stride = max(1, int(round(1 / share)))
     chosen = list(range(0, len(segments), stride))
+    if len(chosen) == len(segments):
+        return full, full, initial
     search = problem.simulator(
         [segments[i] for i in chosen], initial=(initial[0][chosen], initial[1][chosen]), threads=threads
     )
