@@ -11,6 +11,7 @@ what a user rolling ``identified.xml`` out under the logged commands gets.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -234,6 +235,13 @@ def run(
     log_joints = tuple(j for j in log.joint_names if j in {*sim.joint_names()})
     if log_joints != log.joint_names:
         log = read_logs(data, log_joints, state_topic, command_topic)
+    unlogged = [j for j in sim.joint_names() if j not in log_joints]
+    if unlogged:
+        warnings.warn(
+            f"{log.source}: the model's joint(s) {', '.join(unlogged)} are not in the log: every segment "
+            "starts them at the model's qpos0, at rest",
+            stacklevel=2,
+        )
     unknowns = select_unknowns(sim, scope, params, shared, bounds, start, box)
     robot = SimRobot(sim, unknowns, log.joint_names)
     problem = RolloutProblem(

@@ -140,3 +140,30 @@ def test_segments_cover_every_sample_once():
     assert split(t, None) == [(0, 100), (100, 160)]
     with pytest.raises(ValueError, match="positive"):
         split(t, 0.0)
+
+
+def test_a_urdf_goes_through_mujocos_import_and_gets_a_motor_per_joint():
+    from urdf_cases import TREE_URDF
+
+    sim = load_model(TREE_URDF)
+    assert sim.joint_names() == ("j1", "j2", "j3", "j4")
+    assert sim.actuator_names() == ("j1", "j2", "j3", "j4")
+    t = np.arange(300) * sim.timestep
+    ctrl = 0.2 * np.column_stack([np.sin(2 * np.pi * f * t) for f in (1.0, 1.3, 0.7, 1.9)])
+    text = identified_xml(
+        sim,
+        select_unknowns(sim, sim.joint_names(), ["j1.damping"], bounds={"damping": [0, 1]}),
+        np.array([0.3]),
+    )
+    q, qd = cases.simulate(text, ctrl)
+    log = RobotLog(t, q, qd, t, ctrl, sim.joint_names(), [f"{j}.ctrl" for j in sim.joint_names()], "urdf run")
+    unknowns = select_unknowns(
+        sim, log.joint_names, ["j1.damping"], start={"damping": 0.3}, bounds={"damping": [0, 1]}
+    )
+    problem = RolloutProblem(SimRobot(sim, unknowns, log.joint_names), log, threads=1)
+    simulator = problem.simulator()
+    try:
+        assert np.abs(problem.error(np.array([[0.3]]), simulator)).max() < 1e-6  # MJCF's 6 digits
+        assert np.abs(problem.error(np.array([[0.0]]), simulator)).max() > 10.0
+    finally:
+        simulator.close()
