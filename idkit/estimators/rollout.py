@@ -92,18 +92,6 @@ class RolloutEstimator(Estimator):
         free_initial: bool = True,
         threads: int | None = None,
     ) -> None:
-        if (particles is not None and particles < 1) or (iterations is not None and iterations < 0):
-            raise ValueError(
-                f"rollout: particles >= 1 and iterations >= 0 (or null), got {particles}, {iterations}"
-            )
-        if polish_iterations < 0:
-            raise ValueError(f"rollout: polish_iterations must be >= 0, got {polish_iterations}")
-        if not 0 < search_share <= 1:
-            raise ValueError(f"rollout: search_share must be in (0, 1], got {search_share}")
-        if loss not in LOSSES:
-            raise ValueError(f"rollout: loss must be one of {', '.join(LOSSES)}, got {loss!r}")
-        if threads is not None and threads < 1:
-            raise ValueError(f"rollout: threads must be >= 1 or null, got {threads}")
         self.particles = particles
         self.iterations = iterations
         self.cooperative = cooperative
@@ -112,6 +100,23 @@ class RolloutEstimator(Estimator):
         self.polish_iterations = polish_iterations
         self.free_initial = free_initial
         self.threads = threads
+        self.resolve()
+
+    def resolve(self) -> None:
+        """Check the options as they are now (at construction and at every fit: ``idkit.hyperparameters``)."""
+        particles, iterations = self.particles, self.iterations
+        if (particles is not None and particles < 1) or (iterations is not None and iterations < 0):
+            raise ValueError(
+                f"rollout: particles >= 1 and iterations >= 0 (or null), got {particles}, {iterations}"
+            )
+        if self.polish_iterations < 0:
+            raise ValueError(f"rollout: polish_iterations must be >= 0, got {self.polish_iterations}")
+        if not 0 < self.search_share <= 1:
+            raise ValueError(f"rollout: search_share must be in (0, 1], got {self.search_share}")
+        if self.loss not in LOSSES:
+            raise ValueError(f"rollout: loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
+        if self.threads is not None and self.threads < 1:
+            raise ValueError(f"rollout: threads must be >= 1 or null, got {self.threads}")
 
     def fit(self, problem: Any) -> Estimate:
         with torch_threads(1):  # the swarm's and the costs' tensors are small (idkit.runtime)
@@ -124,6 +129,7 @@ class RolloutEstimator(Estimator):
                 "torques: run it as `idkit +experiment=rollout rollout.model=<MJCF or URDF> data=<log>` "
                 "(or hand it an idkit.sim.problem.RolloutProblem)"
             )
+        self.resolve()
         problem.check_identifiable()
         started = time.perf_counter()
         search_sim = full_sim = None
