@@ -211,7 +211,8 @@ def run(
         cost: the search's score, a registered cost of the scaled error ``E`` (``None``: the
             estimator's robust default).
         params: the unknowns: kinds (``armature``, ``damping``, ``frictionloss``, ``stiffness``,
-            ``kp``, ``kv``, ``gear``, ``bias``, ``delay``) and/or names (``j1.damping``).
+            ``kp``, ``kv``, ``gear``, ``bias``, ``inertia``, ``delay``) and/or names (``j1.damping``,
+            ``link3.inertia``).
         joints: the joints in scope (default: the model's that the log holds).
         shared: kinds fitted as one value for all their elements.
         bounds: ``{name or kind: [lower, upper]}`` (default ``box`` × the start; ``delay``: [0, 0.05] s).
