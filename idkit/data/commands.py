@@ -161,7 +161,7 @@ def read_robot_log(
         joint_names = (
             tuple(joints) if joints is not None else tuple(f"#{j}" for j in range(states["q"].shape[1]))
         )
-        return RobotLog(t, states["q"], states["qd"], t, ctrl, joint_names, columns, str(path))
+        return RobotLog(t, states["q"], states["qd"], t, ctrl, joint_names, tuple(columns), str(path))
     if names is None:
         raise ValueError(f"{path}: name the joints' columns (<joint>.q, <joint>.qd), not q1..qn")
     values, columns = [], []
@@ -177,7 +177,7 @@ def read_robot_log(
             f"{path}: no command columns (<actuator or joint>.ctrl, <joint>.q_ref, <joint>.qd_ref); "
             f"found {table.names()}"
         )
-    return RobotLog(t, states["q"], states["qd"], t, np.hstack(values), names, columns, str(path))
+    return RobotLog(t, states["q"], states["qd"], t, np.hstack(values), names, tuple(columns), str(path))
 
 
 def save_robot_log(log: RobotLog, path: str | Path) -> Path:

@@ -266,7 +266,8 @@ def _polish(
     solve has a tight tolerance."""
     search_sim, full_sim = simulators
     record: list[dict[str, Any]] = []
-    x, offsets = z, {}
+    x, offsets = z, dict[int, np.ndarray]()
+    shooting: Shooting | None = None
     stages = _STAGES if search_sim is not full_sim else _STAGES[:1] + _STAGES[2:]
     for subset, robust in stages:
         simulator = search_sim if subset else full_sim
@@ -280,13 +281,15 @@ def _polish(
                     problem, Shooting(problem, full_sim, False), x[: len(z)], record, options, True
                 )
             settled = scales is not None and bool(np.all(np.abs(np.log(new / scales)) < SETTLED))
-            scales = scales if settled else new
+            if scales is None or not settled:
+                scales = new
             last = settled or round_ == ROUNDS - 1 or not robust
             tight = last and not subset
             x = _solve(shooting, x, scales, options, robust, tight, record)
             if last or options.loss == "linear":
                 break
         offsets = shooting.offsets(x)
+    assert shooting is not None  # the stages are never empty
     exact = bool(np.all(_robust_scales(problem, shooting, x) < EXACT))
     return _finish(problem, shooting, x, record, options, exact)
 

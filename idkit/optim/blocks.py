@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -68,7 +69,7 @@ def cooperative_search(
     if not np.array_equal(covered, np.arange(lower.size)):
         raise ValueError("blocks must partition the coordinates")
     width = max(len(b) for b in blocks)
-    best = {"cost": np.inf, "x": np.array(start, dtype=np.float64)}
+    best: dict[str, Any] = {"cost": np.inf, "x": np.array(start, dtype=np.float64)}
     evaluations = 0
     trace: list[float] = []
 

@@ -235,9 +235,8 @@ def case_a() -> Case:
              [(5, 0.5, 0.0), (4, 0.7, 0.5), (3, 0.4, 1.0), (2, 0.9, 1.5), (1, 0.6, 2.0)]]
         )  # fmt: skip
         q, qd = simulate(ARM5, ctrl)
-        logs.append(
-            RobotLog(t, q, qd, t, ctrl, joints, [f"act{i}.ctrl" for i in range(1, 6)], f"case a ({phase})")
-        )
+        actuators = tuple(f"act{i}.ctrl" for i in range(1, 6))
+        logs.append(RobotLog(t, q, qd, t, ctrl, joints, actuators, f"case a ({phase})"))
     params = ("armature",)
     truth = _truth(ARM5, params, joints, 0.0)
     bounds = {name: [0.001, 10.0] for name in truth}
@@ -248,7 +247,7 @@ def case_b(corrupted: bool = False, seed: int = 0) -> Case:
     """Case ``b``, or with ``corrupted`` case ``c`` (module docstring); ``seed`` draws the corruption."""
     t = np.arange(1500) * 0.002
     joints = tuple(f"j{i}" for i in range(1, 8))
-    names = [f"{j}.q_ref" for j in joints] + [f"{j}.qd_ref" for j in joints]
+    names = tuple(f"{j}.q_ref" for j in joints) + tuple(f"{j}.qd_ref" for j in joints)
     rng = np.random.default_rng(seed)
     logs = []
     for motion in (0, 1):

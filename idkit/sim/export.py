@@ -53,7 +53,7 @@ def start_state(
     """The ``mjSTATE_FULLPHYSICS`` vector at a log's first sample, delayed actuators' buffers holding
     ``first_command[nu]`` (the commands before a log are its first, held: :mod:`idkit.sim.timing`)."""
     mujoco = import_mujoco()
-    state = logged_state(sim, joints, q, qd)
+    state = logged_state(sim, tuple(joints), q, qd)
     model = sim.model
     if not model.nhistory:
         return state

@@ -101,5 +101,5 @@ def _quaternion(rotation: np.ndarray) -> np.ndarray:
         q[1 + i] = 0.25 * s
         q[1 + j] = (r[j, i] + r[i, j]) / s
         q[1 + k] = (r[k, i] + r[i, k]) / s
-    q = np.array(q)
-    return q / np.linalg.norm(q)
+    quaternion = np.array(q)
+    return quaternion / np.linalg.norm(quaternion)

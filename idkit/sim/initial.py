@@ -26,16 +26,19 @@ def _local_fit(t: np.ndarray, x: np.ndarray, at: float) -> tuple[np.ndarray, np.
     out, spreads = np.empty(x.shape[1]), np.empty(x.shape[1])
     for j in range(x.shape[1]):
         keep = np.ones(t.size, dtype=bool)
-        for _ in range(2):
-            coef, *_ = np.linalg.lstsq(basis[keep], x[keep, j], rcond=None)
-            residual = x[:, j] - basis @ coef
-            spread = 1.4826 * np.median(np.abs(residual[keep]))
-            new = np.abs(residual) <= REJECT * spread if spread > 0 else keep
-            if new.sum() < basis.shape[1] or (new == keep).all():
-                break
-            keep = new
+        coef, residual, spread = _cubic(basis, x[:, j], keep)
+        new = np.abs(residual) <= REJECT * spread if spread > 0 else keep
+        if new.sum() >= basis.shape[1] and not (new == keep).all():
+            coef, _, spread = _cubic(basis, x[:, j], new)
         out[j], spreads[j] = coef[0], spread
     return out, spreads
+
+
+def _cubic(basis: np.ndarray, x: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Coefficients fitted to the kept samples, the residual of every sample, the kept ones' robust scale."""
+    coef, *_ = np.linalg.lstsq(basis[keep], x[keep], rcond=None)
+    residual = x - basis @ coef
+    return coef, residual, 1.4826 * float(np.median(np.abs(residual[keep])))
 
 
 def robust_states(

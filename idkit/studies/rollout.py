@@ -138,8 +138,11 @@ def read_logs(
     for log in logs:
         step = float(np.median(np.diff(log.t)))
         shift = offset - min(log.t[0], log.command_t[0])
-        t.append(log.t + shift), q.append(log.q), qd.append(log.qd)
-        ct.append(log.command_t + shift), c.append(log.commands)
+        t.append(log.t + shift)
+        q.append(log.q)
+        qd.append(log.qd)
+        ct.append(log.command_t + shift)
+        c.append(log.commands)
         offset = max(log.t[-1], log.command_t[-1]) + shift + 100 * step
     joined = ", ".join(str(p) for p in paths)
     return RobotLog(
@@ -281,7 +284,7 @@ def run(
             "model": sim.label,
             "files": [str(p) for p in (data if isinstance(data, (list, tuple)) else [data])],
         },
-        plugins={kind: describe(kind, spec) for kind, spec in (("estimator", estimator), ("cost", cost))},
+        plugins={"estimator": describe("estimator", estimator), "cost": describe("cost", cost)},
     )
     described = {
         u.name: {"kind": u.kind, "start": u.start, "bounds": [u.lower, u.upper]} for u in unknowns.items
