@@ -30,6 +30,7 @@ OTHER_OPTIONS: dict[str, dict[str, Any]] = {
     "irls": {"weight": "tukey", "tuning": 4.0},
     "pcls": {"prior_weight": 1.0},
     "payload": {"min_mass": 0.1},
+    "rollout": {"particles": 3, "iterations": 2, "search_share": 0.5, "loss": "cauchy", "threads": 1},
 }
 
 

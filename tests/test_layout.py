@@ -151,3 +151,11 @@ def test_the_data_modules_import_one_another_without_a_circle():
 
     for name in sorted(modules):
         visit(name, ())
+
+
+@pytest.mark.parametrize("path", _modules("sim"))
+def test_the_simulator_imports_no_estimator_study_or_report(path):
+    """``idkit.sim`` is the simulator's view of a robot (model, quantities, rollouts, the time convention):
+    the ``rollout`` estimator and its study build on it, not the reverse."""
+    above = ("idkit.estimators", "idkit.studies", "idkit.reports")
+    assert not {name for name in _imports(path) if name.startswith(above)}

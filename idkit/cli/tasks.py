@@ -20,6 +20,7 @@ from types import ModuleType
 from typing import Any
 
 from idkit.options import check_setting, type_hints
+from idkit.registry import NAME_KEY
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,7 @@ TASKS: dict[str, Task] = {
     "robustness": Task("idkit.studies.robustness:run", "idkit.reports.robustness", "robustness"),
     "kuka": Task("idkit.studies.kuka:run", "idkit.reports.kuka", "kuka"),
     "excitation": Task("idkit.studies.excitation:run", "idkit.reports.excitation", "excitation"),
+    "rollout": Task("idkit.studies.rollout:run", "idkit.reports.rollout", "rollout"),
 }
 
 #: Top-level keys read by the command line itself, not by a study.
@@ -103,11 +105,29 @@ def arguments(name: str, config: Mapping[str, Any], study: Callable[..., Any]) -
         elif value is not None:
             got = f"{key}={_describe(value)}"
             raise ValueError(f"the {name} task takes no {key} (got {got}); it takes {options}")
+    _refuse_foreign_estimator(name, kwargs.get("estimator"))
     hints = type_hints(study)
     return {
         key: check_setting(_setting(task, key, section), value, hints.get(key, Any), takes[key].default)
         for key, value in kwargs.items()
     }
+
+
+def _refuse_foreign_estimator(name: str, estimator: Any) -> None:
+    """Refuse an estimator whose class declares another task (``task = "rollout"``) than ``name``."""
+    plugin = estimator.get(NAME_KEY) if isinstance(estimator, Mapping) else None
+    if plugin is None:
+        return
+    from idkit import registry
+
+    try:
+        own = getattr(registry.load("estimator", plugin), "task", None)
+    except registry.PluginError:
+        return  # the study's build reports it
+    if own is not None and own != name:
+        raise ValueError(
+            f"estimator={plugin} runs in the {own} task, not the {name} task: idkit +experiment={own} …"
+        )
 
 
 def _setting(task: Task, key: str, section: Mapping[str, Any]) -> str:

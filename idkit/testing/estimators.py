@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, Protocol
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -85,8 +86,17 @@ def make_problem(
 
 
 def problem_factory_for(estimator: Estimator) -> ProblemFactory:
-    """``make_problem`` on the robot the estimator's class declares as ``conformance_robot``
-    (``(registered name, options)``: e.g. ``pcls`` needs a ``urdf`` robot), else on the default."""
+    """The problems an estimator is checked on: those of the factory its class declares as
+    ``conformance_problem`` (``"module:function"``, called with ``dtype`` and ``seed``: an estimator
+    whose problems are not torque problems, e.g. ``rollout``'s), else ``make_problem`` on the robot it
+    declares as ``conformance_robot`` (``(registered name, options)``: e.g. ``pcls`` needs a ``urdf``
+    robot), else on the default."""
+    factory = getattr(type(estimator), "conformance_problem", None)
+    if factory is not None:
+        import importlib
+
+        module, _, name = factory.partition(":")
+        return getattr(importlib.import_module(module), name)
     spec = getattr(type(estimator), "conformance_robot", None)
     if spec is None:
         return make_problem
@@ -200,12 +210,13 @@ def check_estimator_float32(estimator: Estimator, problem_factory: ProblemFactor
 def check_estimator_leaves_problem_unchanged(
     estimator: Estimator, problem_factory: ProblemFactory = make_problem
 ) -> None:
-    """``fit`` does not modify the samples it is given."""
+    """``fit`` does not modify the samples it is given (every array of ``problem.samples``)."""
     problem = problem_factory(dtype="float64", seed=0)
-    before = {k: getattr(problem.samples, k).clone() for k in ("q", "qd", "qdd", "tau")}
+    arrays = {k: v for k, v in vars(problem.samples).items() if isinstance(v, (Tensor, np.ndarray))}
+    before = {k: torch.as_tensor(v).clone() for k, v in arrays.items()}
     _fit(estimator, problem)
     for name, old in before.items():
-        if not torch.equal(old, getattr(problem.samples, name)):
+        if not torch.equal(old, torch.as_tensor(getattr(problem.samples, name))):
             fail(f"fit modified problem.samples.{name} in place")
 
 
@@ -232,13 +243,10 @@ def check_estimator_too_few_equations(
     n_samples = math.ceil(problem.n_identifiable / problem.robot.n_joints) - 1
     if n_samples < 1:  # one sample already gives enough equations: nothing to check
         return
-    s = problem.samples
-    few = Samples(s.q[:n_samples], s.qd[:n_samples], s.qdd[:n_samples], s.tau[:n_samples])
-    variant = replace(problem, samples=few)
     equations = n_samples * problem.robot.n_joints
     what = f"fit on {n_samples} sample(s) ({equations} equations for {problem.n_identifiable} parameters)"
-    try:
-        estimate = estimator.fit(variant)
+    try:  # a problem that cannot even be built on so few samples is refused too
+        estimate = estimator.fit(_first_samples(problem, n_samples))
     except ValueError:
         return
     except Exception as exc:
@@ -249,6 +257,14 @@ def check_estimator_too_few_equations(
         f"{what} returned an estimate (cost {estimate.cost!r}) instead of raising ValueError; "
         "call problem.check_identifiable() at the top of fit"
     )
+
+
+def _first_samples(problem: Any, n: int) -> Any:
+    """The problem on its first ``n`` samples (a problem of another kind says how: ``head(n)``)."""
+    if hasattr(problem, "head"):
+        return problem.head(n)
+    s = problem.samples
+    return replace(problem, samples=Samples(s.q[:n], s.qd[:n], s.qdd[:n], s.tau[:n]))
 
 
 class _WithoutRegressor(Robot):

@@ -27,7 +27,7 @@ def test_unknown_names_list_the_closest_first(hydra_compose):
     )
     assert refusal(hydra_compose, "+experiment=kukaa") == (
         "unknown experiment 'kukaa'; available experiments (closest first): "
-        "kuka, paper, robustness, excitation"
+        "kuka, paper, rollout, robustness, excitation"
     )
 
 

@@ -1,0 +1,315 @@
+"""Logs of what a robot was told and what it did: commands beside joint states (``RobotLog``).
+
+What rollout identification (:mod:`idkit.sim`) reads: the joint positions and velocities a robot
+measured, and the commands it was sent, on one clock. Torques are not needed (often not measured).
+
+CSV (read by :mod:`idkit.data.table`, which says what is refused and how): a column ``t`` (s), and per
+joint ``<joint>.q`` and ``<joint>.qd``; the commands in columns named after what they drive:
+
+* ``<actuator>.ctrl`` or ``<joint>.ctrl``: an actuator's control (a motor's torque command, or any
+  actuator's ``ctrl``; by joint name when one actuator drives that joint);
+* ``<joint>.q_ref``: a position reference (the control of the position servo on that joint);
+* ``<joint>.qd_ref``: a velocity reference (the control of the velocity servo on that joint).
+
+``.npz``: arrays ``t [N]``, ``q`` and ``qd [N, n]`` (joints in the model's order) and ``ctrl [N, nu]``
+(every actuator's control, in the model's actuator order). Other columns and arrays are ignored.
+
+ROS logs (a ROS 2 bag folder, ``.mcap``, ``.db3``; a ROS 1 ``.bag``), read with ``rosbags`` as
+:mod:`idkit.data.logs` reads torque logs: states on a ``sensor_msgs/JointState`` topic (``position``,
+``velocity`` per joint name, in any order; the topic is ``state_topic``, or the log's only one that
+is not ``command_topic``), commands on another ``JointState`` topic (``command_topic``: each name's
+``position`` is its ``q_ref``, ``velocity`` its ``qd_ref``, ``effort`` its ``ctrl``, for whichever
+arrays the messages fill). Times are the header stamps (the receive times when every stamp is zero),
+in seconds from the first state message, counted in integer nanoseconds before the conversion.
+Commands keep their own stamps: the simulator holds each until the next (:mod:`idkit.sim.timing`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from idkit.data.logs import JOINT_STATE, LogWarning, is_log
+from idkit.data.table import NpzTable, read_quantities, read_table
+
+#: Column suffixes of commands, and what each drives (see the module docstring).
+COMMAND_KINDS = ("ctrl", "q_ref", "qd_ref")
+#: A ``JointState`` array of a command topic → the command it carries.
+COMMAND_FIELDS = {"position": "q_ref", "velocity": "qd_ref", "effort": "ctrl"}
+INSTALL = "pip install robot-idkit[logs]"
+
+
+@dataclass(frozen=True)
+class RobotLog:
+    """Joint states and commands of one run (float64 numpy arrays).
+
+    Attributes:
+        t: ``[N]`` times (s) of the states, strictly increasing.
+        q, qd: ``[N, n]`` measured joint positions and velocities.
+        command_t: ``[M]`` times (s, the states' clock) of the commands, strictly increasing.
+        commands: ``[M, m]`` the commands, one column per name in ``command_names``.
+        joint_names: the ``n`` joints.
+        command_names: ``<name>.ctrl``, ``<joint>.q_ref`` or ``<joint>.qd_ref`` per column; an
+            ``.npz``'s ``ctrl`` array is ``#<i>.ctrl`` (actuator ``i`` of the model).
+        source: where it came from, for messages.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    command_t: np.ndarray
+    commands: np.ndarray
+    joint_names: tuple[str, ...]
+    command_names: tuple[str, ...]
+    source: str = "<log>"
+
+    def __post_init__(self) -> None:
+        for name in ("t", "q", "qd", "command_t", "commands"):
+            value = np.asarray(getattr(self, name), dtype=np.float64)
+            object.__setattr__(self, name, value)
+            if not np.isfinite(value).all():
+                index = np.argwhere(~np.isfinite(value))[0]
+                raise ValueError(f"{self.source}: array {name!r} has a non-finite value at sample {index[0]}")
+        object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        object.__setattr__(self, "command_names", tuple(self.command_names))
+        n, m = len(self.joint_names), len(self.command_names)
+        for name, times, shape in (
+            ("q", self.t, (self.t.size, n)),
+            ("qd", self.t, (self.t.size, n)),
+            ("commands", self.command_t, (self.command_t.size, m)),
+        ):
+            if getattr(self, name).shape != shape:
+                raise ValueError(
+                    f"{self.source}: array {name!r} must be {list(shape)} ({len(times)} times × "
+                    f"{shape[1]} names), got {list(getattr(self, name).shape)}"
+                )
+        for name in ("t", "command_t"):
+            _check_increasing(self.source, name, getattr(self, name))
+        if self.t.size < 2:
+            raise ValueError(f"{self.source}: a log needs at least 2 samples, got {self.t.size}")
+        if not m:
+            raise ValueError(
+                f"{self.source}: no commands (columns <name>.ctrl, <joint>.q_ref, <joint>.qd_ref)"
+            )
+
+    @property
+    def n_samples(self) -> int:
+        return self.t.size
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    def head(self, n: int) -> RobotLog:
+        """The first ``n`` state samples and the commands up to the last of them."""
+        if not 1 <= n <= self.n_samples:
+            raise ValueError(f"{self.source}: head({n}) of a log of {self.n_samples} samples")
+        keep = max(1, int(np.searchsorted(self.command_t, self.t[n - 1], side="right")))
+        return RobotLog(
+            self.t[:n], self.q[:n], self.qd[:n], self.command_t[:keep], self.commands[:keep],
+            self.joint_names, self.command_names, self.source,
+        )  # fmt: skip
+
+
+def _check_increasing(source: str, name: str, t: np.ndarray) -> None:
+    if t.ndim != 1:
+        raise ValueError(f"{source}: {name!r} must be 1-D, got shape {list(t.shape)}")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        i = int(np.flatnonzero(steps <= 0)[0])
+        raise ValueError(
+            f"{source}: {name} must increase strictly; {name}[{i + 1}] = {float(t[i + 1])!r} follows "
+            f"{name}[{i}] = {float(t[i])!r}"
+        )
+
+
+def read_robot_log(
+    path: str | Path,
+    joints: Sequence[str] | None = None,
+    state_topic: str | None = None,
+    command_topic: str | None = None,
+) -> RobotLog:
+    """Read a log of states and commands (module docstring) from CSV, ``.npz`` or a ROS log.
+
+    Args:
+        path: the file (or a ROS 2 bag folder).
+        joints: the joints wanted, in this order (``None``: every joint the file names).
+        state_topic, command_topic: a ROS log's ``JointState`` topics (``command_topic`` is needed
+            for a ROS log; ``state_topic=None``: the log's other ``JointState`` topic).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: what is missing or malformed, naming the file, the column or the message.
+    """
+    if is_log(path):
+        return _read_ros(Path(path), joints, state_topic, command_topic)
+    table = read_table(path)
+    table.require(vectors=["t"], matrices=["q", "qd"])
+    states, names = read_quantities(table, {"q": "q", "qd": "qd"}, joints)
+    t = table.vector("t")
+    if isinstance(table, NpzTable):
+        table.require(matrices=["ctrl"])
+        ctrl = table.matrix("ctrl").values
+        if ctrl.ndim != 2 or ctrl.shape[0] != t.size:
+            raise ValueError(f"{path}: array 'ctrl' must be [N={t.size}, nu], got shape {list(ctrl.shape)}")
+        columns = [f"#{i}.ctrl" for i in range(ctrl.shape[1])]
+        joint_names = (
+            tuple(joints) if joints is not None else tuple(f"#{j}" for j in range(states["q"].shape[1]))
+        )
+        return RobotLog(t, states["q"], states["qd"], t, ctrl, joint_names, tuple(columns), str(path))
+    if names is None:
+        raise ValueError(f"{path}: name the joints' columns (<joint>.q, <joint>.qd), not q1..qn")
+    values, columns = [], []
+    for kind in COMMAND_KINDS:
+        if table.has(kind):
+            column = table.matrix(kind)
+            if column.joints is None:
+                raise ValueError(f"{path}: name the command columns (<name>.{kind}), not {kind}1..")
+            values.append(column.values)
+            columns += [f"{name}.{kind}" for name in column.joints]
+    if not values:
+        raise ValueError(
+            f"{path}: no command columns (<actuator or joint>.ctrl, <joint>.q_ref, <joint>.qd_ref); "
+            f"found {table.names()}"
+        )
+    return RobotLog(t, states["q"], states["qd"], t, np.hstack(values), names, tuple(columns), str(path))
+
+
+def save_robot_log(log: RobotLog, path: str | Path) -> Path:
+    """Write ``log`` as the CSV :func:`read_robot_log` reads (17 significant digits round-trip float64);
+    its commands must share the states' times."""
+    if log.command_t.shape != log.t.shape or not np.array_equal(log.command_t, log.t):
+        raise ValueError(f"{log.source}: a CSV has one time column; the commands have their own times")
+    header = ["t", *(f"{j}.q" for j in log.joint_names), *(f"{j}.qd" for j in log.joint_names)]
+    header += list(log.command_names)
+    table = np.hstack([log.t[:, None], log.q, log.qd, log.commands])
+    path = Path(path)
+    np.savetxt(path, table, fmt="%.17g", delimiter=",", header=",".join(header), comments="")
+    return path
+
+
+# --- ROS logs --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Stream:
+    stamps: np.ndarray  # [M] int64 ns
+    names: list[tuple[str, ...]]
+    arrays: dict[str, list[np.ndarray]]
+
+
+def _read_ros(
+    path: Path, joints: Sequence[str] | None, state_topic: str | None, command_topic: str | None
+) -> RobotLog:
+    try:
+        from rosbags.highlevel import AnyReader, AnyReaderError
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        raise ValueError(f"{path}: reading ROS logs needs the optional package rosbags: {INSTALL}") from None
+    if not path.exists():
+        raise FileNotFoundError(f"data file not found: {path}")
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            types = {c.topic: c.msgtype for c in reader.connections}
+            command = _topic(path, types, command_topic, "command_topic", exclude=None)
+            state = _topic(path, types, state_topic, "state_topic", exclude=command)
+            streams = {
+                topic: _stream(path, reader, [c for c in reader.connections if c.topic == topic], topic)
+                for topic in (state, command)
+            }
+    except (FileNotFoundError, ValueError):
+        raise
+    except (AnyReaderError, OSError, KeyError) as exc:
+        raise ValueError(f"{path}: not a readable ROS log ({type(exc).__name__}: {exc})") from None
+    states, commands = streams[state], streams[command]
+    wanted = list(joints) if joints is not None else list(states.names[0])
+    q = _by_name(path, state, states, "position", wanted)
+    qd = _by_name(path, state, states, "velocity", wanted)
+    origin = int(states.stamps[0])
+    columns, values = [], []
+    every = sorted({name for names in commands.names for name in names})
+    for field, kind in COMMAND_FIELDS.items():
+        if all(
+            len(v) == len(n) and len(n) for v, n in zip(commands.arrays[field], commands.names, strict=True)
+        ):
+            values.append(_by_name(path, command, commands, field, every))
+            columns += [f"{name}.{kind}" for name in every]
+    if not values:
+        raise ValueError(f"{path}: topic {command} has no message with position, velocity or effort per name")
+    return RobotLog(
+        (states.stamps - origin) * 1e-9, q, qd, (commands.stamps - origin) * 1e-9, np.hstack(values),
+        tuple(wanted), tuple(columns), str(path),
+    )  # fmt: skip
+
+
+def _topic(path: Path, types: dict[str, str], topic: str | None, option: str, exclude: str | None) -> str:
+    joint_states = sorted(t for t, kind in types.items() if kind == JOINT_STATE and t != exclude)
+    listing = ", ".join(f"{t} ({kind})" for t, kind in sorted(types.items())) or "none"
+    if topic is None:
+        if exclude is None:
+            raise ValueError(
+                f"{path}: name the commands' JointState topic ({option}=…); the log's topics: {listing}"
+            )
+        if len(joint_states) != 1:
+            found = ", ".join(joint_states) or "none"
+            raise ValueError(
+                f"{path}: the states' JointState topic is ambiguous (found {found} besides the commands' "
+                f"{exclude}); name it with state_topic=…"
+            )
+        return joint_states[0]
+    if topic not in types:
+        raise ValueError(f"{path}: no topic {topic!r} ({option}); the log's topics: {listing}")
+    if types[topic] != JOINT_STATE:
+        raise ValueError(f"{path}: topic {topic} ({option}) holds {types[topic]}, not sensor_msgs/JointState")
+    return topic
+
+
+def _stream(path: Path, reader: Any, connections: list[Any], topic: str) -> _Stream:
+    stamps, received, names = [], [], []
+    arrays: dict[str, list[np.ndarray]] = {field: [] for field in COMMAND_FIELDS}
+    for connection, receive_time, raw in reader.messages(connections=connections):
+        message = reader.deserialize(raw, connection.msgtype)
+        stamps.append(int(message.header.stamp.sec) * 1_000_000_000 + int(message.header.stamp.nanosec))
+        received.append(int(receive_time))
+        names.append(tuple(message.name))
+        for field in COMMAND_FIELDS:
+            arrays[field].append(np.asarray(getattr(message, field), dtype=np.float64))
+    if not stamps:
+        raise ValueError(f"{path}: topic {topic} has no messages")
+    header = np.array(stamps, dtype=np.int64)
+    if (header == 0).all():
+        warnings.warn(
+            f"{path}: {topic} has header stamps all zero; its receive times are used", LogWarning, 3
+        )
+        header = np.array(received, dtype=np.int64)
+    elif (header == 0).any():
+        raise ValueError(
+            f"{path}: header stamps of {topic} are zero in some messages; which clock holds is unknown"
+        )
+    bad = np.flatnonzero(np.diff(header) <= 0)
+    if bad.size:
+        raise ValueError(f"{path}: stamps of {topic} must increase: message {int(bad[0]) + 1} does not")
+    return _Stream(header, names, arrays)
+
+
+def _by_name(path: Path, topic: str, stream: _Stream, field: str, wanted: Sequence[str]) -> np.ndarray:
+    """``[M, len(wanted)]`` values of ``field`` by name, whatever each message's order."""
+    out = np.empty((len(stream.names), len(wanted)))
+    for k, (names, values) in enumerate(zip(stream.names, stream.arrays[field], strict=True)):
+        index = {name: i for i, name in enumerate(names)}
+        if len(index) < len(names):
+            raise ValueError(f"{path}: {topic} message {k} names a joint twice ({', '.join(names)})")
+        missing = [name for name in wanted if name not in index]
+        if missing:
+            raise ValueError(f"{path}: {topic} message {k} lacks {missing[0]!r}; it names {', '.join(names)}")
+        if len(values) != len(names):
+            raise ValueError(
+                f"{path}: {topic} message {k} has {len(values)} {field} values for {len(names)} names"
+            )
+        out[k] = values[[index[name] for name in wanted]]
+    return out

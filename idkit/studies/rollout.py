@@ -1,0 +1,292 @@
+"""Simulator parameters from robot logs (the ``rollout`` task): model + logs → fitted model.
+
+``run``'s signature is the command line's config (``idkit +experiment=rollout rollout.model=arm.xml
+data=run.csv 'rollout.params=[armature,damping,frictionloss,kp,kv,delay]'``). It reads the model
+(:mod:`idkit.sim.model`) and the logs of commands and joint states (:mod:`idkit.data.commands`),
+chooses the unknowns (:mod:`idkit.sim.quantities`), hands the estimator a
+:class:`~idkit.sim.problem.RolloutProblem`, and replays the fitted model on every log: the fit log in
+its segments from the fitted initial states, each ``validate=`` log whole from its first logged state —
+what a user rolling ``identified.xml`` out under the logged commands gets.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from idkit.estimate import Estimate
+from idkit.optim.robust import mad_scale
+from idkit.seeds import Seed
+from idkit.studies.build import Spec, build, describe
+from idkit.studies.result import Provenance
+
+#: What ``rollout.params`` fits when not told: the joints' passive terms.
+DEFAULT_PARAMS = ("armature", "damping", "frictionloss")
+
+
+@dataclass(frozen=True)
+class Replay:
+    """A log and the fitted model's prediction of it.
+
+    Attributes:
+        file: where the log came from.
+        t: ``[k]`` the predicted samples' times.
+        measured, simulated: ``[k, 2n]`` positions then velocities.
+        joints: the ``n`` joints.
+        noise: ``[2n]`` the log's noise level per channel (from its own samples).
+        segments: how many rollouts the prediction restarted (1: the whole log).
+    """
+
+    file: str
+    t: np.ndarray
+    measured: np.ndarray
+    simulated: np.ndarray
+    joints: tuple[str, ...]
+    noise: np.ndarray
+    segments: int
+
+    @property
+    def rms(self) -> np.ndarray:
+        """``[2n]`` RMS error per channel (glitched samples included)."""
+        return np.sqrt(np.mean((self.measured - self.simulated) ** 2, axis=0))
+
+    @property
+    def robust(self) -> np.ndarray:
+        """``[2n]`` robust error per channel: 1.4826 × the median absolute error (the RMS of Gaussian
+        errors, whatever a few glitched samples do)."""
+        return mad_scale(self.measured - self.simulated, axis=0)
+
+    def scores(self) -> dict[str, Any]:
+        n = len(self.joints)
+
+        def per_joint(values: np.ndarray) -> dict[str, dict[str, float]]:
+            return {
+                "q": dict(zip(self.joints, values[:n].tolist(), strict=True)),
+                "qd": dict(zip(self.joints, values[n:].tolist(), strict=True)),
+            }
+
+        return {
+            "segments": self.segments,
+            "rms": per_joint(self.rms),
+            "robust": per_joint(self.robust),
+            "noise": per_joint(self.noise),
+        }
+
+
+@dataclass
+class RolloutResult:
+    """A rollout identification and what it reproduces.
+
+    Attributes:
+        estimate: the estimator's result (values, uncertainty and flat directions in ``details``).
+        unknowns: per unknown its kind, start and bounds.
+        provenance: the envelope (task, seed, data, plugins, config, run id).
+        mjcf: the ``identified.xml`` text (``None`` if MuJoCo refused it: ``mjcf_problem`` says why).
+        fit: the fit log replayed in its segments.
+        validation: each ``validate=`` log replayed whole.
+    """
+
+    estimate: Estimate
+    unknowns: dict[str, dict[str, Any]]
+    provenance: Provenance
+    mjcf: str | None
+    fit: Replay
+    validation: list[Replay] = field(default_factory=list)
+    mjcf_problem: str | None = None
+
+    @property
+    def seed(self) -> int:
+        return self.provenance.seed
+
+    def payload(self) -> dict[str, Any]:
+        """The task's part of ``result.json``."""
+        return {
+            "estimate": self.estimate.to_dict(),
+            "unknowns": self.unknowns,
+            "fit": {self.fit.file: self.fit.scores()},
+            "validation": {r.file: r.scores() for r in self.validation},
+            "identified_xml": None if self.mjcf is None else "identified.xml",
+            "identified_xml_problem": self.mjcf_problem,
+        }
+
+
+def read_logs(
+    data: Any, joints: Sequence[str] | None, state_topic: str | None, command_topic: str | None
+) -> Any:
+    """One log of the ``data`` file(s), read by :func:`idkit.data.commands.read_robot_log`; several are
+    joined one after another with a gap between them (the segments restart after a gap)."""
+    from idkit.data.commands import RobotLog, read_robot_log
+
+    paths = list(data) if isinstance(data, (list, tuple)) else [data]
+    if not paths:
+        raise ValueError("data: no log given")
+    logs = [read_robot_log(p, joints, state_topic, command_topic) for p in paths]
+    if len(logs) == 1:
+        return logs[0]
+    first = logs[0]
+    for path, log in zip(paths[1:], logs[1:], strict=True):
+        if log.joint_names != first.joint_names or log.command_names != first.command_names:
+            raise ValueError(
+                f"data: {path} has other joints or commands than {paths[0]}; join logs of one robot"
+            )
+    t, q, qd, ct, c = [], [], [], [], []
+    offset = 0.0
+    for log in logs:
+        step = float(np.median(np.diff(log.t)))
+        shift = offset - min(log.t[0], log.command_t[0])
+        t.append(log.t + shift)
+        q.append(log.q)
+        qd.append(log.qd)
+        ct.append(log.command_t + shift)
+        c.append(log.commands)
+        offset = max(log.t[-1], log.command_t[-1]) + shift + 100 * step
+    joined = ", ".join(str(p) for p in paths)
+    return RobotLog(
+        np.concatenate(t), np.vstack(q), np.vstack(qd), np.concatenate(ct), np.vstack(c),
+        first.joint_names, first.command_names, joined,
+    )  # fmt: skip
+
+
+def _joints(sim: Any, log: Any, joints: Sequence[str] | None) -> tuple[str, ...]:
+    """The joints fitted: ``joints``, else every hinge or slide joint of the model the log holds."""
+    if joints is not None:
+        return tuple(joints)
+    found = tuple(j for j in sim.joint_names() if j in log.joint_names)
+    if not found:
+        raise ValueError(
+            f"{log.source}: none of the model's joints ({', '.join(sim.joint_names())}) is in the log "
+            f"({', '.join(log.joint_names)})"
+        )
+    return found
+
+
+def replay(problem: Any, values: np.ndarray, file: str, initial: Any = None, whole: bool = False) -> Replay:
+    """The fitted model's prediction of ``problem``'s log: in its segments from ``initial`` (default
+    the logged states) or, ``whole``, in one rollout per stretch between gaps."""
+    from idkit.sim.problem import noise_scale
+    from idkit.sim.segments import split
+
+    log = problem.samples
+    segments = split(log.t, None) if whole else problem.segments()
+    simulator = problem.simulator(segments, initial=initial)
+    try:
+        q, qd = simulator.predict(values[None])
+    finally:
+        simulator.close()
+    rows = simulator.samples
+    measured = np.hstack([log.q[rows], log.qd[rows]])
+    simulated = np.hstack([q[0], qd[0]])
+    noise = noise_scale(np.hstack([log.q, log.qd]))
+    return Replay(file, log.t[rows], measured, simulated, log.joint_names, noise, len(segments))
+
+
+def run(
+    model: str,
+    data: Any,
+    estimator: Spec = "rollout",
+    cost: Spec | None = None,
+    *,
+    params: Sequence[str] = DEFAULT_PARAMS,
+    joints: Sequence[str] | None = None,
+    shared: Sequence[str] = (),
+    bounds: Mapping[str, Sequence[float]] | None = None,
+    start: Mapping[str, float] | None = None,
+    box: Sequence[float] = (0.1, 10.0),
+    segment: float | None = 0.5,
+    validate: Any = None,
+    state_topic: str | None = None,
+    command_topic: str | None = None,
+    threads: int | None = None,
+    seed: Seed = 0,
+    device: str = "cpu",
+    dtype: str = "float64",
+) -> RolloutResult:
+    """Identify a MuJoCo model's quantities from logged commands and joint states.
+
+    Args:
+        model: the MJCF (``.xml``) or URDF (``.urdf``) file, or its text.
+        data: the fit log (CSV, ``.npz``, ROS log) or a list of logs of one robot (joined).
+        estimator: ``"rollout"`` (a registry name, a config mapping or an object) with its options.
+        cost: the search's score, a registered cost of the scaled error ``E`` (``None``: the
+            estimator's robust default).
+        params: the unknowns: kinds (``armature``, ``damping``, ``frictionloss``, ``stiffness``,
+            ``kp``, ``kv``, ``gear``, ``bias``, ``inertia``, ``delay``) and/or names (``j1.damping``,
+            ``link3.inertia``).
+        joints: the joints in scope (default: the model's that the log holds).
+        shared: kinds fitted as one value for all their elements.
+        bounds: ``{name or kind: [lower, upper]}`` (default ``box`` × the start; ``delay``: [0, 0.05] s).
+        start: ``{name or kind: value}`` (default the model's values; ``delay``: 0).
+        box: ``(a, b)``: the bounds of an unknown without given bounds, as factors of its start.
+        segment: seconds per multiple-shooting segment (``None``: whole stretches between gaps).
+        validate: held-out logs, each replayed whole with the fitted model.
+        state_topic, command_topic: a ROS log's ``JointState`` topics (:mod:`idkit.data.commands`).
+        threads: rollout threads (``None``: every CPU the process may use).
+        seed: seeds the search.
+        device, dtype: where a registered cost is evaluated.
+    """
+    from idkit.sim.export import identified_xml
+    from idkit.sim.model import load_model
+    from idkit.sim.problem import RolloutProblem, SimRobot
+    from idkit.sim.quantities import select_unknowns
+
+    sim = load_model(model)
+    log = read_logs(data, None, state_topic, command_topic)
+    scope = _joints(sim, log, joints)
+    log_joints = tuple(j for j in log.joint_names if j in {*sim.joint_names()})
+    if log_joints != log.joint_names:
+        log = read_logs(data, log_joints, state_topic, command_topic)
+    unlogged = [j for j in sim.joint_names() if j not in log_joints]
+    if unlogged:
+        warnings.warn(
+            f"{log.source}: the model's joint(s) {', '.join(unlogged)} are not in the log: every segment "
+            "starts them at the model's qpos0, at rest",
+            stacklevel=2,
+        )
+    unknowns = select_unknowns(sim, scope, params, shared, bounds, start, box)
+    robot = SimRobot(sim, unknowns, log.joint_names)
+    problem = RolloutProblem(
+        robot,
+        log,
+        build("cost", cost),
+        seed=seed,
+        segment=segment,
+        threads=threads,
+        device=device,
+        dtype=dtype,
+    )
+    fitter = build("estimator", estimator)
+    estimate = fitter.fit(problem)
+    values = np.array([estimate.params[name] for name in unknowns.names])
+    fitted = estimate.details.get("initial_states")
+    initial = None if fitted is None else (np.asarray(fitted["q"]), np.asarray(fitted["qd"]))
+    fit = replay(problem, values, log.source, initial)
+    held_out = []
+    for path in (
+        list(validate) if isinstance(validate, (list, tuple)) else ([] if validate is None else [validate])
+    ):
+        other = RolloutProblem(
+            robot, read_logs(path, log.joint_names, state_topic, command_topic), threads=threads
+        )
+        held_out.append(replay(other, values, str(path), whole=True))
+    try:
+        text, problem_text = identified_xml(sim, unknowns, values), None
+    except ValueError as error:
+        text, problem_text = None, str(error)
+    provenance = Provenance(
+        task="rollout",
+        label=estimate.estimator,
+        seed=seed,
+        data={
+            "model": sim.label,
+            "files": [str(p) for p in (data if isinstance(data, (list, tuple)) else [data])],
+        },
+        plugins={"estimator": describe("estimator", estimator), "cost": describe("cost", cost)},
+    )
+    described = {
+        u.name: {"kind": u.kind, "start": u.start, "bounds": [u.lower, u.upper]} for u in unknowns.items
+    }
+    return RolloutResult(estimate, described, provenance, text, fit, held_out, problem_text)
