@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import _thread
+import signal
 from dataclasses import replace
 
 import numpy as np
@@ -183,9 +184,15 @@ def test_ctrl_c_stops_between_kernel_calls(problem, monkeypatch):
         return built.run_trial(*args)
 
     monkeypatch.setattr(fast, "kernel", lambda: replace(built, run_trial=interrupted))
+    # Python's own Ctrl-C handler, whatever this process inherited: a shell starts a background job
+    # (`cmd &`) with SIGINT ignored, and an ignored signal makes interrupt_main() do nothing
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     pso = ParticleSwarm(runs=1, particles=20, iterations=10_000, history=False, engine="native")
-    with pytest.raises(KeyboardInterrupt):
-        pso.fit(problem)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            pso.fit(problem)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert len(calls) == 2  # of the 1000 calls this fit would make
 
 
