@@ -151,9 +151,17 @@ def arm_lines(arm: Mapping[str, Any]) -> list[str]:
 _HOW = {"as data=": " as data= was", "defaults": " with the default options, not as data="}
 
 
+#: Said when no reference was given: the σ cannot see an arm model's error, which the payload absorbs.
+NO_REFERENCE = (
+    "no reference: the arm model (its inertials, friction and offsets) is taken as exact; where it is "
+    "not, its error goes into the payload and the stds do not count it. Record the arm without "
+    "the payload and give estimator.reference=<file> (docs/payload.md)"
+)
+
+
 def reference_lines(reference: Mapping[str, Any] | None) -> list[str]:
     if not reference:
-        return []
+        return [NO_REFERENCE]
     head = (
         f"reference {reference['file']} ({reference['samples']} samples"
         + (

@@ -48,6 +48,11 @@ def test_the_command_prints_and_writes_the_payload(files, run_idkit, capsys):
         f"hydra.run.dir={run}",
     )
     assert status == 0, said
+    # no reference given: the report says that the arm model's error is not in the stds
+    assert (
+        "no reference: the arm model (its inertials, friction and offsets) is taken as exact"
+        in (run / "report.html").read_text()
+    )
     result = json.loads((run / "result.json").read_text())
     block = result["payload"]["estimate"]["details"]["payload"]
     assert block["mass"] == pytest.approx(MASS, rel=1e-8)
@@ -151,6 +156,10 @@ def test_the_reference_is_preprocessed_as_the_data(files, raw, correction):
     )[0]
     assert made["samples"] == trained.n_samples  # the trim of 3 Hz (1 s at each end), not of 10 Hz
     assert details["payload"]["mass"] == pytest.approx(MASS, rel=2e-3)
+    from idkit.reports.single import text
+
+    said = text(result)
+    assert f"reference {reference}" in said and "no reference:" not in said
 
 
 def test_the_data_given_as_its_own_reference_is_refused_in_one_line(files, raw, run_idkit):
