@@ -132,7 +132,7 @@ def _uncertainty_lines(uncertainty: Mapping[str, Any] | None, base: Mapping[str,
     rel = uncertainty.get("std_rel_pct") or {}
     std = uncertainty.get("std") or {}
     # the std itself beside its share of the estimate: a share alone reads 1e10 % for a friction
-    # coefficient held at its bound 0 (a value of 1e-9) whose std is small
+    # coefficient held at its bound 0 (a value of 1e-9), where only the std says what the data allow
     lines = ["", f"{'base parameter':<24}{'estimate':>12}{'std':>12}{'relative':>12}"]
     for name, pct in rel.items():
         value = base.get(name)
