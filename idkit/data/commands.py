@@ -26,15 +26,13 @@ Commands keep their own stamps: the simulator holds each until the next (:mod:`i
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from idkit.data.logs import JOINT_STATE, LogWarning, is_log
+from idkit.data.logs import JOINT_STATE, is_log, joint_values, read_stream, seconds_after
 from idkit.data.table import NpzTable, read_quantities, read_table
 
 #: Column suffixes of commands, and what each drives (see the module docstring).
@@ -196,13 +194,6 @@ def save_robot_log(log: RobotLog, path: str | Path) -> Path:
 # --- ROS logs --------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class _Stream:
-    stamps: np.ndarray  # [M] int64 ns
-    names: list[tuple[str, ...]]
-    arrays: dict[str, list[np.ndarray]]
-
-
 def _read_ros(
     path: Path, joints: Sequence[str] | None, state_topic: str | None, command_topic: str | None
 ) -> RobotLog:
@@ -219,7 +210,7 @@ def _read_ros(
             command = _topic(path, types, command_topic, "command_topic", exclude=None)
             state = _topic(path, types, state_topic, "state_topic", exclude=command)
             streams = {
-                topic: _stream(path, reader, [c for c in reader.connections if c.topic == topic], topic)
+                topic: read_stream(path, reader, [c for c in reader.connections if c.topic == topic], topic)
                 for topic in (state, command)
             }
     except (FileNotFoundError, ValueError):
@@ -228,22 +219,21 @@ def _read_ros(
         raise ValueError(f"{path}: not a readable ROS log ({type(exc).__name__}: {exc})") from None
     states, commands = streams[state], streams[command]
     wanted = list(joints) if joints is not None else list(states.names[0])
-    q = _by_name(path, state, states, "position", wanted)
-    qd = _by_name(path, state, states, "velocity", wanted)
+    q = joint_values(path, states, "position", wanted)
+    qd = joint_values(path, states, "velocity", wanted)
     origin = int(states.stamps[0])
     columns, values = [], []
     every = sorted({name for names in commands.names for name in names})
     for field, kind in COMMAND_FIELDS.items():
-        if all(
-            len(v) == len(n) and len(n) for v, n in zip(commands.arrays[field], commands.names, strict=True)
-        ):
-            values.append(_by_name(path, command, commands, field, every))
+        arrays = getattr(commands, field)
+        if all(len(v) == len(n) and len(n) for v, n in zip(arrays, commands.names, strict=True)):
+            values.append(joint_values(path, commands, field, every))
             columns += [f"{name}.{kind}" for name in every]
     if not values:
         raise ValueError(f"{path}: topic {command} has no message with position, velocity or effort per name")
     return RobotLog(
-        (states.stamps - origin) * 1e-9, q, qd, (commands.stamps - origin) * 1e-9, np.hstack(values),
-        tuple(wanted), tuple(columns), str(path),
+        seconds_after(states.stamps, origin), q, qd, seconds_after(commands.stamps, origin),
+        np.hstack(values), tuple(wanted), tuple(columns), str(path),
     )  # fmt: skip
 
 
@@ -267,49 +257,3 @@ def _topic(path: Path, types: dict[str, str], topic: str | None, option: str, ex
     if types[topic] != JOINT_STATE:
         raise ValueError(f"{path}: topic {topic} ({option}) holds {types[topic]}, not sensor_msgs/JointState")
     return topic
-
-
-def _stream(path: Path, reader: Any, connections: list[Any], topic: str) -> _Stream:
-    stamps, received, names = [], [], []
-    arrays: dict[str, list[np.ndarray]] = {field: [] for field in COMMAND_FIELDS}
-    for connection, receive_time, raw in reader.messages(connections=connections):
-        message = reader.deserialize(raw, connection.msgtype)
-        stamps.append(int(message.header.stamp.sec) * 1_000_000_000 + int(message.header.stamp.nanosec))
-        received.append(int(receive_time))
-        names.append(tuple(message.name))
-        for field in COMMAND_FIELDS:
-            arrays[field].append(np.asarray(getattr(message, field), dtype=np.float64))
-    if not stamps:
-        raise ValueError(f"{path}: topic {topic} has no messages")
-    header = np.array(stamps, dtype=np.int64)
-    if (header == 0).all():
-        warnings.warn(
-            f"{path}: {topic} has header stamps all zero; its receive times are used", LogWarning, 3
-        )
-        header = np.array(received, dtype=np.int64)
-    elif (header == 0).any():
-        raise ValueError(
-            f"{path}: header stamps of {topic} are zero in some messages; which clock holds is unknown"
-        )
-    bad = np.flatnonzero(np.diff(header) <= 0)
-    if bad.size:
-        raise ValueError(f"{path}: stamps of {topic} must increase: message {int(bad[0]) + 1} does not")
-    return _Stream(header, names, arrays)
-
-
-def _by_name(path: Path, topic: str, stream: _Stream, field: str, wanted: Sequence[str]) -> np.ndarray:
-    """``[M, len(wanted)]`` values of ``field`` by name, whatever each message's order."""
-    out = np.empty((len(stream.names), len(wanted)))
-    for k, (names, values) in enumerate(zip(stream.names, stream.arrays[field], strict=True)):
-        index = {name: i for i, name in enumerate(names)}
-        if len(index) < len(names):
-            raise ValueError(f"{path}: {topic} message {k} names a joint twice ({', '.join(names)})")
-        missing = [name for name in wanted if name not in index]
-        if missing:
-            raise ValueError(f"{path}: {topic} message {k} lacks {missing[0]!r}; it names {', '.join(names)}")
-        if len(values) != len(names):
-            raise ValueError(
-                f"{path}: {topic} message {k} has {len(values)} {field} values for {len(names)} names"
-            )
-        out[k] = values[[index[name] for name in wanted]]
-    return out

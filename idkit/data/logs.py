@@ -99,8 +99,8 @@ def read_log(
         raise FileNotFoundError(f"data file not found: {path}")
     states, efforts, topics = _read_streams(path, options)
     wanted = list(joints) if joints is not None else list(states.names[0])
-    q = _values(path, states, "position", wanted)
-    qd = _values(path, states, "velocity", wanted) if _complete(states.velocity, states.names) else None
+    q = joint_values(path, states, "position", wanted)
+    qd = joint_values(path, states, "velocity", wanted) if _complete(states.velocity, states.names) else None
     t = states.stamps
     if efforts is None:
         if not _complete(states.effort, states.names):
@@ -110,14 +110,14 @@ def read_log(
                 f"efforts for {len(states.names[k])} joints); if the efforts are on another JointState "
                 "topic, name it with recording.effort_topic=…"
             )
-        tau = _values(path, states, "effort", wanted)
+        tau = joint_values(path, states, "effort", wanted)
         origin = int(t[0])
-        seconds = _seconds(t, origin)
+        seconds = seconds_after(t, origin)
         dropped = 0
     else:
         origin = int(min(t[0], efforts.stamps[0]))
         seconds, tau, rows = _onto(
-            path, efforts, wanted, _seconds(t, origin), _seconds(efforts.stamps, origin)
+            path, efforts, wanted, seconds_after(t, origin), seconds_after(efforts.stamps, origin)
         )
         q, qd = q[rows], (None if qd is None else qd[rows])
         dropped = int(t.size - rows.size)
@@ -140,7 +140,7 @@ def read_log(
     return recording, description
 
 
-def _seconds(stamps: np.ndarray, origin: int) -> np.ndarray:
+def seconds_after(stamps: np.ndarray, origin: int) -> np.ndarray:
     """Nanosecond stamps ``[M]`` (int64, since the epoch) as seconds after ``origin`` (ns): subtracted in
     integers, then divided (one rounding), so no digit of a stamp is lost to float64's 16."""
     return (stamps - np.int64(origin)) / 1e9
@@ -177,7 +177,7 @@ def _read_streams(path: Path, options: RecordingOptions) -> tuple[Stream, Stream
             streams = {}
             for topic in dict.fromkeys(t for t in (state, effort) if t is not None):
                 chosen = [c for c in connections if c.topic == topic]
-                streams[topic] = _stream(path, reader, chosen, topic)
+                streams[topic] = read_stream(path, reader, chosen, topic)
     except FileNotFoundError:
         raise
     except errors as exc:  # a damaged or foreign file
@@ -212,7 +212,7 @@ def _choose(
     return topic
 
 
-def _stream(path: Path, reader: Any, connections: list[Any], topic: str) -> Stream:
+def read_stream(path: Path, reader: Any, connections: list[Any], topic: str) -> Stream:
     stamps: list[int] = []
     received: list[int] = []
     names: list[tuple[str, ...]] = []
@@ -286,7 +286,7 @@ def _complete(values: list[np.ndarray], names: list[tuple[str, ...]]) -> bool:
     return all(len(v) == len(n) for v, n in zip(values, names, strict=True))
 
 
-def _values(path: Path, stream: Stream, field: str, joints: Sequence[str]) -> np.ndarray:
+def joint_values(path: Path, stream: Stream, field: str, joints: Sequence[str]) -> np.ndarray:
     """``[M, n]`` values of ``field`` for ``joints`` (by name, per message)."""
     arrays = getattr(stream, field)
     out = np.empty((len(arrays), len(joints)))
@@ -327,7 +327,7 @@ def _onto(
     """The effort stream interpolated onto the state times ``t`` (s): ``(t kept, tau, kept rows)``."""
     if not _complete(efforts.effort, efforts.names):
         raise ValueError(f"{path}: effort topic {efforts.topic} has messages without an effort per joint")
-    tau_e = _values(path, efforts, "effort", joints)
+    tau_e = joint_values(path, efforts, "effort", joints)
     covered = (t >= te[0]) & (t <= te[-1])
     inside = covered.copy()
     steps = np.diff(te)
