@@ -14,7 +14,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +23,9 @@ from idkit.optim.robust import mad_scale
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
+
+if TYPE_CHECKING:
+    from idkit.sim.simulator_model import SimulatorModel
 
 #: What ``rollout.params`` fits when not told: the joints' passive terms.
 DEFAULT_PARAMS = ("armature", "damping", "frictionloss")
@@ -88,6 +91,7 @@ class RolloutResult:
         mjcf: the ``identified.xml`` text (``None`` if MuJoCo refused it: ``mjcf_problem`` says why).
         fit: the fit log replayed in its segments.
         validation: each ``validate=`` log replayed whole.
+        robot: the model and the unknowns fitted (``model`` puts the estimate back on it).
     """
 
     estimate: Estimate
@@ -97,10 +101,18 @@ class RolloutResult:
     fit: Replay
     validation: list[Replay] = field(default_factory=list)
     mjcf_problem: str | None = None
+    robot: Any = field(default=None, repr=False)
 
     @property
     def seed(self) -> int:
         return self.provenance.seed
+
+    @property
+    def model(self) -> SimulatorModel:
+        """The identified simulator (``simulate``, values with σ, ``save``, ``to_mujoco``)."""
+        from idkit.sim.simulator_model import SimulatorModel
+
+        return SimulatorModel.from_result(self)
 
     def payload(self) -> dict[str, Any]:
         """The task's part of ``result.json``."""
@@ -289,4 +301,4 @@ def run(
     described = {
         u.name: {"kind": u.kind, "start": u.start, "bounds": [u.lower, u.upper]} for u in unknowns.items
     }
-    return RolloutResult(estimate, described, provenance, text, fit, held_out, problem_text)
+    return RolloutResult(estimate, described, provenance, text, fit, held_out, problem_text, robot)
