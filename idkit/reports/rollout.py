@@ -1,4 +1,5 @@
-"""The ``rollout`` task's report: a text table, ``result.json``, ``identified.xml`` and trajectory plots.
+"""The ``rollout`` task's report: a text table, ``result.json``, ``report.html``
+(:mod:`idkit.reports.rollout_page`), ``identified.xml`` and trajectory plots.
 
 The table lists each unknown's start, estimate, standard deviation and 95 % interval, then the flat
 directions (what the log cannot separate), then per log the RMS error of each joint's position beside
@@ -16,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from idkit.estimate import history_table
-from idkit.reports import files
+from idkit.reports import files, rollout_page
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.studies.rollout import Replay, RolloutResult
@@ -95,7 +96,9 @@ def write(result: RolloutResult, out_dir: str | Path, plots: bool = True) -> dic
             written["convergence_plot"] = str(
                 figures.convergence(*found, title=f"{label}: search", path=out / "convergence.png")
             )
-    return write_result(out, result.provenance, result.payload(), written)
+    return write_result(
+        out, result.provenance, result.payload(), written, lambda document: rollout_page.render(document, out)
+    )
 
 
 def trajectories(replayed: Replay, title: str, path: Path) -> Path:

@@ -1,0 +1,112 @@
+"""``report.html`` of a rollout run, from its ``result.json`` alone: verdicts first and graded by one rule,
+every unknown with its interval, bound hits and flat directions named, the figures embedded."""
+
+from __future__ import annotations
+
+import re
+
+from idkit.reports import rollout_page
+
+
+def document(held_out_error: float = 3e-4, with_plots: bool = False) -> dict:
+    """A rollout run's ``result.json`` as the report writes it: two joints, one unknown on its bound, a flat
+    direction, a fit log and a held-out log whose j2 error is ``held_out_error`` (noise 1e-4)."""
+
+    def scores(segments: int, q2: float) -> dict:
+        return {
+            "segments": segments,
+            "rms": {"q": {"j1": 1.1e-4, "j2": q2 * 1.1}, "qd": {"j1": 0.011, "j2": 0.012}},
+            "robust": {"q": {"j1": 1.0e-4, "j2": q2}, "qd": {"j1": 0.01, "j2": 0.011}},
+            "noise": {"q": {"j1": 1.0e-4, "j2": 1.0e-4}, "qd": {"j1": 0.01, "j2": 0.01}},
+        }
+
+    return {
+        "task": "rollout",
+        "label": "rollout",
+        "status": "complete",
+        "seed": 0,
+        "data": {"model": "arm.xml", "files": ["train.csv"]},
+        "plugins": {"estimator": {"name": "rollout", "options": {}}},
+        "files": {"fit_plot": "/elsewhere/fit.png", "validation_plot_1": "/elsewhere/validation_1.png"}
+        if with_plots
+        else {},
+        "payload": {
+            "estimate": {
+                "estimator": "rollout",
+                "params": {"j1.damping": 1.25, "j2.damping": 5.0, "j1.armature": 0.1},
+                "wall_time_s": 2.5,
+                "details": {
+                    "sigma": {"j1.damping": 0.01, "j2.damping": 0.2, "j1.armature": 0.003},
+                    "ci95": {"j1.damping": [1.23, 1.27], "j2.damping": [4.6, 5.4],
+                             "j1.armature": [0.094, 0.106]},
+                    "flat_directions": [{"direction": {"j1.armature": 1.0, "j1.damping": -0.8},
+                                         "sigma": 0.7}],
+                    "rollouts": 1234,
+                    "polish": [{"segments": 4, "initial_states_free": True, "iterations": 3, "losses": [0.5],
+                                "stop": "ftol"}],
+                },
+            },
+            "unknowns": {
+                "j1.damping": {"kind": "damping", "start": 1.0, "bounds": [0.1, 10.0]},
+                "j2.damping": {"kind": "damping", "start": 0.5, "bounds": [0.05, 5.0]},
+                "j1.armature": {"kind": "armature", "start": 0.05, "bounds": [0.005, 0.5]},
+            },
+            "fit": {"train.csv": scores(8, 1.0e-4)},
+            "validation": {"held_out.csv": scores(1, held_out_error)},
+            "identified_xml": "identified.xml",
+            "identified_xml_problem": None,
+        },
+    }  # fmt: skip
+
+
+def section(page: str, anchor: str) -> str:
+    return re.search(f'<section id="{anchor}">(.*?)</section>', page, re.S).group(1)
+
+
+def test_verdicts_come_first_and_grade_each_joint_against_its_noise(tmp_path):
+    page = rollout_page.render(document(held_out_error=3e-4), tmp_path)
+    assert page.index('id="verdicts"') < page.index('id="parameters"') < page.index('id="prediction"')
+    verdicts = section(page, "verdicts")
+    held = verdicts[verdicts.index("held_out.csv") : verdicts.index("Model-limited")]
+    assert "whole: one rollout from its first logged state" in held  # the mode, named
+    ratios = re.findall(r'<td class="num (\w+)" data-value="([0-9.e-]+)">[0-9.]+×', held)
+    assert [(css, round(float(v), 9)) for css, v in ratios] == [("good", 1.0), ("fair", 3.0)]  # j2: 3× noise
+    assert "worst joint 3× the noise" in held
+    poor = rollout_page.render(document(held_out_error=8e-4), tmp_path)
+    assert 'class="badge poor">worst joint 8× the noise' in section(poor, "verdicts")
+
+
+def test_the_fit_log_is_named_with_the_states_it_started_from(tmp_path):
+    verdicts = section(rollout_page.render(document(), tmp_path), "verdicts")
+    assert "in 8 segments, each from its initial state the fit estimated" in verdicts
+
+
+def test_bound_hits_flat_directions_and_model_limitation_are_said(tmp_path):
+    verdicts = section(rollout_page.render(document(), tmp_path), "verdicts")
+    bounds = verdicts[verdicts.index("Estimates on a bound") : verdicts.index("Flat directions")]
+    assert "j2.damping" in bounds and "upper" in bounds and "j1.damping" not in bounds
+    assert "1·j1.armature + -0.8·j1.damping" in verdicts
+    assert "Not assessed by this run" in verdicts  # the record does not say: no verdict invented
+    limited = document()
+    limited["payload"]["estimate"]["details"]["model_limited"] = True
+    assert "model-limited" in section(rollout_page.render(limited, tmp_path), "verdicts")
+
+
+def test_every_unknown_has_its_estimate_sigma_and_interval(tmp_path):
+    parameters = section(rollout_page.render(document(), tmp_path), "parameters")
+    for name, value, sigma, interval in [
+        ("j1.damping", "1.25", "0.01", "[1.23, 1.27]"),
+        ("j2.damping", "5.0", "0.2", "[4.6, 5.4]"),
+        ("j1.armature", "0.1", "0.003", "[0.094, 0.106]"),
+    ]:
+        row = re.search(f"<tr><td>{re.escape(name)}</td>(.*?)</tr>", parameters).group(1)
+        assert f'data-value="{value}"' in row and f'data-value="{sigma}"' in row and interval in row
+
+
+def test_figures_are_embedded_from_the_run_folder(tmp_path):
+    (tmp_path / "validation_1.png").write_bytes(b"\x89PNG held")
+    (tmp_path / "fit.png").write_bytes(b"\x89PNG fit")
+    prediction = section(rollout_page.render(document(with_plots=True), tmp_path), "prediction")
+    assert prediction.count("data:image/png;base64,") == 2
+    assert prediction.index("held out: held_out.csv") < prediction.index("fit log")
+    assert "plots=false" in section(rollout_page.render(document(), tmp_path), "prediction")
