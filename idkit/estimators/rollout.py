@@ -31,6 +31,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from idkit import progress
 from idkit.estimate import Estimate
 from idkit.interfaces import Estimator
 from idkit.optim.blocks import SearchResult, cooperative_search
@@ -135,6 +136,11 @@ class RolloutEstimator(Estimator):
         search_sim = full_sim = None
         try:
             full_sim, search_sim, initial = _simulators(problem, self.search_share, self.threads)
+            progress.count_rollouts(
+                lambda: sum(
+                    s.counter.rollouts for s in {id(search_sim): search_sim, id(full_sim): full_sim}.values()
+                )
+            )
             unknowns = problem.robot.unknowns
             start = unknowns.to_coordinates(unknowns.vector("start"))
             found = _search(problem, search_sim, self, start) if self.iterations != 0 else None
@@ -245,12 +251,18 @@ def _search(
     blocks, rows = _blocks(problem, options.cooperative)
     measured = problem.measured(simulator)
 
-    def objective(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return _parts(problem, problem.error(unknowns.from_coordinates(z), simulator), rows, measured)
-
     width = max(len(b) for b in blocks)
     particles = options.particles or min(32, 4 + 2 * width)
     iterations = options.iterations if options.iterations is not None else min(40, 10 + 2 * width)
+    seen = {"calls": 0, "best": np.inf}
+
+    def objective(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        parts, total = _parts(problem, problem.error(unknowns.from_coordinates(z), simulator), rows, measured)
+        seen["calls"] += 1
+        seen["best"] = min(seen["best"], float(np.min(np.where(np.isfinite(total), total, np.inf))))
+        progress.report("search", seen["calls"], iterations + 1, seen["best"])
+        return parts, total
+
     return cooperative_search(
         objective, lower, upper, start, blocks, particles, iterations, problem.generator()
     )
@@ -319,10 +331,18 @@ def _solve(
     root = np.sqrt(shooting.measured.size)
     shooting.divisor = scales * root
     lower, upper = shooting.unknowns.coordinate_bounds()
+    calls = [sum(r["iterations"] for r in record)]  # the polish's iterations so far, every solve
+
+    def jacobian(x: np.ndarray, residual: np.ndarray) -> Any:
+        calls[0] += 1  # once per iteration: say where the polish is (the error in noise levels)
+        error = residual[:, 0] * shooting.divisor[shooting.channel_of_entry()]
+        progress.report("polish", calls[0], None, float(mad_scale(error)), "error / noise")
+        return shooting.jacobian(x, residual)
+
     x, trace = least_squares(
         x,
         shooting.residual,
-        shooting.jacobian,
+        jacobian,
         lower,
         upper,
         loss,

@@ -20,6 +20,7 @@ import numpy as np
 
 from idkit.estimate import Estimate
 from idkit.optim.robust import mad_scale
+from idkit.progress import reporting
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
@@ -216,6 +217,7 @@ def run(
     seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
+    progress: bool = True,
 ) -> RolloutResult:
     """Identify a MuJoCo model's quantities from logged commands and joint states.
 
@@ -239,6 +241,8 @@ def run(
         threads: rollout threads (``None``: every CPU the process may use).
         seed: seeds the search.
         device, dtype: where a registered cost is evaluated.
+        progress: print a line every few seconds during the search and the polish (stage, iteration,
+            best cost, rollouts, elapsed: :mod:`idkit.progress`); the command sets it on a terminal.
     """
     from idkit.sim.export import identified_xml
     from idkit.sim.model import load_model
@@ -271,7 +275,8 @@ def run(
         dtype=dtype,
     )
     fitter = build("estimator", estimator)
-    estimate = fitter.fit(problem)
+    with reporting("rollout", progress):
+        estimate = fitter.fit(problem)
     values = np.array([estimate.params[name] for name in unknowns.names])
     fitted = estimate.details.get("initial_states")
     initial = None if fitted is None else (np.asarray(fitted["q"]), np.asarray(fitted["qd"]))

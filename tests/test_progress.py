@@ -1,0 +1,49 @@
+"""Progress lines: quiet unless a study listens, one line per new stage, else at most one per interval;
+a rollout fit says its search and its polish."""
+
+from __future__ import annotations
+
+from idkit import progress
+
+
+def test_nothing_is_printed_unless_a_study_listens(capsys):
+    progress.report("search", 1, 10, 3.0)
+    with progress.reporting("fit", enabled=False) as reporter:
+        progress.report("search", 1, 10, 3.0)
+    assert reporter is None and capsys.readouterr() == ("", "")
+
+
+def test_a_new_stage_prints_at_once_and_a_stage_at_most_once_per_interval():
+    lines: list[str] = []
+    now = [0.0]
+    with progress.reporting("fit", write=lines.append, interval=3.0) as reporter:
+        assert reporter is not None
+        reporter.clock, reporter.started = (lambda: now[0]), 0.0
+        progress.count_rollouts(lambda: 1234)
+        for step in range(10):  # one call a second
+            now[0] = float(step)
+            progress.report("search", step + 1, 10, 10.0 - step)
+        progress.report("polish", 1, best=1.5, what="error / noise")
+    progress.report("search", 99)  # after the block: nobody listens
+    assert lines == [
+        "fit: search · iteration 1/10 · best cost 10 · 1,234 rollouts · 0.0 s",
+        "fit: search · iteration 4/10 · best cost 7 · 1,234 rollouts · 3.0 s",
+        "fit: search · iteration 7/10 · best cost 4 · 1,234 rollouts · 6.0 s",
+        "fit: search · iteration 10/10 · best cost 1 · 1,234 rollouts · 9.0 s",
+        "fit: polish · iteration 1 · error / noise 1.5 · 1,234 rollouts · 9.0 s",
+    ]
+
+
+def test_a_rollout_fit_reports_its_search_and_its_polish():
+    from idkit import registry
+    from idkit.sim.cases import conformance_problem
+
+    lines: list[str] = []
+    estimator = registry.create("estimator", "rollout", particles=4, iterations=3, polish_iterations=5)
+    with progress.reporting("rollout", write=lines.append, interval=0.0):
+        estimate = estimator.fit(conformance_problem())
+    stages = [line.split(" · ")[0] for line in lines]
+    assert stages[0] == "rollout: search" and "rollout: polish" in stages
+    assert all(" · iteration " in line and " rollouts · " in line for line in lines)
+    last = int(lines[-1].split(" · ")[-2].split()[0].replace(",", ""))
+    assert 0 < last <= estimate.details["rollouts"]
