@@ -110,3 +110,32 @@ def test_figures_are_embedded_from_the_run_folder(tmp_path):
     assert prediction.count("data:image/png;base64,") == 2
     assert prediction.index("held out: held_out.csv") < prediction.index("fit log")
     assert "plots=false" in section(rollout_page.render(document(), tmp_path), "prediction")
+
+
+def test_idkit_compare_sets_two_rollout_runs_side_by_side(tmp_path):
+    """``idkit compare`` of two rollout run folders: the held-out error per joint of each, graded by the
+    report's rule, and each unknown with its σ and the change in σ units (a bound hit named)."""
+    import json
+
+    from idkit.cli import compare
+
+    a, b = document(held_out_error=1e-4), document(held_out_error=8e-4)
+    a["run_id"], b["run_id"] = "run-a", "run-b"
+    b["payload"]["estimate"]["params"]["j1.damping"] = 1.5  # 25 σ from A's 1.25
+    for name, doc in (("a", a), ("b", b)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "result.json").write_text(json.dumps(doc))
+    out = tmp_path / "compare.html"
+    assert compare.main([str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(out)]) == 0
+    page = out.read_text()
+    held = section(page, "held-out")
+    assert re.findall(r'class="num (\w+)" data-value="[0-9.e-]+">[0-9.]+×', held) == [
+        "good",
+        "good",
+        "good",
+        "poor",
+    ]  # fmt: skip  (A: j1, j2 at the noise; B: j1 at it, j2 8×)
+    unknowns = section(page, "parameters")
+    row = re.search(r"<tr><td>j1.damping</td>(.*?)</tr>", unknowns).group(1)
+    assert 'class="num poor" data-value="17.67766952966369"' in row  # (1.5 − 1.25) / √2·0.01
+    assert "A at its upper bound, B at its upper bound" in unknowns  # j2.damping in both
