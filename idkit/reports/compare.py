@@ -221,7 +221,10 @@ def _rollout(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[str]:
     table = h.table(["unknown", "A", "σA", "B", "σB", "z", "on a bound"], rows, "parameters")
     only = sorted(set(ua) ^ set(ub))
     limited = [
-        ["model-limited", _shown(ra.model_limited), _shown(rb.model_limited)],
+        [
+            "model-limited",
+            *("not assessed" if r.model_limited is None else str(r.model_limited) for r in (ra, rb)),
+        ],
         ["flat directions", str(len(ra.flat)), str(len(rb.flat))],
         ["rollouts", _shown(ra.rollouts), _shown(rb.rollouts)],
     ]

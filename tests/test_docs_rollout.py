@@ -1,0 +1,38 @@
+"""docs/rollout.md runs as written: every ``bash`` and ``python`` block, in order, in a scratch folder,
+on the servo arm that ships with idkit; what the page says of the result holds."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from docs_blocks import code_blocks, run_blocks
+
+from idkit.examples.make_servo_arm import TRUTH
+
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "rollout.md"
+
+
+def test_the_page_starts_from_the_shipped_example():
+    blocks = code_blocks(PAGE)
+    assert blocks[0][0] == "bash" and "python -m idkit.examples servo_arm" in blocks[0][1]
+    assert {language for language, _ in blocks} == {"bash", "python"}
+
+
+@pytest.mark.slow
+def test_the_page_runs_as_written(tmp_path):
+    outputs = run_blocks(code_blocks(PAGE), tmp_path)
+    assert len(outputs) == len(code_blocks(PAGE))
+    document = json.loads((tmp_path / "servo" / "result.json").read_text())
+    intervals = document["payload"]["estimate"]["details"]["ci95"]
+    outside = [n for n, v in TRUTH.items() if not intervals[n][0] <= v <= intervals[n][1]]
+    assert not outside, f"the page says every interval holds the truth; these do not: {outside}"
+    for name in ("report.html", "identified.xml", "fit.png", "validation_1.png"):
+        assert (tmp_path / "servo" / name).is_file(), name
+    held = document["payload"]["validation"]["held_out.csv"]
+    assert all(held["robust"]["q"][j] < 2 * held["noise"]["q"][j] for j in ("j1", "j2", "j3"))  # "its noise"
+    assert (tmp_path / "compare.html").is_file() and (tmp_path / "identified.xml").is_file()
+    damping = np.array(outputs[1].splitlines()[-1].strip("[]").split(), dtype=float)  # model.dof_damping
+    np.testing.assert_allclose(damping, [TRUTH[f"j{j}.damping"] for j in (1, 2, 3)], rtol=0.05)
