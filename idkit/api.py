@@ -98,7 +98,7 @@ def identify_simulator(
 
     if out_dir is not None:  # a folder it cannot write into fails now, not after the fit
         files.writable_folder(out_dir, "out_dir")
-    result = rollout.run(model, data, validate=validate, **options)
+    result = rollout.run(str(model), data, validate=validate, **options)
     if out_dir is not None:
         report.write(result, out_dir, plots=plots)
     return result.model

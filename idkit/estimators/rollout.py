@@ -254,13 +254,13 @@ def _search(
     width = max(len(b) for b in blocks)
     particles = options.particles or min(32, 4 + 2 * width)
     iterations = options.iterations if options.iterations is not None else min(40, 10 + 2 * width)
-    seen = {"calls": 0, "best": np.inf}
+    calls, best = [0], [np.inf]  # for the progress lines
 
     def objective(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         parts, total = _parts(problem, problem.error(unknowns.from_coordinates(z), simulator), rows, measured)
-        seen["calls"] += 1
-        seen["best"] = min(seen["best"], float(np.min(np.where(np.isfinite(total), total, np.inf))))
-        progress.report("search", seen["calls"], iterations + 1, seen["best"])
+        calls[0] += 1
+        best[0] = min(best[0], float(np.min(np.where(np.isfinite(total), total, np.inf))))
+        progress.report("search", calls[0], iterations + 1, best[0])
         return parts, total
 
     return cooperative_search(

@@ -121,7 +121,8 @@ def record(document: Mapping[str, Any]) -> RolloutRecord:
     payload = document["payload"]
     estimate = payload["estimate"]
     details = estimate.get("details") or {}
-    uncertainty = details.get("uncertainty") if isinstance(details.get("uncertainty"), Mapping) else details
+    nested = details.get("uncertainty")
+    uncertainty: Mapping[str, Any] = nested if isinstance(nested, Mapping) else details
     std = uncertainty.get("std") or uncertainty.get("sigma") or {}
     intervals = uncertainty.get("interval95") or uncertainty.get("ci95") or {}
     described = payload.get("unknowns") or {}

@@ -319,8 +319,9 @@ def _uncertainty(details: Any) -> dict[str, Any]:
             "flat": list(typed.flat),
             "model_limited": getattr(typed, "model_limited", None),
         }
-    found = details if isinstance(details, Mapping) else {}
-    sub = found.get("uncertainty") if isinstance(found.get("uncertainty"), Mapping) else found
+    found: Mapping[str, Any] = details if isinstance(details, Mapping) else {}
+    nested = found.get("uncertainty")
+    sub: Mapping[str, Any] = nested if isinstance(nested, Mapping) else found
     return {
         "std": dict(sub.get("std") or sub.get("sigma") or {}),
         "interval95": {k: tuple(v) for k, v in (sub.get("interval95") or sub.get("ci95") or {}).items()},
