@@ -3,6 +3,9 @@ a rollout fit says its search and its polish."""
 
 from __future__ import annotations
 
+from hypothesis import given
+from hypothesis import strategies as st
+
 from idkit import progress
 
 
@@ -32,6 +35,28 @@ def test_a_new_stage_prints_at_once_and_a_stage_at_most_once_per_interval():
         "fit: search · iteration 10/10 · best cost 1 · 1,234 rollouts · 9.0 s",
         "fit: polish · iteration 1 · error / noise 1.5 · 1,234 rollouts · 9.0 s",
     ]
+
+
+@given(
+    st.lists(st.tuples(st.floats(0, 5, allow_nan=False), st.sampled_from(["search", "polish"])), max_size=60)
+)
+def test_lines_of_one_stage_are_an_interval_apart_and_every_stage_change_is_said(calls):
+    lines: list[tuple[float, str]] = []
+    now = [0.0]
+    with progress.reporting("fit", write=lambda line: lines.append((now[0], line)), interval=3.0) as reporter:
+        assert reporter is not None
+        reporter.clock = lambda: now[0]
+        previous = None
+        changes = 0
+        for step, (gap, stage) in enumerate(calls):
+            now[0] += gap
+            progress.report(stage, step)
+            changes += stage != previous
+            previous = stage
+    said = [(t, line.split(" · ")[0]) for t, line in lines]
+    assert sum(1 for k, (_, s) in enumerate(said) if k == 0 or s != said[k - 1][1]) == changes
+    for (t0, s0), (t1, s1) in zip(said, said[1:], strict=False):
+        assert s0 != s1 or t1 - t0 >= 3.0
 
 
 def test_a_rollout_fit_reports_its_search_and_its_polish():

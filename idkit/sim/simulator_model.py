@@ -163,7 +163,8 @@ class SimulatorModel:
         """The model rolled out under a log's commands (or commands alone), at the log's times.
 
         Args:
-            log_or_commands: a log (a path: CSV, ``.npz``, ROS log; or a ``RobotLog``), or commands as
+            log_or_commands: a log (a CSV or ``.npz`` path; a ``RobotLog``, e.g. a ROS log read by
+                :func:`idkit.data.commands.read_robot_log` with its ``command_topic``), or commands as
                 ``{"t": [N], "<actuator>.ctrl" | "<joint>.q_ref" | "<joint>.qd_ref": [N], …}``.
             initial: ``(q [n], qd [n])`` of the log's joints (``joints`` for commands alone) to start
                 from; default: the logged state (commands alone: the model's ``qpos0``, at rest). With

@@ -134,4 +134,5 @@ def test_identify_simulator_returns_the_runs_model(tmp_path):
     for name, (low, high) in model.interval95.items():
         assert low <= model.values[name] <= high
     assert model.to_mujoco().nu == 3
+    assert isinstance(model, idkit.SimulatorModel)  # the package's lazy name is this class
     assert (tmp_path / "run" / "identified.xml").read_text() == model.mjcf
