@@ -7,7 +7,7 @@ Read from the two runs' ``result.json`` documents only:
   ``z = (b − a) / √(σa² + σb²)`` (``|z| > 3``: a change the runs' own uncertainties do not explain),
   then the standard parameters (no σ of their own);
 * an excitation's criterion and margins, for two excitation runs;
-* for two rollout runs, the held-out error per joint against the noise and the unknowns in σ units;
+* for two rollout runs, each held-out log's verdict per joint and the unknowns in σ units;
 * **config differences**: every setting whose value differs (or that one run lacks).
 """
 
@@ -157,17 +157,17 @@ def _excitation(a: Mapping[str, Any], b: Mapping[str, Any]) -> str:
 
 
 def _rollout(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[str]:
-    """Two rollout runs: held-out error per joint against the noise, then the unknowns in σ units (each
-    record read by :func:`idkit.reports.rollout_page.record`, graded by its rule)."""
+    """Two rollout runs: each held-out log's verdict per joint, then the unknowns in σ units (each record
+    read by :func:`idkit.reports.rollout_page.record`, its verdicts as recorded)."""
     from idkit.reports import rollout_page as page
 
     ra, rb = page.record(a), page.record(b)
-    held_a, held_b = {s.file: s for s in ra.held_out}, {s.file: s for s in rb.held_out}
+    held_a, held_b = {s.file: s for s in ra.verdicts()}, {s.file: s for s in rb.verdicts()}
     common = [file for file in held_a if file in held_b]
     parts = [
         h.paragraph(
-            "Per joint: the position error (1.4826 × the median absolute error) over the log's noise level; "
-            f"at most {page.NOISE_BANDS[0]:g}× is good, above {page.NOISE_BANDS[1]:g}× poor.",
+            "Per joint: the position error (1.4826 × the median absolute error) and its ratio to what the "
+            "run held it to (a perfect model's error, or the log's noise level), in each run's default mode.",
             "rule",
         )
     ]
@@ -175,20 +175,23 @@ def _rollout(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[str]:
         sa, sb = held_a[file], held_b[file]
         rows = []
         for joint in (j for j in sa.robust if j in sb.robust):
-            xa, xb = sa.ratio(joint), sb.ratio(joint)
             rows.append(
-                [
-                    joint,
-                    h.num(sa.robust[joint][0], digits=3),
-                    h.num(xa, page.grade(xa), digits=3, shown=f"{xa:.3g}×"),
-                    h.num(sb.robust[joint][0], digits=3),
-                    h.num(xb, page.grade(xb), digits=3, shown=f"{xb:.3g}×"),
+                [joint]
+                + [
+                    cell
+                    for s in (sa, sb)
+                    for cell in (
+                        h.num(s.robust[joint][0], digits=3),
+                        h.num(s.ratio[joint], page.grade(s.verdicts[joint]), 3, f"{s.ratio[joint]:.3g}×"),
+                    )
                 ]
             )
         parts.append(
             f"<h3>{h.escape(file)}</h3>"
-            + h.paragraph(f"A simulated {sa.mode}; B simulated {sb.mode}.", "rule")
-            + h.table(["joint", "A error", "A / noise", "B error", "B / noise"], rows, "held-out")
+            + h.paragraph(
+                f"A simulated {sa.described}: {sa.verdict}; B simulated {sb.described}: {sb.verdict}.", "rule"
+            )
+            + h.table(["joint", "A error", "A ratio", "B error", "B ratio"], rows, "held-out")
         )
     if not common:
         only = sorted(set(held_a) ^ set(held_b))

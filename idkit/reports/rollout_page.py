@@ -23,39 +23,63 @@ from typing import Any
 from idkit.reports import html as h
 from idkit.reports.single_page import run_details
 
-#: A held-out (or fit) position error up to the first multiple of the log's noise level is ``good`` (the
-#: model reproduces the log as well as it is measured), above the second ``poor``; ``fair`` between.
-NOISE_BANDS = (2.0, 5.0)
-#: An estimate within this fraction of its bounds' width from a bound ended on it.
+#: A record without verdicts (written before :mod:`idkit.sim.validation` scored held-out logs) is graded by
+#: its threshold: a joint is ``within noise`` when its robust position error is at most this many times
+#: the log's noise level.
+WITHIN = 2.0
+#: An estimate within this fraction of its bounds' width from a bound ended on it (a record that does not
+#: name its unknowns at a bound).
 AT_BOUND = 1e-6
 
 
-def grade(ratio: float) -> str:
-    """``good``, ``fair`` or ``poor`` for an error over the noise level (:data:`NOISE_BANDS`)."""
-    good, poor = NOISE_BANDS
+def grade(verdict: str) -> str:
+    """The colour of a recorded verdict: ``good`` within the noise, else ``poor``."""
+    return "good" if verdict == "within noise" else "poor"
+
+
+def _verdict(ratio: float) -> str:
     if not math.isfinite(ratio):
-        return "poor"
-    return "good" if ratio <= good else "fair" if ratio <= poor else "poor"
+        return "diverged"
+    return "within noise" if ratio <= WITHIN else f"{ratio:.2g}× noise"
 
 
 @dataclass(frozen=True)
 class LogScore:
-    """One log's errors per joint: ``robust`` (1.4826 × median absolute), ``rms`` and the log's ``noise``
-    level, each ``{joint: (position, velocity)}``; ``mode``: how it was simulated, in words."""
+    """One log simulated one way at one set of values, per joint: ``robust`` (1.4826 × median absolute
+    error), ``rms``, the log's ``noise`` level, each ``{joint: (position, velocity)}``; ``reference``: what
+    the position error is held against (a perfect model's error, or the noise level), ``ratio`` and
+    ``verdicts`` as recorded (or by :data:`WITHIN`).
+
+    Attributes:
+        mode: ``segments`` or ``whole``; ``described``: how it was simulated, in words.
+        values: ``fitted``, or ``start`` (the model before the fit).
+        default: the mode the log's verdict is read from; ``reason``: why.
+    """
 
     file: str
     mode: str
+    described: str
+    values: str
+    default: bool
+    reason: str
     robust: dict[str, tuple[float, float]]
     rms: dict[str, tuple[float, float]]
     noise: dict[str, tuple[float, float]]
+    reference: dict[str, float]
+    reference_name: str
+    ratio: dict[str, float]
+    verdicts: dict[str, str]
 
-    def ratio(self, joint: str) -> float:
-        """The joint's robust position error over its position noise level."""
-        error, noise = self.robust[joint][0], self.noise[joint][0]
-        return error / noise if noise > 0 else (0.0 if error == 0 else math.inf)
+    @property
+    def worst(self) -> str:
+        """The joint with the largest ratio."""
+        return max(self.ratio, key=lambda j: self.ratio[j] if math.isfinite(self.ratio[j]) else math.inf)
 
-    def worst(self) -> float:
-        return max((self.ratio(j) for j in self.robust), default=math.nan)
+    @property
+    def verdict(self) -> str:
+        joint = self.worst
+        said = self.verdicts[joint]
+        return said if said == "within noise" else f"{said} ({joint})"
 
 
 @dataclass(frozen=True)
@@ -67,19 +91,7 @@ class Unknown:
     std: float | None
     interval: tuple[float, float] | None
     bounds: tuple[float, float]
-
-    @property
-    def at_bound(self) -> str | None:
-        """``"lower"`` or ``"upper"`` when the estimate ended on that bound."""
-        low, high = self.bounds
-        width = high - low
-        if not math.isfinite(width):
-            return None
-        if self.value - low <= AT_BOUND * width:
-            return "lower"
-        if high - self.value <= AT_BOUND * width:
-            return "upper"
-        return None
+    at_bound: str | None  # "lower" or "upper"
 
 
 @dataclass(frozen=True)
@@ -90,6 +102,8 @@ class RolloutRecord:
     unknowns: list[Unknown]
     flat: list[dict[str, Any]]
     model_limited: bool | None
+    misfit: float | None
+    uncertainty_reason: str
     fit: list[LogScore]
     held_out: list[LogScore]
     rollouts: Any
@@ -97,22 +111,60 @@ class RolloutRecord:
     identified_xml_problem: str | None
     polish: list[dict[str, Any]] = field(default_factory=list)
 
+    def verdicts(self) -> list[LogScore]:
+        """Per held-out log, the score its verdict is read from: the default mode at the fitted values."""
+        return [s for s in self.held_out if s.default and s.values == "fitted"]
 
-def _mode(scores: Mapping[str, Any], start: str) -> str:
-    if scores.get("mode"):
-        return str(scores["mode"])
-    count = scores.get("segments")
-    if count == 1:
+
+def _described(mode: str, segments: Any, horizon: Any, start: str) -> str:
+    if mode == "whole":
         return f"whole: one rollout from its first {start}"
-    return f"in {count} segments, each from its {start}"
+    span = f" of {horizon:g} s" if isinstance(horizon, (int, float)) else ""
+    return f"in {segments} segments{span}, each from its {start}"
 
 
-def _log_score(file: str, scores: Mapping[str, Any], start: str = "logged state") -> LogScore:
+def _score(file: str, s: Mapping[str, Any], start: str = "logged state") -> LogScore:
+    """A log's score: the held-out record of :mod:`idkit.sim.validation` (``robust_q`` …, ``ratio``,
+    ``verdicts``), or the older per-log record (``robust: {q, qd}`` …) graded by :data:`WITHIN`."""
+    if "robust_q" in s:
+        joints = list(s["robust_q"])
+
+        def pair(q: str, qd: str) -> dict[str, tuple[float, float]]:
+            return {j: (float(s[q][j]), float(s[qd][j])) for j in joints}
+
+        mode = str(s["mode"])
+        return LogScore(
+            file, mode, _described(mode, s.get("segments"), s.get("horizon"), "logged state"),
+            str(s.get("values", "fitted")), bool(s.get("default", True)), str(s.get("reason") or ""),
+            pair("robust_q", "robust_qd"), pair("rms_q", "rms_qd"), pair("noise_q", "noise_qd"),
+            {j: float(v) for j, v in (s.get("expected_q") or s["noise_q"]).items()},
+            "perfect model's error" if s.get("expected_q") else "noise level",
+            {j: float(v) for j, v in s["ratio"].items()}, dict(s["verdicts"]),
+        )  # fmt: skip
+
     def pairs(part: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
         return {j: (float(part["q"][j]), float(part["qd"][j])) for j in part["q"]}
 
+    robust, noise = pairs(s["robust"]), pairs(s["noise"])
+    ratio = {
+        j: robust[j][0] / noise[j][0] if noise[j][0] > 0 else (0.0 if robust[j][0] == 0 else math.inf)
+        for j in robust
+    }
+    mode = "whole" if s.get("segments") == 1 else "segments"
     return LogScore(
-        file, _mode(scores, start), pairs(scores["robust"]), pairs(scores["rms"]), pairs(scores["noise"])
+        file, mode, _described(mode, s.get("segments"), None, start), "fitted", True, "",
+        robust, pairs(s["rms"]), noise, {j: n[0] for j, n in noise.items()}, "noise level",
+        ratio, {j: _verdict(r) for j, r in ratio.items()},
+    )  # fmt: skip
+
+
+def _side(value: float, bounds: tuple[float, float]) -> str | None:
+    low, high = bounds
+    width = high - low
+    if not math.isfinite(width):
+        return None
+    return (
+        "lower" if value - low <= AT_BOUND * width else "upper" if high - value <= AT_BOUND * width else None
     )
 
 
@@ -125,33 +177,45 @@ def record(document: Mapping[str, Any]) -> RolloutRecord:
     uncertainty: Mapping[str, Any] = nested if isinstance(nested, Mapping) else details
     std = uncertainty.get("std") or uncertainty.get("sigma") or {}
     intervals = uncertainty.get("interval95") or uncertainty.get("ci95") or {}
+    named_at_bound = uncertainty.get("at_bound")
     described = payload.get("unknowns") or {}
     unknowns = []
     for name, value in estimate["params"].items():
         about = described.get(name) or {}
-        bounds = about.get("bounds") or [-math.inf, math.inf]
-        interval = intervals.get(name)
+        low, high = about.get("bounds") or [-math.inf, math.inf]
+        bounds, interval = (float(low), float(high)), intervals.get(name)
+        side = _side(float(value), bounds)
+        if named_at_bound is not None:  # the fit's own list is the rule; the side is the nearer bound
+            side = (
+                (side or ("lower" if value - low <= high - value else "upper"))
+                if name in named_at_bound
+                else None
+            )
         unknowns.append(
             Unknown(
-                name,
-                str(about.get("kind", "")),
-                float(about.get("start", math.nan)),
-                float(value),
+                name, str(about.get("kind", "")), float(about.get("start", math.nan)), float(value),
                 None if std.get(name) is None else float(std[name]),
-                None if interval is None else (float(interval[0]), float(interval[1])),
-                (float(bounds[0]), float(bounds[1])),
+                None if interval is None else (float(interval[0]), float(interval[1])), bounds, side,
             )
-        )
+        )  # fmt: skip
     polish = list(details.get("polish") or [])
     fitted = bool(polish and polish[-1].get("initial_states_free"))
     fit_start = "initial state the fit estimated" if fitted else "logged state (a glitched one replaced)"
+    held_out = [
+        _score(file, s)
+        for file, scores in (payload.get("validation") or {}).items()
+        for s in (scores if isinstance(scores, list) else [scores])
+    ]
+    misfit = uncertainty.get("misfit")
     return RolloutRecord(
         str(estimate.get("estimator")),
         unknowns,
         list(uncertainty.get("flat") or uncertainty.get("flat_directions") or []),
         uncertainty.get("model_limited"),
-        [_log_score(f, s, fit_start) for f, s in (payload.get("fit") or {}).items()],
-        [_log_score(f, s) for f, s in (payload.get("validation") or {}).items()],
+        None if misfit is None else float(misfit),
+        str(uncertainty.get("uncertainty_reason") or uncertainty.get("reason") or ""),
+        [_score(f, s, fit_start) for f, s in (payload.get("fit") or {}).items()],
+        held_out,
         details.get("rollouts"),
         estimate.get("wall_time_s"),
         payload.get("identified_xml_problem"),
@@ -164,53 +228,73 @@ def flat_text(direction: Mapping[str, Any]) -> str:
     return " + ".join(f"{w:g}·{n}" for n, w in direction["direction"].items())
 
 
-def _scores_table(score: LogScore) -> str:
+def _scores_table(score: LogScore, start: LogScore | None = None) -> str:
+    """Per joint: the position error against its reference, the verdict, the start values' error beside
+    (the model before the fit, where recorded), the RMS, the velocity error and noise."""
     rows = []
     for joint, (q, qd) in score.robust.items():
-        ratio = score.ratio(joint)
-        nq, nqd = score.noise[joint]
-        rows.append(
-            [
-                joint,
-                h.num(q, digits=3),
-                h.num(nq, digits=3),
-                h.num(ratio, grade(ratio), digits=3, shown=f"{ratio:.3g}×"),
-                h.num(score.rms[joint][0], digits=3),
-                h.num(qd, digits=3),
-                h.num(nqd, digits=3),
-            ]
-        )
-    header = ["joint", "q error", "q noise", "error / noise", "q RMS", "qd error", "qd noise"]
-    return h.table(header, rows, "log-scores")
+        verdict = score.verdicts[joint]
+        ratio = score.ratio[joint]
+        row = [
+            joint,
+            h.num(q, digits=3),
+            h.num(score.reference[joint], digits=3),
+            h.num(ratio, grade(verdict), digits=3, shown=f"{ratio:.3g}×"),
+            h.Cell(h.escape(verdict), None, grade(verdict)),
+        ]
+        if start is not None:
+            row.append(h.num(start.robust[joint][0], digits=3))
+        row += [
+            h.num(score.rms[joint][0], digits=3),
+            h.num(qd, digits=3),
+            h.num(score.noise[joint][1], digits=3),
+        ]
+        rows.append(row)
+    header = ["joint", "q error", score.reference_name, "ratio", "verdict"]
+    header += ["q error, start values"] if start is not None else []
+    return h.table(header + ["q RMS", "qd error", "qd noise"], rows, "log-scores")
 
 
 def _held_out(found: RolloutRecord) -> str:
-    good, poor = NOISE_BANDS
     rule = h.paragraph(
         "Per joint: the position error (1.4826 × the median absolute error, rad or m; a few glitched "
-        "samples do not move it) over the log's own noise level (from its 4th differences): at most "
-        f"{good:g}× is good (the model follows the log as well as it is measured), above {poor:g}× poor. "
-        "RMS: every sample counted. Velocities (rad/s or m/s) beside.",
+        "samples do not move it) against what it is held to — a perfect model's error on this log (its "
+        "noise, and in segments the start state's noise carried forward), or the log's noise level — "
+        "within noise up to twice that. RMS: every sample counted. Velocities (rad/s or m/s) beside.",
         "rule",
     )
     if not found.held_out:
         return h.paragraph(
             "No held-out log (validate=): the model was not scored on a motion it did not see."
-        ) + "".join(_log_part(s) for s in found.fit)
-    return rule + "".join(_log_part(s) for s in found.held_out)
+        ) + "".join(_log_part(s, []) for s in found.fit)
+    return rule + "".join(_log_part(score, found.held_out) for score in found.verdicts())
 
 
-def _log_part(score: LogScore) -> str:
-    worst = score.worst()
-    badge = h.badge(grade(worst), f"worst joint {worst:.3g}× the noise")
-    return (
-        f"<h3>{h.escape(score.file)} {badge}</h3>"
-        + h.paragraph(f"Simulated {score.mode}.", "rule")
-        + _scores_table(score)
-    )
+def _log_part(score: LogScore, every: list[LogScore]) -> str:
+    """A log's verdict (its default mode at the fitted values), then its other modes."""
+    same = [s for s in every if s.file == score.file]
+    start = next((s for s in same if s.mode == score.mode and s.values == "start"), None)
+    badge = h.badge(grade(score.verdict), score.verdict)
+    parts = [
+        f"<h3>{h.escape(score.file)} {badge}</h3>",
+        h.paragraph(
+            f"Simulated {score.described}" + (f" — the default: {score.reason}" if score.reason else "."),
+            "rule",
+        ),
+        _scores_table(score, start),
+    ]
+    for other in (s for s in same if s.mode != score.mode and s.values == "fitted"):
+        other_start = next((s for s in same if s.mode == other.mode and s.values == "start"), None)
+        parts += [
+            h.paragraph(f"Also simulated {other.described}: {other.verdict}.", "rule"),
+            _scores_table(other, other_start),
+        ]
+    return "".join(parts)
 
 
 def _model_limited(found: RolloutRecord) -> str:
+    measured = "" if found.misfit is None else f" Residual {found.misfit:.3g}× the noise level."
+    reason = f" {found.uncertainty_reason}" if found.uncertainty_reason else ""
     if found.model_limited is None:
         return h.paragraph(
             "Not assessed by this run: compare the fit log's error with its noise below (an error far "
@@ -219,10 +303,13 @@ def _model_limited(found: RolloutRecord) -> str:
         )
     if found.model_limited:
         return h.badge("poor", "model-limited") + h.paragraph(
-            "The fit's residual is well above the noise: the model, not the noise, limits the fit; the "
-            "intervals were widened for it."
+            "The model, not the noise, limits the fit: its residual is far above the noise or structured."
+            + measured
+            + reason
         )
-    return h.badge("good", "noise-limited") + h.paragraph("The fit's residual is at the noise level.")
+    return h.badge("good", "noise-limited") + h.paragraph(
+        "The fit's residual is at the noise level." + measured + reason
+    )
 
 
 def _bounds(found: RolloutRecord) -> str:
@@ -277,16 +364,16 @@ def _traces(document: Mapping[str, Any], found: RolloutRecord, folder: Path) -> 
     if not any(key == "fit_plot" or key.startswith("validation_plot") for key in plots):
         return h.paragraph("Plots were not written for this run (plots=false).")
     parts = []
-    for k, score in enumerate(found.held_out, start=1):
+    for k, score in enumerate(found.verdicts(), start=1):
         if f"validation_plot_{k}" in plots:
             name = Path(plots[f"validation_plot_{k}"]).name
             parts.append(
                 f"<h3>held out: {h.escape(score.file)}</h3>"
-                + h.paragraph(f"Simulated {score.mode}.", "rule")
+                + h.paragraph(f"Simulated {score.described}.", "rule")
                 + h.png_file(folder / name, f"held-out {score.file}")
             )
     if "fit_plot" in plots:
-        mode = found.fit[0].mode if found.fit else ""
+        mode = found.fit[0].described if found.fit else ""
         parts.append(
             "<h3>fit log</h3>"
             + h.paragraph(f"Simulated {mode}.", "rule")
@@ -330,7 +417,7 @@ def render(document: Mapping[str, Any], folder: str | Path) -> str:
         _flat(found),
     ]
     if found.held_out and found.fit:
-        verdicts += ["<h3>The fit log, against its noise</h3>", *(_log_part(s) for s in found.fit)]
+        verdicts += ["<h3>The fit log, against its noise</h3>", *(_log_part(s, []) for s in found.fit)]
     if found.identified_xml_problem:
         verdicts.append(h.paragraph(f"identified.xml not written: {found.identified_xml_problem}", "poor"))
     return h.page(
