@@ -40,3 +40,15 @@ def test_copy_example_refuses_to_overwrite_other_content(tmp_path):
     assert (tmp_path / "train.csv").read_text() == "mine"
     with pytest.raises(ValueError, match="servo_arm"):
         copy_example("nothing")
+
+
+def test_the_command_copies_or_says_how_to_call_it(tmp_path):
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-m", "idkit.examples", "servo_arm", str(tmp_path)], capture_output=True, text=True
+    )
+    assert done.returncode == 0 and (tmp_path / "servo_arm.xml").is_file()
+    wrong = subprocess.run([sys.executable, "-m", "idkit.examples", "arm"], capture_output=True, text=True)
+    assert wrong.returncode == 2 and "usage: python -m idkit.examples {servo_arm} [FOLDER]" in wrong.stderr
