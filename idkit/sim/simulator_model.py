@@ -88,16 +88,16 @@ class SimulatorModel:
         mjcf: the ``identified.xml`` text (``None``: MuJoCo refused it, ``mjcf_problem`` says why).
     """
 
-    sim: SimModel
-    unknowns: Unknowns
+    sim: SimModel = field(repr=False)
+    unknowns: Unknowns = field(repr=False)
     values: Mapping[str, float]
     std: Mapping[str, float]
     interval95: Mapping[str, tuple[float, float]]
     joints: tuple[str, ...]
     flat: Sequence[Mapping[str, Any]] = ()
     model_limited: bool | None = None
-    held_out: Sequence[Any] = ()
-    mjcf: str | None = None
+    held_out: Sequence[Any] = field(default=(), repr=False)
+    mjcf: str | None = field(default=None, repr=False)
     mjcf_problem: str | None = None
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
