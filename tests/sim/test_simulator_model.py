@@ -136,3 +136,14 @@ def test_identify_simulator_returns_the_runs_model(tmp_path):
     assert model.to_mujoco().nu == 3
     assert isinstance(model, idkit.SimulatorModel)  # the package's lazy name is this class
     assert (tmp_path / "run" / "identified.xml").read_text() == model.mjcf
+
+
+def test_identify_simulator_refuses_a_folder_it_cannot_write_before_the_fit(tmp_path):
+    import idkit
+    from idkit.reports.files import FolderError
+
+    (tmp_path / "taken").write_text("a file, not a folder")
+    with pytest.raises(FolderError, match="out_dir: .*taken is a file"):
+        idkit.identify_simulator(
+            str(EXAMPLE / "servo_arm.xml"), str(EXAMPLE / "train.csv"), out_dir=tmp_path / "taken"
+        )
