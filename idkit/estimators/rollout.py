@@ -59,7 +59,7 @@ EXACT = 0.1
 TRIM = 0.1
 
 
-class RolloutEstimator(Estimator):
+class RolloutEstimator(Estimator[RolloutProblem]):
     """Identify simulator parameters by rolling a MuJoCo model out under the logged commands.
 
     Args:
@@ -76,8 +76,9 @@ class RolloutEstimator(Estimator):
         threads: rollout threads (``None``: the problem's).
     """
 
-    #: The command line's task that runs it (``idkit +experiment=rollout``); other tasks refuse it.
-    task: ClassVar[str] = "rollout"
+    #: The kind of problem it fits: the command line runs it in the task that builds one
+    #: (``idkit +experiment=rollout``) and refuses it in the others.
+    problem_type: ClassVar[type[RolloutProblem]] = RolloutProblem
     conformance_problem: ClassVar[str] = CONFORMANCE_PROBLEM
     conformance_options: ClassVar[dict[str, Any]] = {"particles": 4, "iterations": 3, "polish_iterations": 5}
 
@@ -118,12 +119,12 @@ class RolloutEstimator(Estimator):
         if self.threads is not None and self.threads < 1:
             raise ValueError(f"rollout: threads must be >= 1 or null, got {self.threads}")
 
-    def fit(self, problem: Any) -> Estimate:
+    def fit(self, problem: RolloutProblem) -> Estimate:
         with torch_threads(1):  # the swarm's and the costs' tensors are small (idkit.runtime)
             return self._fit(problem)
 
-    def _fit(self, problem: Any) -> Estimate:
-        if not isinstance(problem, RolloutProblem):
+    def _fit(self, problem: RolloutProblem) -> Estimate:
+        if not isinstance(problem, RolloutProblem):  # a caller without a type checker
             raise ValueError(
                 "estimator rollout identifies a simulator from logged commands and joint states, not from "
                 "torques: run it as `idkit +experiment=rollout rollout.model=<MJCF or URDF> data=<log>` "

@@ -6,10 +6,10 @@ segments predict, each row divided by its channel's *scale* — the measurement 
 log itself (:func:`noise_scale`), floored at a millionth of the channel's spread — so that every
 registered cost compares dimensionless numbers, and ``huber``'s ``delta=1.5`` means 1.5 noise levels.
 
-:class:`RolloutProblem` quacks like :class:`idkit.problem.Problem` where estimators and the
-conformance suite look (``robot.param_names``, ``samples``, ``cost``, ``seed``, ``evaluate``,
-``check_identifiable``); its ``robot`` is a :class:`SimRobot` (the model and the unknowns) and its
-``samples`` a :class:`~idkit.data.commands.RobotLog`.
+:class:`RolloutProblem` is the rollout kind of :class:`idkit.problem.IdentificationProblem` (the torque
+:class:`~idkit.problem.Problem` is the other): its ``robot`` is a :class:`SimRobot` (the model and the
+unknowns) and its ``samples`` a :class:`~idkit.data.commands.RobotLog`. An estimator that fits it
+declares ``problem_type = RolloutProblem``.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from idkit.data.commands import RobotLog
-from idkit.problem import IdentificationError, resolve_dtype
+from idkit.problem import IdentificationError, IdentificationProblem, resolve_dtype
 from idkit.seeds import check_seed
 from idkit.sim.model import SimModel
 from idkit.sim.quantities import Unknowns
@@ -29,6 +29,7 @@ from idkit.sim.segments import split
 from idkit.sim.simulate import BatchSimulator
 
 if TYPE_CHECKING:
+    import torch
     from torch import Tensor
 
     from idkit.interfaces import Cost
@@ -107,7 +108,7 @@ class SimRobot:
 
 
 @dataclass(frozen=True)
-class RolloutProblem:
+class RolloutProblem(IdentificationProblem):
     """Everything a rollout estimator needs (module docstring).
 
     Attributes:
@@ -214,7 +215,7 @@ class RolloutProblem:
         measured = torch.from_numpy(self.measured(simulator))
         return self.cost(error, measured).reshape(params.shape[:-1])
 
-    def generator(self) -> Any:
+    def generator(self) -> torch.Generator:
         """A fresh torch generator whose whole state comes from ``seed``."""
         from idkit.seeds import torch_generator
 
