@@ -2,7 +2,7 @@
 
 Run: ``python bench/rollout.py [--cases a b c] [--starts 20] [--threads 2] [--sysid mujoco scipy robust]
 [--labels physical|shifted|both]``
-(needs the ``bench`` extra: ``mujoco[sysid]``). The cases are :mod:`idkit.sim.cases`:
+(needs the ``bench`` extra: ``mujoco[sysid]``). The cases are :mod:`idkit.testing.rollout_cases`:
 
 * ``a``: ``mujoco.sysid``'s own integration-test arm (5 torque motors), its 5 armatures;
 * ``b``: a 7-joint arm under position and velocity servos, per joint armature, damping, friction loss,
@@ -51,7 +51,7 @@ import mujoco
 import numpy as np
 
 from idkit.estimators.rollout import RolloutEstimator
-from idkit.sim import cases
+from idkit.testing import rollout_cases as cases
 from idkit.sim.model import load_model
 from idkit.sim.quantities import select_unknowns
 
@@ -243,7 +243,7 @@ def truth_f_scale(case: cases.Case) -> float:
     measured = np.hstack([case.fit.q, case.fit.qd])
     exact = np.hstack([clean.fit.q, clean.fit.qd])
     if case.name == "c":
-        from idkit.sim.cases import delayed
+        from idkit.testing.rollout_cases import delayed
 
         q, qd = delayed(clean.fit.t, clean.fit.q, clean.fit.qd, case.truth["delay"])
         exact = np.hstack([q, qd])

@@ -43,7 +43,7 @@ from idkit.sim.shooting import Shooting
 from idkit.sim.uncertainty import uncertainty
 
 #: Where the registry's conformance suite finds a small rollout problem for this estimator.
-CONFORMANCE_PROBLEM = "idkit.sim.cases:conformance_problem"
+CONFORMANCE_PROBLEM = "idkit.testing.rollout_cases:conformance_problem"
 #: A robust scale re-estimated within ``exp(±SETTLED)`` of the last is settled (Huber's estimate hardly
 #: moves with its scale; a re-solve costs Jacobians).
 SETTLED = 0.3

@@ -7,7 +7,7 @@ import pytest
 from bag_cases import Stream, write_ros1, write_ros2
 
 from idkit.data.commands import RobotLog, read_robot_log, save_robot_log
-from idkit.sim import cases
+from idkit.testing import rollout_cases as cases
 from idkit.sim.drive import match_commands
 from idkit.sim.model import load_model
 

@@ -13,8 +13,8 @@ from idkit import registry
 from idkit.data.commands import RobotLog
 from idkit.estimators.rollout import RolloutEstimator
 from idkit.problem import Problem
-from idkit.sim import cases
-from idkit.sim.cases import Case, corrupt, simulate
+from idkit.testing import rollout_cases as cases
+from idkit.testing.rollout_cases import Case, corrupt, simulate
 from idkit.sim.model import load_model
 from idkit.sim.problem import RolloutProblem, SimRobot
 from idkit.sim.quantities import select_unknowns

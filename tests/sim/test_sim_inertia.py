@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from idkit.robots.inertia import centroidal
-from idkit.sim import cases
+from idkit.testing import rollout_cases as cases
 from idkit.sim.export import identified_xml
 from idkit.sim.inertia import coordinates, from_mujoco, mujoco_inertial, standard
 from idkit.sim.model import load_model

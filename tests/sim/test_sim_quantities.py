@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from idkit.sim import cases
+from idkit.testing import rollout_cases as cases
 from idkit.sim.model import load_model
 from idkit.sim.quantities import select_unknowns, servo_kind
 

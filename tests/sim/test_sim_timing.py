@@ -13,7 +13,7 @@ import pytest
 from mujoco import rollout
 
 from idkit.data.commands import RobotLog
-from idkit.sim import cases
+from idkit.testing import rollout_cases as cases
 from idkit.sim.export import identified_xml, start_state
 from idkit.sim.model import load_model
 from idkit.sim.problem import RolloutProblem, SimRobot

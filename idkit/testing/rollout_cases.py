@@ -1,4 +1,5 @@
-"""Simulated robots and logs for rollout identification: the bench's cases, the tests', the docs'.
+"""Simulated robots and logs for rollout identification: the bench's cases, the tests', the docs' —
+fixtures, so they live beside the other test helpers of :mod:`idkit.testing`, not in the simulator.
 
 * ``a``: the 5-DOF arm of ``mujoco.sysid``'s integration test (torque motors), its five armatures,
   2 s of sinusoidal torques logged at 500 Hz;
