@@ -51,9 +51,9 @@ import mujoco
 import numpy as np
 
 from idkit.estimators.rollout import RolloutEstimator
-from idkit.testing import rollout_cases as cases
 from idkit.sim.model import load_model
 from idkit.sim.quantities import select_unknowns
+from idkit.testing import rollout_cases as cases
 
 SUCCESS = 0.05
 COLUMNS = ("median err", "max err", "held-out", "wall med", "wall sum", "logs sim")
@@ -115,7 +115,7 @@ def run_idkit(case: cases.Case, start: dict[str, float], threads: int) -> Run:
     wall = time.perf_counter() - began
     duration = case.fit.t[-1] - case.fit.t[0]
     return Run(
-        np.array(list(estimate.params.values())), wall, estimate.details["simulated_seconds"] / duration
+        np.array(list(estimate.params.values())), wall, estimate.details.simulated_seconds / duration
     )
 
 

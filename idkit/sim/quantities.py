@@ -145,6 +145,10 @@ def write_quantity(spec: Any, sim: SimModel, kind: str, target: int, value: floa
     actuator.gainprm, actuator.biasprm = gain, bias
 
 
+#: An estimate within this fraction of its box (in coordinates) from a bound is on it.
+AT_BOUND = 1e-6
+
+
 @dataclass(frozen=True)
 class Unknown:
     """One fitted number: a quantity (or a kind shared by several elements) with its start and bounds.
@@ -213,6 +217,15 @@ class Unknowns:
 
     def coordinate_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         return self.to_coordinates(self.vector("lower")), self.to_coordinates(self.vector("upper"))
+
+    def at_bound(self, values: np.ndarray, tolerance: float = AT_BOUND) -> list[str]:
+        """The names of the unknowns whose ``values[P]`` lie on a bound: within ``tolerance`` of the
+        box's width in the optimisers' coordinates (where a bounded solver stops)."""
+        z = self.to_coordinates(values)
+        lower, upper = self.coordinate_bounds()
+        near = tolerance * (upper - lower)
+        on = (z <= lower + near) | (z >= upper - near)
+        return [name for name, hit in zip(self.names, on, strict=True) if hit]
 
     def joints(self, sim: SimModel) -> list[int | None]:
         """The model joint each unknown belongs to (its own, or the one its actuator drives); ``None``

@@ -14,7 +14,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +23,9 @@ from idkit.optim.robust import mad_scale
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
+
+if TYPE_CHECKING:
+    from idkit.sim.details import RolloutDetails
 
 #: What ``rollout.params`` fits when not told: the joints' passive terms.
 DEFAULT_PARAMS = ("armature", "damping", "frictionloss")
@@ -82,7 +85,7 @@ class RolloutResult:
     """A rollout identification and what it reproduces.
 
     Attributes:
-        estimate: the estimator's result (values, uncertainty and flat directions in ``details``).
+        estimate: the estimator's result (values; uncertainty and flat directions in ``details``).
         unknowns: per unknown its kind, start and bounds.
         provenance: the envelope (task, seed, data, plugins, config, run id).
         mjcf: the ``identified.xml`` text (``None`` if MuJoCo refused it: ``mjcf_problem`` says why).
@@ -101,6 +104,14 @@ class RolloutResult:
     @property
     def seed(self) -> int:
         return self.provenance.seed
+
+    @property
+    def details(self) -> RolloutDetails | None:
+        """The estimator's typed record (``None``: an estimator of another make kept a plain dict)."""
+        from idkit.sim.details import RolloutDetails
+
+        details = self.estimate.details
+        return details if isinstance(details, RolloutDetails) else None
 
     def payload(self) -> dict[str, Any]:
         """The task's part of ``result.json``."""
@@ -261,8 +272,11 @@ def run(
     fitter = build("estimator", estimator)
     estimate = fitter.fit(problem)
     values = np.array([estimate.params[name] for name in unknowns.names])
-    fitted = estimate.details.get("initial_states")
-    initial = None if fitted is None else (np.asarray(fitted["q"]), np.asarray(fitted["qd"]))
+    from idkit.sim.details import RolloutDetails
+
+    details = estimate.details
+    fitted = details.initial_states if isinstance(details, RolloutDetails) else None
+    initial = None if fitted is None else (fitted.q, fitted.qd)
     fit = replay(problem, values, log.source, initial)
     held_out = []
     for path in (

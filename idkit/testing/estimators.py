@@ -15,7 +15,7 @@ import functools
 import inspect
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 from typing import Any, Protocol
 
@@ -145,8 +145,11 @@ def check_estimator_estimate(estimator: Estimator, problem_factory: ProblemFacto
         _finite_floats(est.base_params, "Estimate.base_params", robot.base_param_names)
     if not (isinstance(est.wall_time_s, float) and math.isfinite(est.wall_time_s) and est.wall_time_s >= 0):
         fail(f"Estimate.wall_time_s must be a finite float >= 0, got {est.wall_time_s!r}")
-    if not isinstance(est.details, dict):
-        fail(f"Estimate.details must be a dict, got {type(est.details).__name__}")
+    if not isinstance(est.details, Mapping):
+        fail(
+            "Estimate.details must be a dict (or a record that reads as a mapping), got "
+            f"{type(est.details).__name__}"
+        )
 
 
 @conformance_check

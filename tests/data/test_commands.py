@@ -7,9 +7,9 @@ import pytest
 from bag_cases import Stream, write_ros1, write_ros2
 
 from idkit.data.commands import RobotLog, read_robot_log, save_robot_log
-from idkit.testing import rollout_cases as cases
 from idkit.sim.drive import match_commands
 from idkit.sim.model import load_model
+from idkit.testing import rollout_cases as cases
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from idkit.testing import rollout_cases as cases
 from idkit.sim.model import load_model
 from idkit.sim.quantities import select_unknowns, servo_kind
+from idkit.testing import rollout_cases as cases
 
 SERVO = """<mujoco><worldbody><body><joint name="a" axis="0 1 0" damping="0.5"/><geom size="0.1" mass="1"/>
 <body pos="0 0 -0.3"><joint name="b" axis="0 1 0"/><geom size="0.1" mass="1"/></body></body></worldbody>

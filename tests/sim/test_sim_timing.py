@@ -13,13 +13,13 @@ import pytest
 from mujoco import rollout
 
 from idkit.data.commands import RobotLog
-from idkit.testing import rollout_cases as cases
 from idkit.sim.export import identified_xml, start_state
 from idkit.sim.model import load_model
 from idkit.sim.problem import RolloutProblem, SimRobot
 from idkit.sim.quantities import select_unknowns
 from idkit.sim.segments import split
 from idkit.sim.timing import held_averages, readout
+from idkit.testing import rollout_cases as cases
 
 
 @pytest.fixture(scope="module")

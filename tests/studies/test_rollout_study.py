@@ -15,10 +15,10 @@ from mujoco import rollout
 from idkit.data.commands import save_robot_log
 from idkit.estimators.rollout import RolloutEstimator
 from idkit.reports import rollout as report
-from idkit.testing import rollout_cases as cases
 from idkit.sim.export import identified_xml, start_state
 from idkit.sim.model import load_model
 from idkit.studies.rollout import run
+from idkit.testing import rollout_cases as cases
 
 PARAMS = ["armature", "damping"]
 
