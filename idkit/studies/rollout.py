@@ -2,7 +2,8 @@
 
 ``run``'s signature is the command line's config (``idkit +experiment=rollout rollout.model=arm.xml
 data=run.csv 'rollout.params=[armature,damping,frictionloss,kp,kv,delay]'``). It reads the model
-(:mod:`idkit.sim.model`) and the logs of commands and joint states (:mod:`idkit.data.commands`),
+(:mod:`idkit.sim.model`) and the logs of commands and joint states (read, checked and joined by
+:mod:`idkit.data.commands`, as torque logs are by :mod:`idkit.data.pipeline`),
 chooses the unknowns (:mod:`idkit.sim.quantities`), hands the estimator a
 :class:`~idkit.sim.problem.RolloutProblem`, and replays the fitted model on every log: the fit log in
 its segments from the fitted initial states, each ``validate=`` log whole from its first logged state —
@@ -125,43 +126,6 @@ class RolloutResult:
         }
 
 
-def read_logs(
-    data: Any, joints: Sequence[str] | None, state_topic: str | None, command_topic: str | None
-) -> Any:
-    """One log of the ``data`` file(s), read by :func:`idkit.data.commands.read_robot_log`; several are
-    joined one after another with a gap between them (the segments restart after a gap)."""
-    from idkit.data.commands import RobotLog, read_robot_log
-
-    paths = list(data) if isinstance(data, (list, tuple)) else [data]
-    if not paths:
-        raise ValueError("data: no log given")
-    logs = [read_robot_log(p, joints, state_topic, command_topic) for p in paths]
-    if len(logs) == 1:
-        return logs[0]
-    first = logs[0]
-    for path, log in zip(paths[1:], logs[1:], strict=True):
-        if log.joint_names != first.joint_names or log.command_names != first.command_names:
-            raise ValueError(
-                f"data: {path} has other joints or commands than {paths[0]}; join logs of one robot"
-            )
-    t, q, qd, ct, c = [], [], [], [], []
-    offset = 0.0
-    for log in logs:
-        step = float(np.median(np.diff(log.t)))
-        shift = offset - min(log.t[0], log.command_t[0])
-        t.append(log.t + shift)
-        q.append(log.q)
-        qd.append(log.qd)
-        ct.append(log.command_t + shift)
-        c.append(log.commands)
-        offset = max(log.t[-1], log.command_t[-1]) + shift + 100 * step
-    joined = ", ".join(str(p) for p in paths)
-    return RobotLog(
-        np.concatenate(t), np.vstack(q), np.vstack(qd), np.concatenate(ct), np.vstack(c),
-        first.joint_names, first.command_names, joined,
-    )  # fmt: skip
-
-
 def _joints(sim: Any, log: Any, joints: Sequence[str] | None) -> tuple[str, ...]:
     """The joints fitted: ``joints``, else every hinge or slide joint of the model the log holds."""
     if joints is not None:
@@ -239,17 +203,19 @@ def run(
         seed: seeds the search.
         device, dtype: where a registered cost is evaluated.
     """
+    from idkit.data.commands import read_robot_logs
+    from idkit.data.files import as_paths, refuse_repeated_files, refuse_training_files
     from idkit.sim.export import identified_xml
     from idkit.sim.model import load_model
     from idkit.sim.problem import RolloutProblem, SimRobot
     from idkit.sim.quantities import select_unknowns
 
     sim = load_model(model)
-    log = read_logs(data, None, state_topic, command_topic)
+    log = read_robot_logs(data, None, state_topic, command_topic)
     scope = _joints(sim, log, joints)
     log_joints = tuple(j for j in log.joint_names if j in {*sim.joint_names()})
     if log_joints != log.joint_names:
-        log = read_logs(data, log_joints, state_topic, command_topic)
+        log = read_robot_logs(data, log_joints, state_topic, command_topic)
     unlogged = [j for j in sim.joint_names() if j not in log_joints]
     if unlogged:
         warnings.warn(
@@ -279,11 +245,11 @@ def run(
     initial = None if fitted is None else (fitted.q, fitted.qd)
     fit = replay(problem, values, log.source, initial)
     held_out = []
-    for path in (
-        list(validate) if isinstance(validate, (list, tuple)) else ([] if validate is None else [validate])
-    ):
+    refuse_repeated_files(validate, "validate")
+    refuse_training_files(data, validate)
+    for path in as_paths(validate):
         other = RolloutProblem(
-            robot, read_logs(path, log.joint_names, state_topic, command_topic), threads=threads
+            robot, read_robot_logs(path, log.joint_names, state_topic, command_topic), threads=threads
         )
         held_out.append(replay(other, values, str(path), whole=True))
     try:
@@ -296,7 +262,7 @@ def run(
         seed=seed,
         data={
             "model": sim.label,
-            "files": [str(p) for p in (data if isinstance(data, (list, tuple)) else [data])],
+            "files": [str(p) for p in as_paths(data)],
         },
         plugins={"estimator": describe("estimator", estimator), "cost": describe("cost", cost)},
     )
