@@ -41,6 +41,7 @@ from idkit.optim.robust import LOSSES, TUNING, Loss, channel_log_scales, mad_sca
 from idkit.runtime import torch_threads
 from idkit.sim.details import PolishSolve, RolloutDetails, SearchSummary, States
 from idkit.sim.initial import robust_states
+from idkit.sim.log_check import warn_unsupported
 from idkit.sim.problem import RolloutProblem
 from idkit.sim.shooting import Shooting
 from idkit.sim.uncertainty import uncertainty
@@ -168,7 +169,9 @@ class RolloutEstimator(Estimator[RolloutProblem]):
             bodies=unknowns.bodies(problem.robot.sim, values),
             rollouts=rollouts,
             simulated_seconds=steps * problem.robot.sim.timestep,
+            outliers=problem.outliers(),
         )
+        warn_unsupported(unknowns, values, details.uncertainty.std)
         return Estimate(
             "rollout",
             dict(zip(unknowns.names, (float(v) for v in values), strict=True)),

@@ -47,6 +47,12 @@ def text(result: RolloutResult) -> str:
         lines.append(f"  {combination} (std {direction['sigma']:.3g} in log coordinates)")
     rollouts = "?" if details is None else details.rollouts
     lines.append(f"wall time {est.wall_time_s:.2f} s · {rollouts} rollouts")
+    if details is not None and any(details.outliers.values()):
+        found = details.outliers
+        lines.append(
+            f"left out as the driver's: {found.get('stalled', 0)} stalled rows in {found.get('stalls', 0)} "
+            f"stretches, {found.get('dropped', 0)} samples missing in gaps"
+        )
     for label, replayed in [
         ("fit log, in segments", result.fit),
         *(("held out, whole", r) for r in result.validation),

@@ -20,9 +20,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from idkit.data.artefacts import Artefacts, find_artefacts
 from idkit.data.commands import RobotLog
 from idkit.problem import IdentificationError, IdentificationProblem, resolve_dtype
 from idkit.seeds import check_seed
+from idkit.sim.log_check import check_delay_bound, check_log
 from idkit.sim.model import SimModel
 from idkit.sim.quantities import Unknowns
 from idkit.sim.segments import split
@@ -141,6 +143,9 @@ class RolloutProblem(IdentificationProblem):
                 f"{', '.join(self.robot.joint_names)}"
             )
         split(self.samples.t, self.segment)  # refuse a bad segment length here, not in a fit
+        log = self.samples
+        check_log(self.robot.sim, log.t, log.q, log.qd, log.joint_names, log.source)
+        check_delay_bound(self.robot.unknowns, log.t, log.source)
 
     @property
     def n_identifiable(self) -> int:
@@ -148,7 +153,8 @@ class RolloutProblem(IdentificationProblem):
 
     def check_identifiable(self) -> None:
         """``IdentificationError`` when the predicted samples give fewer equations than unknowns."""
-        equations = 2 * self.samples.n_joints * (self.samples.n_samples - len(self.segments()))
+        predicted = sum(stop - start - 1 for start, stop in self.segments())
+        equations = 2 * self.samples.n_joints * predicted
         if equations < self.n_identifiable:
             raise IdentificationError(
                 f"{self.samples.source}: {equations} equations (2 × {self.samples.n_joints} joints × "
@@ -157,7 +163,20 @@ class RolloutProblem(IdentificationProblem):
             )
 
     def segments(self) -> list[tuple[int, int]]:
-        return split(self.samples.t, self.segment)
+        """The log's segments, around its gaps and stalled rows (:meth:`artefacts`)."""
+        return split(self.samples.t, self.segment, self.artefacts().stalled)
+
+    def artefacts(self) -> Artefacts:
+        """The driver's artefacts in the log (:mod:`idkit.data.artefacts`): stalled rows are left out of
+        every segment, so of the error."""
+        if "artefacts" not in self._cache:
+            log = self.samples
+            self._cache["artefacts"] = find_artefacts(log.t, log.q, log.qd, log.command_t, log.commands)
+        return self._cache["artefacts"]
+
+    def outliers(self) -> dict[str, int]:
+        """How many log samples the fit treats as a driver's artefacts, not data (by kind)."""
+        return self.artefacts().counts()
 
     def scales(self) -> np.ndarray:
         """``[2n]`` channel scales (module docstring)."""

@@ -139,6 +139,27 @@ def _joints(sim: Any, log: Any, joints: Sequence[str] | None) -> tuple[str, ...]
     return found
 
 
+def _note_artefacts(problem: Any) -> None:
+    """Say in one ``note:`` line what the fit leaves out of the log as a driver's artefacts."""
+    from idkit.notes import Note
+
+    counts = problem.outliers()
+    parts = []
+    if counts["stalled"]:
+        parts.append(
+            f"{counts['stalled']} stalled rows ({counts['stalls']} stretches repeating the last row)"
+        )
+    if counts["dropped"]:
+        parts.append(f"{counts['dropped']} samples missing in gaps")
+    if parts:
+        warnings.warn(
+            f"{problem.samples.source}: {' and '.join(parts)} left out of the fit as the driver's, not "
+            "the robot's",
+            Note,
+            stacklevel=3,
+        )
+
+
 def replay(problem: Any, values: np.ndarray, file: str, initial: Any = None, whole: bool = False) -> Replay:
     """The fitted model's prediction of ``problem``'s log: in its segments from ``initial`` (default
     the logged states) or, ``whole``, in one rollout per stretch between gaps."""
@@ -146,7 +167,7 @@ def replay(problem: Any, values: np.ndarray, file: str, initial: Any = None, who
     from idkit.sim.segments import split
 
     log = problem.samples
-    segments = split(log.t, None) if whole else problem.segments()
+    segments = split(log.t, None, problem.artefacts().stalled) if whole else problem.segments()
     simulator = problem.simulator(segments, initial=initial)
     try:
         q, qd = simulator.predict(values[None])
@@ -235,6 +256,7 @@ def run(
         device=device,
         dtype=dtype,
     )
+    _note_artefacts(problem)
     fitter = build("estimator", estimator)
     estimate = fitter.fit(problem)
     values = np.array([estimate.params[name] for name in unknowns.names])

@@ -200,6 +200,22 @@ def corrupt(
     return q, qd
 
 
+def stalled(log: RobotLog, stretches: int = 3, seconds: float = 0.04, seed: int = 0) -> RobotLog:
+    """``log`` with ``stretches`` stalls of its driver: for ``seconds`` each, the states repeat the row
+    before (the commands go on), at evenly spread places jittered by ``seed``."""
+    rng = np.random.default_rng(seed)
+    rows = max(1, int(round(seconds / float(np.median(np.diff(log.t))))))
+    q, qd = log.q.copy(), log.qd.copy()
+    places = np.linspace(0, log.n_samples, stretches + 2)[1:-1].astype(int)
+    for place in places + rng.integers(-rows, rows + 1, size=stretches):
+        q[place + 1 : place + 1 + rows] = q[place]
+        qd[place + 1 : place + 1 + rows] = qd[place]
+    return RobotLog(
+        log.t, q, qd, log.command_t, log.commands, log.joint_names, log.command_names,
+        f"{log.source} with {stretches} stalls",
+    )  # fmt: skip
+
+
 def _references(t: np.ndarray, n: int, seed: int) -> np.ndarray:
     """``[N, 2n]`` smooth position references (three sines a joint, from 0) and their rates."""
     rng = np.random.default_rng(seed)
