@@ -1,8 +1,8 @@
 """A torque stream that lags the state stream: shift it back, or estimate the lag by cross-correlation.
 
 Drives and loggers often stamp the measured effort later than the positions it belongs to (a current
-filter, a second topic, a bus cycle). With ``recording.delay=<seconds>`` the torque at time ``t`` is
-read at ``t + delay`` (:func:`shift_torques`); with ``recording.delay=auto`` the delay is the lag at
+filter, a second topic, a bus cycle). With ``recording.torque_lag=<seconds>`` the torque at time ``t`` is
+read at ``t + delay`` (:func:`shift_torques`); with ``recording.torque_lag=auto`` the delay is the lag at
 which the robot's regressor explains the shifted torques best (:func:`torque_delay`, called by
 :mod:`idkit.data.pipeline` with the robot's regressor). Why not the plain cross-correlation
 with the a-priori (CAD) model's torques: on a 0.2 Hz trajectory of the cylindrical test arm whose
@@ -41,7 +41,7 @@ def shift_torques(recording: Recording, delay: float) -> tuple[Recording, int]:
     )
     rows = np.flatnonzero(inside)
     if rows.size < 2:
-        raise ValueError(f"{recording.source}: recording.delay={delay:g} s leaves no samples")
+        raise ValueError(f"{recording.source}: recording.torque_lag={delay:g} s leaves no samples")
     tau = np.stack([np.interp(target[rows], t, column) for column in recording.tau.T], axis=1)
     qd = None if recording.qd is None else recording.qd[rows]
     shifted = replace(recording, t=t[rows], q=recording.q[rows], tau=tau, qd=qd)
@@ -73,7 +73,9 @@ def torque_delay(
         r for r in np.split(np.arange(times.size), np.flatnonzero(steps > 1.5 * h) + 1) if r.size > 2 * reach
     ]
     if not runs:
-        raise ValueError(f"recording.delay=auto: no stretch between gaps is longer than 2 × {max_lag:g} s")
+        raise ValueError(
+            f"recording.torque_lag=auto: no stretch between gaps is longer than 2 × {max_lag:g} s"
+        )
     centre = np.concatenate([r[reach : r.size - reach] for r in runs])
     basis = regressor[centre].reshape(-1, regressor.shape[-1])
     q, _ = np.linalg.qr(basis / np.maximum(np.linalg.norm(basis, axis=0), 1e-300))
@@ -84,9 +86,9 @@ def torque_delay(
     best = int(np.argmax(explained))
     if best in (0, lags.size - 1):
         raise ValueError(
-            f"recording.delay=auto: the model explains the torques best at the edge of the searched "
+            f"recording.torque_lag=auto: the model explains the torques best at the edge of the searched "
             f"±{max_lag:g} s ({lags[best] * h:+.3g} s): no delay explains them (joints, units, model?); "
-            "give recording.delay in s"
+            "give recording.torque_lag in s"
         )
     below, peak, above = explained[best - 1 : best + 2]
     curvature = below - 2 * peak + above

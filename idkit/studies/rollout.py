@@ -1,7 +1,7 @@
 """Simulator parameters from robot logs (the ``rollout`` task): model + logs → fitted model.
 
 ``run``'s signature is the command line's config (``idkit +experiment=rollout rollout.model=arm.xml
-data=run.csv 'rollout.params=[armature,damping,frictionloss,kp,kv,delay]'``). It reads the model
+data=run.csv 'rollout.params=[armature,damping,frictionloss,kp,kv,command_delay]'``). It reads the model
 (:mod:`idkit.sim.model`) and the logs of commands and joint states (read, checked and joined by
 :mod:`idkit.data.commands`, as torque logs are by :mod:`idkit.data.pipeline`),
 chooses the unknowns (:mod:`idkit.sim.quantities`), hands the estimator a
@@ -210,12 +210,13 @@ def run(
         cost: the search's score, a registered cost of the scaled error ``E`` (``None``: the
             estimator's robust default).
         params: the unknowns: kinds (``armature``, ``damping``, ``frictionloss``, ``stiffness``,
-            ``kp``, ``kv``, ``gear``, ``bias``, ``inertia``, ``delay``) and/or names (``j1.damping``,
+            ``kp``, ``kv``, ``gear``, ``bias``, ``inertia``, ``command_delay``) and/or names (``j1.damping``,
             ``link3.inertia``).
         joints: the joints in scope (default: the model's that the log holds).
         shared: kinds fitted as one value for all their elements.
-        bounds: ``{name or kind: [lower, upper]}`` (default ``box`` × the start; ``delay``: [0, 0.05] s).
-        start: ``{name or kind: value}`` (default the model's values; ``delay``: 0).
+        bounds: ``{name or kind: [lower, upper]}`` (default ``box`` × the start; ``command_delay``:
+            [0, 0.05] s).
+        start: ``{name or kind: value}`` (default the model's values; ``command_delay``: 0).
         box: ``(a, b)``: the bounds of an unknown without given bounds, as factors of its start.
         segment: seconds per multiple-shooting segment (``None``: whole stretches between gaps).
         validate: held-out logs, each replayed whole with the fitted model.

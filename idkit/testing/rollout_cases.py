@@ -143,7 +143,7 @@ class Case:
             draw = np.exp(rng.uniform(np.log(low), np.log(high), len(self.truth)))
             out.append(
                 {
-                    k: (0.0 if k == "delay" else v * f)
+                    k: (0.0 if k == "command_delay" else v * f)
                     for (k, v), f in zip(self.truth.items(), draw, strict=True)
                 }
             )
@@ -236,7 +236,7 @@ def _truth(
     from idkit.sim.quantities import select_unknowns
 
     unknowns = select_unknowns(
-        load_model(model_text), joints, params, start={"delay": delay} if delay else None
+        load_model(model_text), joints, params, start={"command_delay": delay} if delay else None
     )
     return dict(zip(unknowns.names, unknowns.vector("start").tolist(), strict=True))
 
@@ -276,10 +276,12 @@ def case_b(corrupted: bool = False, seed: int = 0) -> Case:
         logs.append(
             RobotLog(t, q, qd, t, references, joints, names, f"case {'c' if corrupted else 'b'} ({motion})")
         )
-    params = ("armature", "damping", "frictionloss", "kp", "kv", "delay")
+    params = ("armature", "damping", "frictionloss", "kp", "kv", "command_delay")
     truth = _truth(ARM7, params, joints, DELAY if corrupted else 0.0)
-    bounds: dict[str, list[float]] = {k: [0.1 * v, 10.0 * v] for k, v in truth.items() if k != "delay"}
-    bounds["delay"] = [0.0, 0.02]
+    bounds: dict[str, list[float]] = {
+        k: [0.1 * v, 10.0 * v] for k, v in truth.items() if k != "command_delay"
+    }
+    bounds["command_delay"] = [0.0, 0.02]
     start = Case("", "", (), truth, logs[0], logs[0], bounds).starts(1, seed=12345)[0]
     return Case("c" if corrupted else "b", ARM7, params, truth, logs[0], logs[1], bounds, start)
 

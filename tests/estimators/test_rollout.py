@@ -117,9 +117,9 @@ def test_36_unknowns_under_servos_from_random_starts(corrupted):
     case = cases.case_b(corrupted=corrupted)
     for start in [case.start, *case.starts(2, seed=7)]:
         estimate = RolloutEstimator().fit(cases.problem_of(case, start))
-        errors = {k: abs(estimate.params[k] / v - 1) for k, v in case.truth.items() if k != "delay"}
+        errors = {k: abs(estimate.params[k] / v - 1) for k, v in case.truth.items() if k != "command_delay"}
         assert max(errors.values()) < 0.05, max(errors, key=errors.get)
-        assert abs(estimate.params["delay"] - case.truth["delay"]) < 1e-4
+        assert abs(estimate.params["command_delay"] - case.truth["command_delay"]) < 1e-4
 
 
 def test_a_links_inertia_is_recovered_through_its_physical_coordinates():

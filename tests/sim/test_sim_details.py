@@ -13,8 +13,8 @@ from idkit.sim.uncertainty import Uncertainty
 
 def _details() -> RolloutDetails:
     unc = Uncertainty(
-        {"j1.damping": 0.1, "delay": np.inf},
-        {"j1.damping": (0.8, 1.2), "delay": (-np.inf, np.inf)},
+        {"j1.damping": 0.1, "command_delay": np.inf},
+        {"j1.damping": (0.8, 1.2), "command_delay": (-np.inf, np.inf)},
         misfit=1.3,
     )
     solves = (
@@ -38,9 +38,9 @@ def test_attributes_and_mapping_agree_and_the_polish_cost_is_the_last_solves():
 
 
 def test_an_estimate_with_typed_details_survives_strict_json():
-    estimate = Estimate("rollout", {"j1.damping": 1.0, "delay": 0.0}, 2.0, 0.5, details=_details())
+    estimate = Estimate("rollout", {"j1.damping": 1.0, "command_delay": 0.0}, 2.0, 0.5, details=_details())
     text = estimate.to_json()
     assert json.loads(text)["details"]["outliers"] == {"stalled": 3}
     again = Estimate.from_json(text)
     assert again.to_dict() == estimate.to_dict()
-    assert again.details["uncertainty"]["interval95"]["delay"] == [-np.inf, np.inf]
+    assert again.details["uncertainty"]["interval95"]["command_delay"] == [-np.inf, np.inf]

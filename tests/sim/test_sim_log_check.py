@@ -63,13 +63,17 @@ def test_a_delay_bound_over_a_tenth_of_the_log_is_refused():
     problem = cases.problem_of(case)
     duration = case.fit.t[-1] - case.fit.t[0]
     sim = problem.robot.sim
-    ok = select_unknowns(sim, case.fit.joint_names, ("delay",), bounds={"delay": [0, 0.1 * duration]})
+    ok = select_unknowns(
+        sim, case.fit.joint_names, ("command_delay",), bounds={"command_delay": [0, 0.1 * duration]}
+    )
     check_delay_bound(ok, case.fit.t, "run.csv")
-    long = select_unknowns(sim, case.fit.joint_names, ("delay",), bounds={"delay": [0, 100.0]})
-    with pytest.raises(ValueError, match=r"^run.csv: the bound of delay reaches 100 s, more than a tenth"):
+    long = select_unknowns(
+        sim, case.fit.joint_names, ("command_delay",), bounds={"command_delay": [0, 100.0]}
+    )
+    with pytest.raises(ValueError, match=r"^run.csv: the bound of command_delay reaches 100 s, more than a tenth"):
         check_delay_bound(long, case.fit.t, "run.csv")
     with pytest.raises(ValueError, match="more than a tenth of the log"):
-        cases.problem_of(replace(case, bounds={**case.bounds, "delay": [0.0, 100.0]}))
+        cases.problem_of(replace(case, bounds={**case.bounds, "command_delay": [0.0, 100.0]}))
 
 
 def test_stalled_rows_are_in_no_segment_and_so_in_no_error(problem):
