@@ -70,7 +70,9 @@ def test_a_delay_bound_over_a_tenth_of_the_log_is_refused():
     long = select_unknowns(
         sim, case.fit.joint_names, ("command_delay",), bounds={"command_delay": [0, 100.0]}
     )
-    with pytest.raises(ValueError, match=r"^run.csv: the bound of command_delay reaches 100 s, more than a tenth"):
+    with pytest.raises(
+        ValueError, match=r"^run.csv: the bound of command_delay reaches 100 s, more than a tenth"
+    ):
         check_delay_bound(long, case.fit.t, "run.csv")
     with pytest.raises(ValueError, match="more than a tenth of the log"):
         cases.problem_of(replace(case, bounds={**case.bounds, "command_delay": [0.0, 100.0]}))

@@ -681,7 +681,9 @@ def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
     floor = error(command(*robot_args(files), f"data={aligned}", *quiet, out=tmp_path / "e")[0])
     assert error(given) < 1.1 * floor and error(ignored) > 5 * floor
     assert error(found) < 1.1 * floor + error(ignored) / 40
-    with pytest.raises(ValueError, match=r"setting 'recording\.delay' must be a float or 'auto', got 'soon'"):
+    with pytest.raises(
+        ValueError, match=r"setting 'recording\.torque_lag' must be a float or 'auto', got 'soon'"
+    ):
         command(*robot_args(files), f"data={late}", "recording.torque_lag=soon", *quiet, out=tmp_path / "d")
 
 
