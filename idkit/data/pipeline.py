@@ -37,7 +37,7 @@ from typing import Any
 import torch
 
 from idkit.data.cutoff import CutoffChoice, choose_cutoff, lowest_rate
-from idkit.data.delay import shift_torques, torque_delay
+from idkit.data.delay import estimate_torque_lag, shift_torques
 from idkit.data.files import as_paths, refuse_data_file, refuse_data_samples, refuse_repeated_files
 from idkit.data.load import DataFile, Source, from_source, read_source, refuse_delay_on_samples
 from idkit.data.options import DataOptions
@@ -305,7 +305,7 @@ def _auto_cutoff(robot: Robot, recordings: list[Recording], options: PreprocessO
 
 def _estimated_delay(robot: Robot, item: DataFile) -> tuple[float, float]:
     """``(delay, explained)``: the lag (s) at which the robot's regressor explains ``item``'s torques
-    best, and the share it explains there (:func:`idkit.data.delay.torque_delay`)."""
+    best, and the share it explains there (:func:`idkit.data.delay.estimate_torque_lag`)."""
     samples = item.samples
     assert item.times is not None  # a preprocessed recording has its times
     if not robot.has_regressor:
@@ -315,7 +315,7 @@ def _estimated_delay(robot: Robot, item: DataFile) -> tuple[float, float]:
     with torch.no_grad():
         regressor = robot.regressor(samples.q, samples.qd, samples.qdd).double().numpy()
     try:
-        return torque_delay(samples.tau.double().numpy(), regressor, item.times)
+        return estimate_torque_lag(samples.tau.double().numpy(), regressor, item.times)
     except ValueError as exc:
         raise ValueError(f"{item.path}: {exc}") from None
 
