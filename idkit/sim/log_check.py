@@ -69,6 +69,11 @@ def check_log(
                 f"{'radians' if hinge else 'metres'}"
             )
         ratio = _rate_ratio(t, q[:, j], qd[:, j])
+        if ratio == 0:
+            raise ValueError(
+                f"{source}: joint {name}'s logged velocities are zero while its positions move: does the "
+                "driver log no velocities? A rollout compares them; give the joint's velocities (qd)"
+            )
         if ratio is not None and not 1 / RATE_FACTOR <= ratio <= RATE_FACTOR:
             raise ValueError(
                 f"{source}: joint {name}'s logged velocities are {ratio:.3g}× the rate of its logged "

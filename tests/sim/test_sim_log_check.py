@@ -44,6 +44,10 @@ def test_velocities_in_other_units_than_positions_are_refused(problem):
     with pytest.raises(ValueError, match=r"joint joint2's logged velocities are 0.1× the rate"):
         replace(problem, samples=_with(log, qd=log.qd * np.array([1.0, 0.1])))
     replace(problem, samples=_with(log, qd=log.qd * 1.5))  # a filter's lag or gain: not refused
+    with pytest.raises(
+        ValueError, match=r"joint joint1's logged velocities are zero while its positions move"
+    ):
+        replace(problem, samples=_with(log, qd=np.zeros_like(log.qd)))
 
 
 def test_positions_far_outside_a_limited_joints_range_are_refused():
