@@ -121,6 +121,8 @@ class RolloutProblem(IdentificationProblem):
         segment: seconds per multiple-shooting segment (``None``: the whole log, split only at gaps).
         threads: rollout threads (``None``: every CPU the process may use).
         device, dtype: where torch costs are evaluated (rollouts are MuJoCo's, float64 on the CPU).
+        leave_out_stalls: leave a driver's stalled rows out of the error (:mod:`idkit.data.artefacts`);
+            ``False`` fits them as data (to measure what they do).
     """
 
     robot: SimRobot
@@ -131,6 +133,7 @@ class RolloutProblem(IdentificationProblem):
     threads: int | None = None
     device: str = "cpu"
     dtype: Any = "float64"
+    leave_out_stalls: bool = True
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -171,7 +174,10 @@ class RolloutProblem(IdentificationProblem):
         every segment, so of the error."""
         if "artefacts" not in self._cache:
             log = self.samples
-            self._cache["artefacts"] = find_artefacts(log.t, log.q, log.qd, log.command_t, log.commands)
+            found = find_artefacts(log.t, log.q, log.qd, log.command_t, log.commands)
+            if not self.leave_out_stalls:
+                found = replace(found, stalled=np.zeros_like(found.stalled), stalls=0)
+            self._cache["artefacts"] = found
         return self._cache["artefacts"]
 
     def outliers(self) -> dict[str, int]:

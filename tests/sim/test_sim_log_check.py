@@ -124,3 +124,10 @@ def test_an_estimate_on_a_bound_or_with_an_infinite_sigma_is_said_in_one_line_ea
     assert f"{unknowns.names[0]} = " in lines[0] and "ended on its lower bound" in lines[0]
     assert "infinite σ" in lines[1]
     assert unknowns.at_bound(values) == [unknowns.names[0]]
+
+
+def test_stalls_can_be_fitted_as_data_to_measure_what_they_do(problem):
+    stalled = replace(problem, samples=cases.stalled(problem.samples, stretches=2, seconds=0.02), _cache={})
+    kept = replace(stalled, leave_out_stalls=False, _cache={})
+    assert kept.outliers()["stalled"] == 0 and stalled.outliers()["stalled"] == 20
+    assert kept.segments() == problem.segments()
