@@ -26,7 +26,7 @@ def test_the_page_runs_as_written(tmp_path):
     outputs = run_blocks(code_blocks(PAGE), tmp_path)
     assert len(outputs) == len(code_blocks(PAGE))
     document = json.loads((tmp_path / "servo" / "result.json").read_text())
-    intervals = document["payload"]["estimate"]["details"]["ci95"]
+    intervals = document["payload"]["estimate"]["details"]["uncertainty"]["interval95"]
     outside = [n for n, v in TRUTH.items() if not intervals[n][0] <= v <= intervals[n][1]]
     assert not outside, f"the page says every interval holds the truth; these do not: {outside}"
     for name in ("report.html", "identified.xml", "fit.png", "validation_1.png"):

@@ -62,7 +62,7 @@ def test_lines_of_one_stage_are_an_interval_apart_and_every_stage_change_is_said
 
 def test_a_rollout_fit_reports_its_search_and_its_polish():
     from idkit import registry
-    from idkit.sim.cases import conformance_problem
+    from idkit.testing.rollout_cases import conformance_problem
 
     lines: list[str] = []
     estimator = registry.create("estimator", "rollout", particles=4, iterations=3, polish_iterations=5)

@@ -27,26 +27,33 @@ MJCF_FILE = "identified.xml"
 
 def text(result: RolloutResult) -> str:
     """Estimate with uncertainty, flat directions, and the replayed logs' errors."""
-    est = result.estimate
-    sigma = est.details.get("sigma", {})
-    interval = est.details.get("ci95", {})
+    est, details = result.estimate, result.details
+    sigma = {} if details is None else details.uncertainty.std
+    interval = {} if details is None else details.uncertainty.interval95
     lines = [
         f"{est.estimator} · model {(result.provenance.data or {}).get('model')} · seed {result.seed}",
         f"{'unknown':<22}{'start':>11}{'estimate':>12}{'std':>11}{'95 % interval':>26}",
     ]
     for name, value in est.params.items():
-        low, high = interval.get(name, [math.nan, math.nan])
+        low, high = interval.get(name, (math.nan, math.nan))
         start = result.unknowns[name]["start"]
         lines.append(
             f"{name:<22}{start:11.4g}{value:12.6g}{sigma.get(name, math.nan):11.3g}"
             f"  [{low:11.5g}, {high:11.5g}]"
         )
-    flat = est.details.get("flat_directions") or []
+    flat = [] if details is None else details.uncertainty.flat
     lines.append("flat directions: " + ("none" if not flat else ""))
     for direction in flat:
         combination = " + ".join(f"{w:g}·{n}" for n, w in direction["direction"].items())
         lines.append(f"  {combination} (std {direction['sigma']:.3g} in log coordinates)")
-    lines.append(f"wall time {est.wall_time_s:.2f} s · {est.details.get('rollouts')} rollouts")
+    rollouts = "?" if details is None else details.rollouts
+    lines.append(f"wall time {est.wall_time_s:.2f} s · {rollouts} rollouts")
+    if details is not None and any(details.outliers.values()):
+        found = details.outliers
+        lines.append(
+            f"left out as the driver's: {found.get('stalled', 0)} stalled rows in {found.get('stalls', 0)} "
+            f"stretches, {found.get('dropped', 0)} samples missing in gaps"
+        )
     for label, replayed in [
         ("fit log, in segments", result.fit),
         *(("held out, whole", r) for r in result.validation),

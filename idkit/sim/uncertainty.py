@@ -31,16 +31,41 @@ NAMED = 0.2
 
 @dataclass(frozen=True)
 class Uncertainty:
-    """Per unknown: ``sigma`` (standard deviation of the value) and ``ci95`` (a 95 % interval, from the
-    coordinate's interval); ``flat``: the flat directions, each ``{"direction": {name: weight},
-    "sigma": coordinate standard deviation along it}``."""
+    """What the fit knows of each unknown (the record every reader of a rollout fit reads).
 
-    sigma: dict[str, float]
-    ci95: dict[str, list[float]]
+    Attributes:
+        std: per unknown, the standard deviation of its value (``inf``: not determined by the log).
+        interval95: per unknown, a 95 % interval (from the coordinate's interval; ``(-inf, inf)``
+            when ``std`` is infinite).
+        flat: the flat directions, each ``{"direction": {name: weight}, "sigma": coordinate standard
+            deviation along it}``.
+        at_bound: the unknowns whose estimate ended on a bound.
+        model_limited: the residual, not the noise, limits the fit (the intervals are widened).
+        misfit: robust residual RMS / noise level (1 ≈ noise-limited; ``nan``: not measured).
+        method: how the intervals were computed.
+        reason: why that method (or why the fit is called model-limited).
+    """
+
+    std: dict[str, float]
+    interval95: dict[str, tuple[float, float]]
     flat: list[dict[str, Any]] = field(default_factory=list)
+    at_bound: list[str] = field(default_factory=list)
+    model_limited: bool = False
+    misfit: float = float("nan")
+    method: str = "jacobian"
+    reason: str = ""
 
     def to_dict(self) -> dict[str, Any]:
-        return {"sigma": self.sigma, "ci95": self.ci95, "flat_directions": self.flat}
+        return {
+            "std": self.std,
+            "interval95": {name: list(bounds) for name, bounds in self.interval95.items()},
+            "flat_directions": self.flat,
+            "at_bound": list(self.at_bound),
+            "model_limited": self.model_limited,
+            "misfit": self.misfit,
+            "method": self.method,
+            "reason": self.reason,
+        }
 
 
 def uncertainty(
@@ -90,8 +115,9 @@ def uncertainty(
     return Uncertainty(
         {name: float(s) for name, s in zip(names, sigma, strict=True)},
         {
-            name: ([float(lo), float(hi)] if np.isfinite(s) else [-np.inf, np.inf])
+            name: ((float(lo), float(hi)) if np.isfinite(s) else (-np.inf, np.inf))
             for name, lo, hi, s in zip(names, low, high, sigma, strict=True)
         },
         flat,
+        at_bound=unknowns.at_bound(values),
     )

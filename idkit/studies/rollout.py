@@ -1,8 +1,9 @@
 """Simulator parameters from robot logs (the ``rollout`` task): model + logs → fitted model.
 
 ``run``'s signature is the command line's config (``idkit +experiment=rollout rollout.model=arm.xml
-data=run.csv 'rollout.params=[armature,damping,frictionloss,kp,kv,delay]'``). It reads the model
-(:mod:`idkit.sim.model`) and the logs of commands and joint states (:mod:`idkit.data.commands`),
+data=run.csv 'rollout.params=[armature,damping,frictionloss,kp,kv,command_delay]'``). It reads the model
+(:mod:`idkit.sim.model`) and the logs of commands and joint states (read, checked and joined by
+:mod:`idkit.data.commands`, as torque logs are by :mod:`idkit.data.pipeline`),
 chooses the unknowns (:mod:`idkit.sim.quantities`), hands the estimator a
 :class:`~idkit.sim.problem.RolloutProblem`, and replays the fitted model on every log: the fit log in
 its segments from the fitted initial states, each ``validate=`` log whole from its first logged state —
@@ -26,6 +27,7 @@ from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
 
 if TYPE_CHECKING:
+    from idkit.sim.details import RolloutDetails
     from idkit.sim.simulator_model import SimulatorModel
 
 #: What ``rollout.params`` fits when not told: the joints' passive terms.
@@ -86,7 +88,7 @@ class RolloutResult:
     """A rollout identification and what it reproduces.
 
     Attributes:
-        estimate: the estimator's result (values, uncertainty and flat directions in ``details``).
+        estimate: the estimator's result (values; uncertainty and flat directions in ``details``).
         unknowns: per unknown its kind, start and bounds.
         provenance: the envelope (task, seed, data, plugins, config, run id).
         mjcf: the ``identified.xml`` text (``None`` if MuJoCo refused it: ``mjcf_problem`` says why).
@@ -109,6 +111,14 @@ class RolloutResult:
         return self.provenance.seed
 
     @property
+    def details(self) -> RolloutDetails | None:
+        """The estimator's typed record (``None``: an estimator of another make kept a plain dict)."""
+        from idkit.sim.details import RolloutDetails
+
+        details = self.estimate.details
+        return details if isinstance(details, RolloutDetails) else None
+
+    @property
     def model(self) -> SimulatorModel:
         """The identified simulator (``simulate``, values with σ, ``save``, ``to_mujoco``)."""
         from idkit.sim.simulator_model import SimulatorModel
@@ -127,43 +137,6 @@ class RolloutResult:
         }
 
 
-def read_logs(
-    data: Any, joints: Sequence[str] | None, state_topic: str | None, command_topic: str | None
-) -> Any:
-    """One log of the ``data`` file(s), read by :func:`idkit.data.commands.read_robot_log`; several are
-    joined one after another with a gap between them (the segments restart after a gap)."""
-    from idkit.data.commands import RobotLog, read_robot_log
-
-    paths = list(data) if isinstance(data, (list, tuple)) else [data]
-    if not paths:
-        raise ValueError("data: no log given")
-    logs = [read_robot_log(p, joints, state_topic, command_topic) for p in paths]
-    if len(logs) == 1:
-        return logs[0]
-    first = logs[0]
-    for path, log in zip(paths[1:], logs[1:], strict=True):
-        if log.joint_names != first.joint_names or log.command_names != first.command_names:
-            raise ValueError(
-                f"data: {path} has other joints or commands than {paths[0]}; join logs of one robot"
-            )
-    t, q, qd, ct, c = [], [], [], [], []
-    offset = 0.0
-    for log in logs:
-        step = float(np.median(np.diff(log.t)))
-        shift = offset - min(log.t[0], log.command_t[0])
-        t.append(log.t + shift)
-        q.append(log.q)
-        qd.append(log.qd)
-        ct.append(log.command_t + shift)
-        c.append(log.commands)
-        offset = max(log.t[-1], log.command_t[-1]) + shift + 100 * step
-    joined = ", ".join(str(p) for p in paths)
-    return RobotLog(
-        np.concatenate(t), np.vstack(q), np.vstack(qd), np.concatenate(ct), np.vstack(c),
-        first.joint_names, first.command_names, joined,
-    )  # fmt: skip
-
-
 def _joints(sim: Any, log: Any, joints: Sequence[str] | None) -> tuple[str, ...]:
     """The joints fitted: ``joints``, else every hinge or slide joint of the model the log holds."""
     if joints is not None:
@@ -177,6 +150,27 @@ def _joints(sim: Any, log: Any, joints: Sequence[str] | None) -> tuple[str, ...]
     return found
 
 
+def _note_artefacts(problem: Any) -> None:
+    """Say in one ``note:`` line what the fit leaves out of the log as a driver's artefacts."""
+    from idkit.notes import Note
+
+    counts = problem.outliers()
+    parts = []
+    if counts["stalled"]:
+        parts.append(
+            f"{counts['stalled']} stalled rows ({counts['stalls']} stretches repeating the last row)"
+        )
+    if counts["dropped"]:
+        parts.append(f"{counts['dropped']} samples missing in gaps")
+    if parts:
+        warnings.warn(
+            f"{problem.samples.source}: {' and '.join(parts)} left out of the fit as the driver's, not "
+            "the robot's",
+            Note,
+            stacklevel=3,
+        )
+
+
 def replay(problem: Any, values: np.ndarray, file: str, initial: Any = None, whole: bool = False) -> Replay:
     """The fitted model's prediction of ``problem``'s log: in its segments from ``initial`` (default
     the logged states) or, ``whole``, in one rollout per stretch between gaps."""
@@ -184,7 +178,7 @@ def replay(problem: Any, values: np.ndarray, file: str, initial: Any = None, who
     from idkit.sim.segments import split
 
     log = problem.samples
-    segments = split(log.t, None) if whole else problem.segments()
+    segments = split(log.t, None, problem.artefacts().stalled) if whole else problem.segments()
     simulator = problem.simulator(segments, initial=initial)
     try:
         q, qd = simulator.predict(values[None])
@@ -228,12 +222,13 @@ def run(
         cost: the search's score, a registered cost of the scaled error ``E`` (``None``: the
             estimator's robust default).
         params: the unknowns: kinds (``armature``, ``damping``, ``frictionloss``, ``stiffness``,
-            ``kp``, ``kv``, ``gear``, ``bias``, ``inertia``, ``delay``) and/or names (``j1.damping``,
+            ``kp``, ``kv``, ``gear``, ``bias``, ``inertia``, ``command_delay``) and/or names (``j1.damping``,
             ``link3.inertia``).
         joints: the joints in scope (default: the model's that the log holds).
         shared: kinds fitted as one value for all their elements.
-        bounds: ``{name or kind: [lower, upper]}`` (default ``box`` × the start; ``delay``: [0, 0.05] s).
-        start: ``{name or kind: value}`` (default the model's values; ``delay``: 0).
+        bounds: ``{name or kind: [lower, upper]}`` (default ``box`` × the start; ``command_delay``:
+            [0, 0.05] s).
+        start: ``{name or kind: value}`` (default the model's values; ``command_delay``: 0).
         box: ``(a, b)``: the bounds of an unknown without given bounds, as factors of its start.
         segment: seconds per multiple-shooting segment (``None``: whole stretches between gaps).
         validate: held-out logs, each replayed whole with the fitted model.
@@ -244,17 +239,19 @@ def run(
         progress: print a line every few seconds during the search and the polish (stage, iteration,
             best cost, rollouts, elapsed: :mod:`idkit.progress`); the command sets it on a terminal.
     """
+    from idkit.data.commands import read_robot_logs
+    from idkit.data.files import as_paths, refuse_repeated_files, refuse_training_files
     from idkit.sim.export import identified_xml
     from idkit.sim.model import load_model
     from idkit.sim.problem import RolloutProblem, SimRobot
     from idkit.sim.quantities import select_unknowns
 
     sim = load_model(model)
-    log = read_logs(data, None, state_topic, command_topic)
+    log = read_robot_logs(data, None, state_topic, command_topic)
     scope = _joints(sim, log, joints)
     log_joints = tuple(j for j in log.joint_names if j in {*sim.joint_names()})
     if log_joints != log.joint_names:
-        log = read_logs(data, log_joints, state_topic, command_topic)
+        log = read_robot_logs(data, log_joints, state_topic, command_topic)
     unlogged = [j for j in sim.joint_names() if j not in log_joints]
     if unlogged:
         warnings.warn(
@@ -274,19 +271,23 @@ def run(
         device=device,
         dtype=dtype,
     )
+    _note_artefacts(problem)
     fitter = build("estimator", estimator)
     with reporting("rollout", progress):
         estimate = fitter.fit(problem)
     values = np.array([estimate.params[name] for name in unknowns.names])
-    fitted = estimate.details.get("initial_states")
-    initial = None if fitted is None else (np.asarray(fitted["q"]), np.asarray(fitted["qd"]))
+    from idkit.sim.details import RolloutDetails
+
+    details = estimate.details
+    fitted = details.initial_states if isinstance(details, RolloutDetails) else None
+    initial = None if fitted is None else (fitted.q, fitted.qd)
     fit = replay(problem, values, log.source, initial)
     held_out = []
-    for path in (
-        list(validate) if isinstance(validate, (list, tuple)) else ([] if validate is None else [validate])
-    ):
+    refuse_repeated_files(validate, "validate")
+    refuse_training_files(data, validate)
+    for path in as_paths(validate):
         other = RolloutProblem(
-            robot, read_logs(path, log.joint_names, state_topic, command_topic), threads=threads
+            robot, read_robot_logs(path, log.joint_names, state_topic, command_topic), threads=threads
         )
         held_out.append(replay(other, values, str(path), whole=True))
     try:
@@ -299,7 +300,7 @@ def run(
         seed=seed,
         data={
             "model": sim.label,
-            "files": [str(p) for p in (data if isinstance(data, (list, tuple)) else [data])],
+            "files": [str(p) for p in as_paths(data)],
         },
         plugins={"estimator": describe("estimator", estimator), "cost": describe("cost", cost)},
     )

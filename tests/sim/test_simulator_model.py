@@ -24,9 +24,9 @@ JOINTS = ("j1", "j2", "j3")
 def truth_model(delay: float = 0.0) -> SimulatorModel:
     """The shipped arm at its true values (and a command delay)."""
     sim = load_model(str(EXAMPLE / "servo_arm.xml"))
-    params = ["armature", "damping", "frictionloss"] + (["delay"] if delay else [])
-    unknowns = select_unknowns(sim, JOINTS, params, bounds={"delay": [0.0, 0.02]} if delay else None)
-    return SimulatorModel.of(sim, unknowns, {**TRUTH, "delay": delay}, JOINTS)
+    params = ["armature", "damping", "frictionloss"] + (["command_delay"] if delay else [])
+    unknowns = select_unknowns(sim, JOINTS, params, bounds={"command_delay": [0.0, 0.02]} if delay else None)
+    return SimulatorModel.of(sim, unknowns, {**TRUTH, "command_delay": delay}, JOINTS)
 
 
 def direct_rollout(model: SimulatorModel, log, steps: int) -> np.ndarray:
@@ -129,7 +129,7 @@ def test_identify_simulator_returns_the_runs_model(tmp_path):
     )
     record = json.loads((tmp_path / "run" / "result.json").read_text())["payload"]["estimate"]
     assert model.values == record["params"]
-    assert model.std == record["details"]["sigma"]
+    assert model.std == record["details"]["uncertainty"]["std"]
     assert len(model.held_out) == 1
     for name, (low, high) in model.interval95.items():
         assert low <= model.values[name] <= high
