@@ -17,8 +17,9 @@ measured joint positions and velocities. The fit, in three steps:
    free as well (:mod:`idkit.sim.shooting`: a segment's noisy first sample no longer biases the fit),
    on the search's segments and then on all. The loss's scale is each channel's median absolute
    residual (:mod:`idkit.optim.robust`), re-estimated until it settles; none is set by hand.
-3. **Uncertainty.** Standard deviations, 95 % intervals and flat directions from the polish's Jacobian
-   (:mod:`idkit.sim.uncertainty`), in ``Estimate.details``.
+3. **Uncertainty.** Standard deviations, 95 % intervals and flat directions from the polish's Jacobian,
+   widened from the spread over stretches of the log when the residual says the model, not the noise,
+   limits the fit (:mod:`idkit.sim.uncertainty`), in ``Estimate.details``.
 
 ``Estimate.cost`` is the search's score at the result on the problem's own error (segments from the
 logged states); ``details`` holds the polish's, the scales, the fitted initial states, the rollouts run.
@@ -361,7 +362,11 @@ def _finish(
     values, initial = shooting.split(x[:, None])
     n = shooting.n_unknowns
     threshold = TUNING[options.loss] / np.sqrt(residual.size)
-    found = uncertainty(jac, residual[:, 0], threshold, options.loss, problem.robot.unknowns, x[:n])
+    edges = np.cumsum([0, *(v.samples.size for v in shooting.simulator.views)]) * shooting.n_channels
+    found = uncertainty(
+        jac, residual[:, 0], threshold, options.loss, problem.robot.unknowns, x[:n],
+        list(zip(edges[:-1], edges[1:], strict=True)), mad_scale(error),
+    )  # fmt: skip
     states = shooting.simulator.initial_states if initial is None else (initial[0][0], initial[1][0])
     return {
         "z": x[:n],
