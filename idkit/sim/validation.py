@@ -172,7 +172,8 @@ def default_mode(model: SimModel | SimRobot | RolloutProblem, log: RobotLog) -> 
     """``("whole", why)`` when every logged joint of the model is held by a position servo, else
     ``("segments", why)`` (module docstring)."""
     sim = _sim(model)
-    held, loose = [], []
+    held: list[str] = []
+    loose: list[str] = []
     for joint in log.joint_names:
         index = sim.joint_id(joint)
         kinds = {servo_kind(sim.model, a) for a in range(sim.model.nu) if sim.actuated_joint(a) == index}
