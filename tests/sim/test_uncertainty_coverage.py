@@ -89,8 +89,8 @@ def _coverage(truth_model, glitches: float = 0.0, stalls: int = 0, seed: int = 0
 @pytest.mark.statistical
 def test_intervals_cover_the_truth_when_the_links_are_10_percent_off():
     """50 draws, the log made by the pendulum with links 10 % heavier (even draws) or lighter (odd):
-    measured 0.915 of the 200 intervals hold the truth (the textbook ones: 0.275); 0.96 of the fits
-    are called model-limited. Band: ≥ 0.8 (the issue's bar; ~3 standard errors under the measured)."""
+    measured 0.935 of the 200 intervals hold the truth (the textbook ones: 0.265); 0.94 of the fits
+    are called model-limited (median widening 26×). Band: ≥ 0.8 (the issue's bar)."""
     found = _coverage(lambda draw: heavier(PENDULUM, 1.1 if draw % 2 == 0 else 0.9), seed=1000)
     print(found)
     assert found["coverage"] >= 0.8
@@ -100,12 +100,25 @@ def test_intervals_cover_the_truth_when_the_links_are_10_percent_off():
 
 @pytest.mark.slow
 @pytest.mark.statistical
-def test_intervals_stay_right_and_narrow_on_a_corrupted_log():
+def test_intervals_cover_the_truth_on_a_corrupted_log():
     """50 draws, the model right, the log corrupted: noise (1e-4 rad, 1e-2 rad/s), 2 % glitched rows
-    and two 40 ms stalls (the driver repeating its last row): measured 0.94 of the 200 intervals hold
-    the truth (the textbook ones: 0.94), none of the fits called model-limited, the intervals the
-    textbook's (median widening 1). Bands: coverage ≥ 0.8, at most 1 in 10 fits widened."""
+    and two 40 ms stalls (the driver repeating its last row), which bias the estimate: measured 0.955
+    of the 200 intervals hold the truth (the textbook ones: 0.62); 0.80 of the fits are called
+    model-limited (median widening 5.5×). Band: ≥ 0.8."""
     found = _coverage(PENDULUM, glitches=0.02, stalls=2, seed=2000)
+    print(found)
+    assert found["coverage"] >= 0.8
+    assert found["textbook"] < found["coverage"]
+
+
+@pytest.mark.slow
+@pytest.mark.statistical
+def test_intervals_stay_narrow_on_a_glitched_log():
+    """50 draws, the model right, noise and 2 % glitched rows (no stalls: nothing biases the estimate):
+    measured 0.915 of the 200 intervals hold the truth (the textbook ones: the same), none of the fits
+    called model-limited, the intervals the textbook's (median widening 1). Bands: coverage ≥ 0.8, at most
+    1 fit in 10 widened."""
+    found = _coverage(PENDULUM, glitches=0.02, seed=3000)
     print(found)
     assert found["coverage"] >= 0.8
     assert found["model_limited"] <= 0.1 and found["median_widening"] == 1.0
