@@ -56,6 +56,9 @@ def text(result: RolloutResult) -> str:
             f"{d['autocorrelation']:.2f}, stretches disagree {d['disagreement']:.3g}× what noise explains)"
         )
         lines.append(f"  {d['uncertainty_reason']}")
+    if est.details.get("at_bound"):
+        named = ", ".join(est.details["at_bound"])
+        lines.append(f"at a bound of its box (the log may want a value beyond it): {named}")
     lines.append(f"wall time {est.wall_time_s:.2f} s · {est.details.get('rollouts')} rollouts")
     lines += ["", f"fit log, in segments: {result.fit.file}", _errors(result.fit)]
     for file in dict.fromkeys(r.file for r in result.validation):
