@@ -41,7 +41,7 @@ from idkit.runtime import torch_threads
 from idkit.sim.initial import robust_states
 from idkit.sim.problem import RolloutProblem
 from idkit.sim.shooting import Shooting
-from idkit.sim.uncertainty import uncertainty
+from idkit.sim.uncertainty import heavier_links_change, uncertainty
 
 #: Where the registry's conformance suite finds a small rollout problem for this estimator.
 CONFORMANCE_PROBLEM = "idkit.sim.cases:conformance_problem"
@@ -366,6 +366,7 @@ def _finish(
     found = uncertainty(
         jac, residual[:, 0], threshold, options.loss, problem.robot.unknowns, x[:n],
         list(zip(edges[:-1], edges[1:], strict=True)), mad_scale(error),
+        heavier_links_change(shooting, x, residual[:, 0]),
     )  # fmt: skip
     states = shooting.simulator.initial_states if initial is None else (initial[0][0], initial[1][0])
     return {

@@ -21,6 +21,7 @@ from idkit.estimate import history_table
 from idkit.reports import files
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
+from idkit.sim.uncertainty import LINKS
 from idkit.sim.validation import HeldOut
 from idkit.studies.rollout import Replay, RolloutResult
 
@@ -56,6 +57,13 @@ def text(result: RolloutResult) -> str:
             f"{d['autocorrelation']:.2f}, stretches disagree {d['disagreement']:.3g}× what noise explains)"
         )
         lines.append(f"  {d['uncertainty_reason']}")
+    heavier = est.details.get("heavier_links") or {}
+    if heavier:
+        moves = ", ".join(f"{k} {v:+.2%}" for k, v in sorted(heavier.items(), key=lambda i: -abs(i[1]))[:6])
+        lines.append(
+            f"were every link {LINKS:.0%} heavier (a model error a log may not show), the fit would move: "
+            + moves
+        )
     if est.details.get("at_bound"):
         named = ", ".join(est.details["at_bound"])
         lines.append(f"at a bound of its box (the log may want a value beyond it): {named}")

@@ -85,6 +85,17 @@ def _coverage(truth_model, glitches: float = 0.0, stalls: int = 0, seed: int = 0
     }
 
 
+def test_the_heavier_links_shift_predicts_a_wrong_models_bias():
+    """A log made with every link 10 % heavier, fitted with the lighter model: the reported move of each
+    estimate were the links 10 % heavier, applied, brings the biased estimates near the truth (measured:
+    errors of 0.2–2 % down to 0.02–0.2 %)."""
+    details = _fit(1002, heavier(PENDULUM, 1.1), 0.0, 0)
+    for name in ("joint1.armature", "joint2.damping"):  # the two the heavier links bias
+        estimate, shift = details["params"][name], details["heavier_links"][name]
+        error, corrected = abs(estimate / TRUTH[name] - 1), abs(estimate * (1 + shift) / TRUTH[name] - 1)
+        assert error > 1e-3 and corrected < 0.3 * error, name
+
+
 @pytest.mark.slow
 @pytest.mark.statistical
 def test_intervals_cover_the_truth_when_the_links_are_10_percent_off():
