@@ -32,7 +32,9 @@ def test_the_page_runs_as_written(tmp_path):
     for name in ("report.html", "identified.xml", "fit.png", "validation_1.png"):
         assert (tmp_path / "servo" / name).is_file(), name
     held = document["payload"]["validation"]["held_out.csv"]
-    assert all(held["robust"]["q"][j] < 2 * held["noise"]["q"][j] for j in ("j1", "j2", "j3"))  # "its noise"
+    fitted = [r for r in held if r["values"] == "fitted"]
+    assert {r["mode"] for r in fitted} == {"whole", "segments"}  # "scored in both modes"
+    assert all(v == "within noise" for r in fitted for v in r["verdicts"].values())
     assert (tmp_path / "compare.html").is_file() and (tmp_path / "identified.xml").is_file()
     damping = np.array(outputs[1].splitlines()[-1].strip("[]").split(), dtype=float)  # model.dof_damping
     np.testing.assert_allclose(damping, [TRUTH[f"j{j}.damping"] for j in (1, 2, 3)], rtol=0.05)

@@ -17,8 +17,9 @@ measured joint positions and velocities. The fit, in three steps:
    free as well (:mod:`idkit.sim.shooting`: a segment's noisy first sample no longer biases the fit),
    on the search's segments and then on all. The loss's scale is each channel's median absolute
    residual (:mod:`idkit.optim.robust`), re-estimated until it settles; none is set by hand.
-3. **Uncertainty.** Standard deviations, 95 % intervals and flat directions from the polish's Jacobian
-   (:mod:`idkit.sim.uncertainty`), in ``Estimate.details``.
+3. **Uncertainty.** Standard deviations, 95 % intervals and flat directions from the polish's Jacobian,
+   widened from the spread over stretches of the log when the residual says the model, not the noise,
+   limits the fit (:mod:`idkit.sim.uncertainty`), in ``Estimate.details``.
 
 ``Estimate.cost`` is the search's score at the result on the problem's own error (segments from the
 logged states); ``details`` is a :class:`~idkit.sim.details.RolloutDetails`: the polish's solves, the
@@ -28,7 +29,6 @@ uncertainty, the fitted initial states, the rollouts run.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -45,7 +45,7 @@ from idkit.sim.initial import robust_states
 from idkit.sim.log_check import warn_unsupported
 from idkit.sim.problem import RolloutProblem
 from idkit.sim.shooting import Shooting
-from idkit.sim.uncertainty import uncertainty
+from idkit.sim.uncertainty import heavier_links_change, uncertainty
 
 #: Where the registry's conformance suite finds a small rollout problem for this estimator.
 CONFORMANCE_PROBLEM = "idkit.testing.rollout_cases:conformance_problem"
@@ -384,8 +384,12 @@ def _finish(
     values, initial = shooting.split(x[:, None])
     n = shooting.n_unknowns
     threshold = TUNING[options.loss] / np.sqrt(residual.size)
-    found = uncertainty(jac, residual[:, 0], threshold, options.loss, problem.robot.unknowns, x[:n])
-    found = replace(found, misfit=float(np.sqrt(np.mean(mad_scale(error) ** 2))))  # errors in noise units
+    edges = np.cumsum([0, *(v.samples.size for v in shooting.simulator.views)]) * shooting.n_channels
+    found = uncertainty(
+        jac, residual[:, 0], threshold, options.loss, problem.robot.unknowns, x[:n],
+        list(zip(edges[:-1], edges[1:], strict=True)), mad_scale(error),
+        heavier_links_change(shooting, x, residual[:, 0]),
+    )  # fmt: skip
     states = shooting.simulator.initial_states if initial is None else (initial[0][0], initial[1][0])
     return {
         "z": x[:n],

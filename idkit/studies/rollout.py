@@ -6,8 +6,10 @@ data=run.csv 'rollout.params=[armature,damping,frictionloss,kp,kv,command_delay]
 :mod:`idkit.data.commands`, as torque logs are by :mod:`idkit.data.pipeline`),
 chooses the unknowns (:mod:`idkit.sim.quantities`), hands the estimator a
 :class:`~idkit.sim.problem.RolloutProblem`, and replays the fitted model on every log: the fit log in
-its segments from the fitted initial states, each ``validate=`` log whole from its first logged state —
-what a user rolling ``identified.xml`` out under the logged commands gets.
+its segments from the fitted initial states; each ``validate=`` log is scored by
+:mod:`idkit.sim.validation` on the horizon the model is for (segments of ``segment`` seconds from the
+logged state; also whole where position servos make a whole rollout stable), at the fitted values and
+at the start values (the model before this fit) side by side, the default mode's verdict marked.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from idkit.studies.result import Provenance
 if TYPE_CHECKING:
     from idkit.sim.details import RolloutDetails
     from idkit.sim.simulator_model import SimulatorModel
+    from idkit.sim.validation import HeldOut
 
 #: What ``rollout.params`` fits when not told: the joints' passive terms.
 DEFAULT_PARAMS = ("armature", "damping", "frictionloss")
@@ -93,7 +96,8 @@ class RolloutResult:
         provenance: the envelope (task, seed, data, plugins, config, run id).
         mjcf: the ``identified.xml`` text (``None`` if MuJoCo refused it: ``mjcf_problem`` says why).
         fit: the fit log replayed in its segments.
-        validation: each ``validate=`` log replayed whole.
+        validation: each ``validate=`` log's scores (:class:`idkit.sim.validation.HeldOut`): every
+            mode that applies, at the fitted and at the start values.
         robot: the model and the unknowns fitted (``model`` puts the estimate back on it).
     """
 
@@ -102,7 +106,7 @@ class RolloutResult:
     provenance: Provenance
     mjcf: str | None
     fit: Replay
-    validation: list[Replay] = field(default_factory=list)
+    validation: list[HeldOut] = field(default_factory=list)
     mjcf_problem: str | None = None
     robot: Any = field(default=None, repr=False)
 
@@ -131,7 +135,10 @@ class RolloutResult:
             "estimate": self.estimate.to_dict(),
             "unknowns": self.unknowns,
             "fit": {self.fit.file: self.fit.scores()},
-            "validation": {r.file: r.scores() for r in self.validation},
+            "validation": {
+                file: [r.scores() for r in self.validation if r.file == file]
+                for file in dict.fromkeys(r.file for r in self.validation)
+            },
             "identified_xml": None if self.mjcf is None else "identified.xml",
             "identified_xml_problem": self.mjcf_problem,
         }
@@ -231,7 +238,7 @@ def run(
         start: ``{name or kind: value}`` (default the model's values; ``command_delay``: 0).
         box: ``(a, b)``: the bounds of an unknown without given bounds, as factors of its start.
         segment: seconds per multiple-shooting segment (``None``: whole stretches between gaps).
-        validate: held-out logs, each replayed whole with the fitted model.
+        validate: held-out logs, each scored by :func:`idkit.sim.validation.held_out`.
         state_topic, command_topic: a ROS log's ``JointState`` topics (:mod:`idkit.data.commands`).
         threads: rollout threads (``None``: every CPU the process may use).
         seed: seeds the search.
@@ -245,6 +252,7 @@ def run(
     from idkit.sim.model import load_model
     from idkit.sim.problem import RolloutProblem, SimRobot
     from idkit.sim.quantities import select_unknowns
+    from idkit.sim.validation import held_out as score_held_out
 
     sim = load_model(model)
     log = read_robot_logs(data, None, state_topic, command_topic)
@@ -286,10 +294,11 @@ def run(
     refuse_repeated_files(validate, "validate")
     refuse_training_files(data, validate)
     for path in as_paths(validate):
-        other = RolloutProblem(
-            robot, read_robot_logs(path, log.joint_names, state_topic, command_topic), threads=threads
+        other = read_robot_logs(path, log.joint_names, state_topic, command_topic)
+        compared = {"fitted": values, "start": unknowns.vector("start")}
+        held_out += score_held_out(
+            robot, compared, other, segment, file=str(path), seed=problem.seed, threads=threads
         )
-        held_out.append(replay(other, values, str(path), whole=True))
     try:
         text, problem_text = identified_xml(sim, unknowns, values), None
     except ValueError as error:

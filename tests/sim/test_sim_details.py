@@ -16,6 +16,8 @@ def _details() -> RolloutDetails:
         {"j1.damping": 0.1, "command_delay": np.inf},
         {"j1.damping": (0.8, 1.2), "command_delay": (-np.inf, np.inf)},
         misfit=1.3,
+        autocorrelation=0.2,
+        disagreement=1.1,
     )
     solves = (
         PolishSolve(4, False, 3, [5.0, 2.0], "ftol", [0.1, 0.2]),

@@ -130,7 +130,8 @@ def test_identify_simulator_returns_the_runs_model(tmp_path):
     record = json.loads((tmp_path / "run" / "result.json").read_text())["payload"]["estimate"]
     assert model.values == record["params"]
     assert model.std == record["details"]["uncertainty"]["std"]
-    assert len(model.held_out) == 1
+    assert {r.file for r in model.held_out} == {str(EXAMPLE / "held_out.csv")}  # every mode, both values
+    assert sum(r.default and r.values == "fitted" for r in model.held_out) == 1  # one verdict
     for name, (low, high) in model.interval95.items():
         assert low <= model.values[name] <= high
     assert model.to_mujoco().nu == 3

@@ -47,8 +47,10 @@ def test_the_study_fits_writes_and_the_written_model_reproduces_a_held_out_log(f
     truth |= {"joint4.damping": 0.4, "joint5.damping": 0.2}
     for name, value in truth.items():
         assert result.estimate.params[name] == pytest.approx(value, rel=1e-6)
-    (held,) = result.validation
-    assert held.rms.max() < 1e-6
+    fitted, start = result.validation  # torque motors: segments only, at the fitted and start values
+    assert (fitted.mode, fitted.values, fitted.default) == ("segments", "fitted", True)
+    assert fitted.rms.max() < 1e-6 and fitted.verdict == "within noise"
+    assert start.values == "start" and start.rms.max() > 1e-3  # damping 0.7 where the truth is 1.0
     written = report.write(result, tmp_path / "run")
     assert {"identified_mjcf", "fit_plot", "validation_plot_1", "result"} <= set(written)
     assert "joint1.armature" in report.text(result)
