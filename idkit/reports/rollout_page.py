@@ -22,6 +22,7 @@ from typing import Any
 
 from idkit.reports import html as h
 from idkit.reports.single_page import run_details
+from idkit.sim.uncertainty import LINKS
 
 #: A record without verdicts (written before :mod:`idkit.sim.validation` scored held-out logs) is graded by
 #: its threshold: a joint is ``within noise`` when its robust position error is at most this many times
@@ -104,6 +105,7 @@ class RolloutRecord:
     model_limited: bool | None
     misfit: float | None
     uncertainty_reason: str
+    heavier_links: dict[str, float]
     fit: list[LogScore]
     held_out: list[LogScore]
     rollouts: Any
@@ -214,6 +216,7 @@ def record(document: Mapping[str, Any]) -> RolloutRecord:
         uncertainty.get("model_limited"),
         None if misfit is None else float(misfit),
         str(uncertainty.get("uncertainty_reason") or uncertainty.get("reason") or ""),
+        {k: float(v) for k, v in (uncertainty.get("heavier_links") or {}).items()},
         [_score(f, s, fit_start) for f, s in (payload.get("fit") or {}).items()],
         held_out,
         details.get("rollouts"),
@@ -293,23 +296,31 @@ def _log_part(score: LogScore, every: list[LogScore]) -> str:
 
 
 def _model_limited(found: RolloutRecord) -> str:
-    measured = "" if found.misfit is None else f" Residual {found.misfit:.3g}× the noise level."
-    reason = f" {found.uncertainty_reason}" if found.uncertainty_reason else ""
+    said = found.uncertainty_reason or (
+        "" if found.misfit is None else f"Residual {found.misfit:.3g}× the noise level."
+    )
     if found.model_limited is None:
-        return h.paragraph(
+        verdict = h.paragraph(
             "Not assessed by this run: compare the fit log's error with its noise below (an error far "
             "above the noise means the model, not the noise, limits the fit, and the intervals are too "
             "narrow)."
         )
-    if found.model_limited:
-        return h.badge("poor", "model-limited") + h.paragraph(
-            "The model, not the noise, limits the fit: its residual is far above the noise or structured."
-            + measured
-            + reason
+    elif found.model_limited:
+        verdict = h.badge("poor", "model-limited") + h.paragraph(
+            "The model, not the noise, limits the fit: its residual is far above the noise or structured. "
+            + said
         )
-    return h.badge("good", "noise-limited") + h.paragraph(
-        "The fit's residual is at the noise level." + measured + reason
-    )
+    else:
+        verdict = h.badge("good", "noise-limited") + h.paragraph(said or "The fit's residual is the noise.")
+    if found.heavier_links:
+        moves = sorted(found.heavier_links.items(), key=lambda item: -abs(item[1]))
+        rows = [[name, h.num(move, digits=3, shown=f"{100 * move:+.3g} %")] for name, move in moves]
+        verdict += h.paragraph(
+            f"Were every link {100 * LINKS:g} % heavier (a model error a log may not show), the estimates "
+            "would move by:",
+            "rule",
+        ) + h.table(["unknown", "move"], rows, "heavier-links")
+    return verdict
 
 
 def _bounds(found: RolloutRecord) -> str:

@@ -106,7 +106,12 @@ def test_a_held_out_record_is_read_with_its_own_verdicts_modes_and_the_start_val
         ]
     }
     doc["payload"]["estimate"]["details"].update(
-        {"model_limited": False, "misfit": 1.04, "uncertainty_reason": "textbook intervals: at the noise"}
+        {
+            "model_limited": False,
+            "misfit": 1.04,
+            "uncertainty_reason": "textbook intervals: at the noise",
+            "heavier_links": {"j1.damping": 0.02, "j2.damping": -0.3},
+        }
     )
     verdicts = section(rollout_page.render(doc, tmp_path), "verdicts")
     held = verdicts[verdicts.index("held_out.csv") : verdicts.index("Model-limited")]
@@ -115,7 +120,9 @@ def test_a_held_out_record_is_read_with_its_own_verdicts_modes_and_the_start_val
     assert "the default: every joint is held by a position servo" in held
     assert "4× noise (j2)" in held and "perfect model&#x27;s error" in held
     assert "q error, start values" in held and ">0.0018<" in held  # start values: 9 × 2e-4
-    assert "Residual 1.04× the noise level. textbook intervals: at the noise" in verdicts
+    assert "textbook intervals: at the noise" in verdicts
+    heavier = verdicts[verdicts.index("heavier") :]
+    assert heavier.index("j2.damping") < heavier.index("j1.damping") and "-30 %" in heavier  # largest first
 
 
 def test_the_fit_log_is_named_with_the_states_it_started_from(tmp_path):
