@@ -115,16 +115,21 @@ class RolloutResult:
 
 
 def read_logs(
-    data: Any, joints: Sequence[str] | None, state_topic: str | None, command_topic: str | None
+    data: Any,
+    joints: Sequence[str] | None,
+    state_topic: str | None,
+    command_topic: str | None,
+    reader: Any = None,
 ) -> Any:
-    """One log of the ``data`` file(s), read by :func:`idkit.data.commands.read_robot_log`; several are
-    joined one after another with a gap between them (the segments restart after a gap)."""
+    """One log of the ``data`` file(s), read by ``reader`` (default
+    :func:`idkit.data.commands.read_robot_log`); several are joined one after another with a gap
+    between them (the segments restart after a gap)."""
     from idkit.data.commands import RobotLog, read_robot_log
 
     paths = list(data) if isinstance(data, (list, tuple)) else [data]
     if not paths:
         raise ValueError("data: no log given")
-    logs = [read_robot_log(p, joints, state_topic, command_topic) for p in paths]
+    logs = [(reader or read_robot_log)(p, joints, state_topic, command_topic) for p in paths]
     if len(logs) == 1:
         return logs[0]
     first = logs[0]
@@ -208,7 +213,8 @@ def run(
     """Identify a MuJoCo model's quantities from logged commands and joint states.
 
     Args:
-        model: the MJCF (``.xml``) or URDF (``.urdf``) file, or its text.
+        model: the MJCF (``.xml``) or URDF (``.urdf``) file, or its text; or a torque fit's run folder
+            (:mod:`idkit.sim.from_run`: its model, with the logs' efforts as motor commands).
         data: the fit log (CSV, ``.npz``, ROS log) or a list of logs of one robot (joined).
         estimator: ``"rollout"`` (a registry name, a config mapping or an object) with its options.
         cost: the search's score, a registered cost of the scaled error ``E`` (``None``: the
@@ -229,16 +235,22 @@ def run(
         device, dtype: where a registered cost is evaluated.
     """
     from idkit.sim.export import identified_xml
+    from idkit.sim.from_run import is_run_folder, read_torque_run
     from idkit.sim.model import load_model
+    from idkit.sim.passive_bounds import derived_bounds
     from idkit.sim.problem import RolloutProblem, SimRobot
     from idkit.sim.quantities import select_unknowns
 
-    sim = load_model(model)
-    log = read_logs(data, None, state_topic, command_topic)
+    torque_run = read_torque_run(model) if is_run_folder(model) else None
+    sim = load_model(model if torque_run is None else torque_run.mjcf)
+    reader = None if torque_run is None else torque_run.reader(sim)
+    log = read_logs(data, None, state_topic, command_topic, reader)
     scope = _joints(sim, log, joints)
     log_joints = tuple(j for j in log.joint_names if j in {*sim.joint_names()})
     if log_joints != log.joint_names:
-        log = read_logs(data, log_joints, state_topic, command_topic)
+        log = read_logs(data, log_joints, state_topic, command_topic, reader)
+    if torque_run is not None:
+        bounds = derived_bounds(sim, log, scope, params, bounds)
     unlogged = [j for j in sim.joint_names() if j not in log_joints]
     if unlogged:
         warnings.warn(
@@ -269,7 +281,7 @@ def run(
         list(validate) if isinstance(validate, (list, tuple)) else ([] if validate is None else [validate])
     ):
         other = RolloutProblem(
-            robot, read_logs(path, log.joint_names, state_topic, command_topic), threads=threads
+            robot, read_logs(path, log.joint_names, state_topic, command_topic, reader), threads=threads
         )
         held_out.append(replay(other, values, str(path), whole=True))
     try:
