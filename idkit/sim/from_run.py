@@ -51,6 +51,33 @@ class TorqueRun:
     offsets: np.ndarray
     recording: RecordingOptions
 
+    def model(self) -> SimModel:
+        """The identified model as a simulator of the motion the torque fit modelled: free of contacts.
+
+        The torque fit explained the torques by the rigid body and friction alone; a converted URDF's
+        collision geoms often overlap where links meet (a wrist's links, the base and the first link),
+        and MuJoCo would push them apart with forces the fit never saw — at every step. Contacts are
+        disabled in the simulator and so in the refined ``identified.xml`` (``<flag contact>``), said
+        in a note when the model had any."""
+        from idkit.robots.mjcf import import_mujoco
+        from idkit.sim.model import load_model
+
+        mujoco = import_mujoco()
+        loaded = load_model(self.mjcf)
+        if loaded.spec.option.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT or not loaded.model.ngeom:
+            return loaded
+        spec = loaded.spec
+        spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+        data = mujoco.MjData(loaded.model)
+        mujoco.mj_forward(loaded.model, data)
+        warnings.warn(
+            f"{self.folder / MJCF_FILE}: contacts disabled (the torque fit modelled none; {data.ncon} "
+            "geom pair(s) of the arm touch at its reference configuration)",
+            Note,
+            stacklevel=2,
+        )
+        return SimModel(spec, spec.compile(), loaded.label, loaded.folder)
+
     def reader(self, sim: SimModel) -> Callable[..., RobotLog]:
         """A reader of logs for ``sim`` (``(path, joints=None, *topics) -> RobotLog``): the efforts as
         motor commands (:mod:`idkit.data.effort_commands`), each divided by its motor's gear, the joints

@@ -242,7 +242,7 @@ def run(
     from idkit.sim.quantities import select_unknowns
 
     torque_run = read_torque_run(model) if is_run_folder(model) else None
-    sim = load_model(model if torque_run is None else torque_run.mjcf)
+    sim = load_model(model) if torque_run is None else torque_run.model()
     reader = None if torque_run is None else torque_run.reader(sim)
     log = read_logs(data, None, state_topic, command_topic, reader)
     scope = _joints(sim, log, joints)
