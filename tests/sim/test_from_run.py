@@ -122,3 +122,17 @@ def test_the_run_folders_model_loads_with_one_motor_per_joint(tmp_path):
     sim = load_model(run.mjcf)
     assert sim.model.nu == 2
     assert all(sim.model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT for a in range(2))
+
+
+def test_the_simulator_and_its_identified_xml_have_no_contacts(tmp_path):
+    from idkit.sim.export import identified_xml
+    from idkit.sim.quantities import select_unknowns
+
+    run = read_torque_run(_run_folder(tmp_path / "run"))
+    with pytest.warns(Note, match="contacts disabled"):
+        sim = run.model()
+    assert sim.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+    unknowns = select_unknowns(sim, ("a",), ["damping"])
+    written = mujoco.MjModel.from_xml_string(identified_xml(sim, unknowns, np.array([0.7])))
+    assert written.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+    assert written.dof_damping[0] == pytest.approx(0.7)
