@@ -139,7 +139,7 @@ def read_torque_run(folder: str | Path) -> TorqueRun:
         raise ValueError(f"{result_path}: robot.effort_scale {scale} is not {len(joints)} factors > 0")
     offsets = np.array([float(params.get(f"{j}.offset", 0.0)) for j in joints])
     topics = (result.get("config") or {}).get("recording") or {}
-    recording = RecordingOptions(**{k: topics.get(k) for k in ("topic", "effort_topic")})
+    recording = RecordingOptions(topic=topics.get("topic"), effort_topic=topics.get("effort_topic"))
     mjcf_path = folder / MJCF_FILE
     if mjcf_path.is_file():
         mjcf = mjcf_path.read_text(encoding="utf-8")
