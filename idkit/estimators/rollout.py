@@ -78,6 +78,9 @@ class RolloutEstimator(Estimator[RolloutProblem]):
         polish_iterations: Levenberg–Marquardt iterations at most per scale re-estimate.
         free_initial: fit every segment's initial state in the polish's robust stages.
         threads: rollout threads (``None``: the problem's).
+        jacobian_every: polish iterations at most per finite-difference Jacobian (each costs a
+            rollout per unknown and segment); between two, the last one follows the steps taken
+            (:meth:`idkit.optim.levenberg.BlockJacobian.broyden`). 1: a new one every iteration.
     """
 
     #: The kind of problem it fits: the command line runs it in the task that builds one
@@ -96,6 +99,7 @@ class RolloutEstimator(Estimator[RolloutProblem]):
         polish_iterations: int = 50,
         free_initial: bool = True,
         threads: int | None = None,
+        jacobian_every: int = 3,
     ) -> None:
         self.particles = particles
         self.iterations = iterations
@@ -105,6 +109,7 @@ class RolloutEstimator(Estimator[RolloutProblem]):
         self.polish_iterations = polish_iterations
         self.free_initial = free_initial
         self.threads = threads
+        self.jacobian_every = jacobian_every
         self.resolve()
 
     def resolve(self) -> None:
@@ -120,6 +125,8 @@ class RolloutEstimator(Estimator[RolloutProblem]):
             raise ValueError(f"rollout: search_share must be in (0, 1], got {self.search_share}")
         if self.loss not in LOSSES:
             raise ValueError(f"rollout: loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
+        if self.jacobian_every < 1:
+            raise ValueError(f"rollout: jacobian_every must be >= 1, got {self.jacobian_every}")
         if self.threads is not None and self.threads < 1:
             raise ValueError(f"rollout: threads must be >= 1 or null, got {self.threads}")
 
@@ -185,7 +192,7 @@ class RolloutEstimator(Estimator[RolloutProblem]):
             f"RolloutEstimator(particles={self.particles}, iterations={self.iterations}, "
             f"cooperative={self.cooperative}, search_share={self.search_share}, loss={self.loss!r}, "
             f"polish_iterations={self.polish_iterations}, free_initial={self.free_initial}, "
-            f"threads={self.threads})"
+            f"threads={self.threads}, jacobian_every={self.jacobian_every})"
         )
 
 
@@ -334,15 +341,17 @@ def _solve(
         max_iter=options.polish_iterations,
         ftol=TIGHT if tight else LOOSE,
         xtol=1e-7,
+        refresh=options.jacobian_every,
     )
     record.append(
         PolishSolve(
             segments=len(shooting.simulator.segments),
             initial_states_free=shooting.free_initial,
-            iterations=trace.jacobians,
+            iterations=len(trace.losses) - 1,
             losses=list(trace.losses),
             stop=trace.status,
             scales=(scales * shooting.scales).tolist(),
+            jacobians=trace.jacobians,
         )
     )
     return x
