@@ -88,6 +88,11 @@ def reporting(
         _current.reset(token)
 
 
+def listening() -> bool:
+    """Whether a study is :func:`reporting` (a caller skips computing what only a line would show)."""
+    return _current.get() is not None
+
+
 def count_rollouts(counter: Callable[[], int]) -> None:
     """Lines from here on show ``counter()`` rollouts run (the estimator that runs them says how many)."""
     reporter = _current.get()

@@ -26,7 +26,7 @@ Commands keep their own stamps: the simulator holds each until the next (:mod:`i
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -176,10 +176,12 @@ def read_robot_logs(
     joints: Sequence[str] | None = None,
     state_topic: str | None = None,
     command_topic: str | None = None,
+    reader: Callable[..., RobotLog] | None = None,
 ) -> RobotLog:
     """One log of ``files`` (a path or a list: :func:`idkit.data.files.as_paths`), each read by
-    :func:`read_robot_log`; several are joined one after another with a gap between them (the
-    segments restart after a gap: :mod:`idkit.sim.segments`).
+    ``reader`` (default :func:`read_robot_log`; a torque run's reads efforts as motor commands:
+    :meth:`idkit.sim.from_run.TorqueRun.reader`); several are joined one after another with a gap
+    between them (the segments restart after a gap: :mod:`idkit.sim.segments`).
 
     Raises:
         ValueError: no file, a file given twice, or files of other joints or commands than the first.
@@ -188,7 +190,7 @@ def read_robot_logs(
     if not paths:
         raise ValueError("data: no log given")
     refuse_repeated_files(paths, "data")
-    logs = [read_robot_log(p, joints, state_topic, command_topic) for p in paths]
+    logs = [(reader or read_robot_log)(p, joints, state_topic, command_topic) for p in paths]
     if len(logs) == 1:
         return logs[0]
     first = logs[0]

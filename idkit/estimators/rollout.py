@@ -79,6 +79,9 @@ class RolloutEstimator(Estimator[RolloutProblem]):
         polish_iterations: Levenberg–Marquardt iterations at most per scale re-estimate.
         free_initial: fit every segment's initial state in the polish's robust stages.
         threads: rollout threads (``None``: the problem's).
+        jacobian_every: polish iterations at most per finite-difference Jacobian (each costs a
+            rollout per unknown and segment); between two, the last one follows the steps taken
+            (:meth:`idkit.optim.levenberg.BlockJacobian.broyden`). 1: a new one every iteration.
     """
 
     #: The kind of problem it fits: the command line runs it in the task that builds one
@@ -97,6 +100,7 @@ class RolloutEstimator(Estimator[RolloutProblem]):
         polish_iterations: int = 50,
         free_initial: bool = True,
         threads: int | None = None,
+        jacobian_every: int = 3,
     ) -> None:
         self.particles = particles
         self.iterations = iterations
@@ -106,6 +110,7 @@ class RolloutEstimator(Estimator[RolloutProblem]):
         self.polish_iterations = polish_iterations
         self.free_initial = free_initial
         self.threads = threads
+        self.jacobian_every = jacobian_every
         self.resolve()
 
     def resolve(self) -> None:
@@ -121,6 +126,8 @@ class RolloutEstimator(Estimator[RolloutProblem]):
             raise ValueError(f"rollout: search_share must be in (0, 1], got {self.search_share}")
         if self.loss not in LOSSES:
             raise ValueError(f"rollout: loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
+        if self.jacobian_every < 1:
+            raise ValueError(f"rollout: jacobian_every must be >= 1, got {self.jacobian_every}")
         if self.threads is not None and self.threads < 1:
             raise ValueError(f"rollout: threads must be >= 1 or null, got {self.threads}")
 
@@ -191,7 +198,7 @@ class RolloutEstimator(Estimator[RolloutProblem]):
             f"RolloutEstimator(particles={self.particles}, iterations={self.iterations}, "
             f"cooperative={self.cooperative}, search_share={self.search_share}, loss={self.loss!r}, "
             f"polish_iterations={self.polish_iterations}, free_initial={self.free_initial}, "
-            f"threads={self.threads})"
+            f"threads={self.threads}, jacobian_every={self.jacobian_every})"
         )
 
 
@@ -334,18 +341,21 @@ def _solve(
     root = np.sqrt(shooting.measured.size)
     shooting.divisor = scales * root
     lower, upper = shooting.unknowns.coordinate_bounds()
-    calls = [sum(solve.iterations for solve in record)]  # the polish's iterations so far, every solve
+    steps, best = [sum(solve.iterations for solve in record)], [np.inf]  # for the progress lines
 
-    def jacobian(x: np.ndarray, residual: np.ndarray) -> Any:
-        calls[0] += 1  # once per iteration: say where the polish is (the error in noise levels)
-        error = residual[:, 0] * shooting.divisor[shooting.channel_of_entry()]
-        progress.report("polish", calls[0], None, float(mad_scale(error)), "error / noise")
-        return shooting.jacobian(x, residual)
+    def residual(x: np.ndarray) -> np.ndarray:
+        r = shooting.residual(x)
+        steps[0] += 1  # once per step tried: say where the polish is (its best error in noise levels)
+        if progress.listening():
+            error = r[:, 0] * shooting.divisor[shooting.channel_of_entry()]
+            best[0] = min(best[0], float(mad_scale(error)))
+            progress.report("polish", steps[0], None, best[0], "error / noise")
+        return r
 
     x, trace = least_squares(
         x,
-        shooting.residual,
-        jacobian,
+        residual,
+        shooting.jacobian,
         lower,
         upper,
         loss,
@@ -354,15 +364,17 @@ def _solve(
         max_iter=options.polish_iterations,
         ftol=TIGHT if tight else LOOSE,
         xtol=1e-7,
+        refresh=options.jacobian_every,
     )
     record.append(
         PolishSolve(
             segments=len(shooting.simulator.segments),
             initial_states_free=shooting.free_initial,
-            iterations=trace.jacobians,
+            iterations=len(trace.losses) - 1,
             losses=list(trace.losses),
             stop=trace.status,
             scales=(scales * shooting.scales).tolist(),
+            jacobians=trace.jacobians,
         )
     )
     return x

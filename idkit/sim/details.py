@@ -49,10 +49,11 @@ class PolishSolve:
     Attributes:
         segments: segments it rolled out.
         initial_states_free: whether the segments' initial states were fitted too.
-        iterations: Jacobians computed.
+        iterations: accepted and rejected steps taken (``len(losses) - 1``).
         losses: the loss after each accepted step (the last is the solve's polish cost).
         stop: why it stopped (``ftol``, ``xtol``, ``max_iter``, ...).
         scales: ``[2n]`` the robust scale of each channel it divided by (the channels' units).
+        jacobians: finite-difference Jacobians computed (between two, Broyden updates follow the steps).
     """
 
     segments: int
@@ -61,6 +62,7 @@ class PolishSolve:
     losses: list[float]
     stop: str
     scales: list[float]
+    jacobians: int = 0
 
     @property
     def cost(self) -> float:
@@ -75,6 +77,7 @@ class PolishSolve:
             "losses": list(self.losses),
             "stop": self.stop,
             "scales": list(self.scales),
+            "jacobians": self.jacobians,
         }
 
 

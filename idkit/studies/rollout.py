@@ -223,7 +223,8 @@ def run(
     """Identify a MuJoCo model's quantities from logged commands and joint states.
 
     Args:
-        model: the MJCF (``.xml``) or URDF (``.urdf``) file, or its text.
+        model: the MJCF (``.xml``) or URDF (``.urdf``) file, or its text; or a torque fit's run folder
+            (:mod:`idkit.sim.from_run`: its model, with the logs' efforts as motor commands).
         data: the fit log (CSV, ``.npz``, ROS log) or a list of logs of one robot (joined).
         estimator: ``"rollout"`` (a registry name, a config mapping or an object) with its options.
         cost: the search's score, a registered cost of the scaled error ``E`` (``None``: the
@@ -249,17 +250,23 @@ def run(
     from idkit.data.commands import read_robot_logs
     from idkit.data.files import as_paths, refuse_repeated_files, refuse_training_files
     from idkit.sim.export import identified_xml
+    from idkit.sim.from_run import is_run_folder, read_torque_run
     from idkit.sim.model import load_model
+    from idkit.sim.passive_bounds import derived_bounds
     from idkit.sim.problem import RolloutProblem, SimRobot
     from idkit.sim.quantities import select_unknowns
     from idkit.sim.validation import held_out as score_held_out
 
-    sim = load_model(model)
-    log = read_robot_logs(data, None, state_topic, command_topic)
+    torque_run = read_torque_run(model) if is_run_folder(model) else None
+    sim = load_model(model) if torque_run is None else torque_run.model()
+    reader = None if torque_run is None else torque_run.reader(sim)
+    log = read_robot_logs(data, None, state_topic, command_topic, reader)
     scope = _joints(sim, log, joints)
     log_joints = tuple(j for j in log.joint_names if j in {*sim.joint_names()})
     if log_joints != log.joint_names:
-        log = read_robot_logs(data, log_joints, state_topic, command_topic)
+        log = read_robot_logs(data, log_joints, state_topic, command_topic, reader)
+    if torque_run is not None:
+        bounds = derived_bounds(sim, log, scope, params, bounds)
     unlogged = [j for j in sim.joint_names() if j not in log_joints]
     if unlogged:
         warnings.warn(
@@ -294,7 +301,7 @@ def run(
     refuse_repeated_files(validate, "validate")
     refuse_training_files(data, validate)
     for path in as_paths(validate):
-        other = read_robot_logs(path, log.joint_names, state_topic, command_topic)
+        other = read_robot_logs(path, log.joint_names, state_topic, command_topic, reader)
         compared = {"fitted": values, "start": unknowns.vector("start")}
         held_out += score_held_out(
             robot, compared, other, segment, file=str(path), seed=problem.seed, threads=threads
