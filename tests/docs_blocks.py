@@ -2,7 +2,8 @@
 
 Each ``bash`` block runs in ``bash -eo pipefail`` and each ``python`` block in this interpreter, both
 started in ``folder`` with this interpreter's ``bin`` first on ``PATH`` (so ``idkit`` and ``python`` are
-the ones under test). Other blocks (``text``, ``yaml``: shown output, configs) are not run. A failing
+the ones under test). Other blocks (``text``, ``yaml``: shown output, configs) are not run, nor a block
+whose previous line is ``<!-- docs-test: skip: <why> -->`` (the docs pages' runner's mark). A failing
 block fails with its language, its first line and its output.
 """
 
@@ -18,13 +19,21 @@ from pathlib import Path
 RUNNERS = {"bash": ["bash", "-eo", "pipefail", "-c"], "python": [sys.executable, "-c"]}
 
 
+#: The line before a block that is not run.
+SKIP = re.compile(r"<!--\s*docs-test:\s*skip\b.*?-->\s*\n$")
+
+
 def code_blocks(page: str | Path) -> list[tuple[str, str]]:
-    """``(language, code)`` of every fenced ``bash`` or ``python`` block of ``page``, in order."""
+    """``(language, code)`` of every fenced ``bash`` or ``python`` block of ``page`` to run, in order."""
     text = Path(page).read_text(encoding="utf-8")
+
+    def line_before(index: int) -> str:
+        return ("\n" + text[:index]).rsplit("\n", 2)[-2] + "\n"
+
     return [
-        (language, code)
-        for language, code in re.findall(r"^```(\w+)\n(.*?)^```", text, re.S | re.M)
-        if language in RUNNERS
+        (found.group(1), found.group(2))
+        for found in re.finditer(r"^```(\w+)\n(.*?)^```", text, re.S | re.M)
+        if found.group(1) in RUNNERS and not SKIP.search(line_before(found.start()))
     ]
 
 

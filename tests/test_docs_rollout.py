@@ -21,6 +21,16 @@ def test_the_page_starts_from_the_shipped_example():
     assert {language for language, _ in blocks} == {"bash", "python"}
 
 
+def test_a_block_marked_skip_is_not_run(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text(
+        "```bash\necho one\n```\n\n<!-- docs-test: skip: needs a robot -->\n```bash\necho two\n```\n"
+        "```text\nshown\n```\n```python\nprint(3)\n```\n"
+    )
+    assert code_blocks(page) == [("bash", "echo one\n"), ("python", "print(3)\n")]
+    assert run_blocks(code_blocks(page), tmp_path) == ["one\n", "3\n"]
+
+
 @pytest.mark.slow
 def test_the_page_runs_as_written(tmp_path):
     outputs = run_blocks(code_blocks(PAGE), tmp_path)
