@@ -2,7 +2,7 @@
 
 Run: ``python bench/rollout.py [--cases a b c] [--starts 20] [--threads 2] [--sysid mujoco scipy robust]
 [--labels physical|shifted|both] [--jacobian-every 1 3]``
-(needs the ``bench`` extra: ``mujoco[sysid]``). The cases are :mod:`idkit.sim.cases`:
+(needs the ``bench`` extra: ``mujoco[sysid]``). The cases are :mod:`idkit.testing.rollout_cases`:
 
 * ``a``: ``mujoco.sysid``'s own integration-test arm (5 torque motors), its 5 armatures;
 * ``b``: a 7-joint arm under position and velocity servos, per joint armature, damping, friction loss,
@@ -52,9 +52,9 @@ import mujoco
 import numpy as np
 
 from idkit.estimators.rollout import RolloutEstimator
-from idkit.sim import cases
 from idkit.sim.model import load_model
 from idkit.sim.quantities import select_unknowns
+from idkit.testing import rollout_cases as cases
 
 SUCCESS = 0.05
 COLUMNS = ("median err", "max err", "held-out", "wall med", "wall sum", "CPU med", "logs sim")
@@ -73,7 +73,7 @@ def relative_errors(case: cases.Case, values: np.ndarray) -> np.ndarray:
     truth = np.array(list(case.truth.values()))
     errors = np.abs(values - truth) / np.where(truth != 0, np.abs(truth), 1.0)
     for i, name in enumerate(case.truth):
-        if name == "delay":
+        if name == "command_delay":
             errors[i] = min(errors[i], abs(values[i] - truth[i]) / DELAY_SLACK * SUCCESS)
     return errors
 
@@ -95,7 +95,7 @@ def held_out_error(case: cases.Case, values: dict[str, float]) -> float:
     from idkit.sim.timing import held_averages
 
     drive = match_commands(sim, log)
-    delay = values.get("delay", 0.0)
+    delay = values.get("command_delay", 0.0)
     controls = held_averages(
         log.command_t,
         log.commands[:, list(drive.columns)],
@@ -116,7 +116,7 @@ def run_idkit(case: cases.Case, start: dict[str, float], threads: int, **options
     estimate = RolloutEstimator(**options).fit(problem)
     wall, cpu = time.perf_counter() - began, time.process_time() - cpu
     duration = case.fit.t[-1] - case.fit.t[0]
-    simulated = estimate.details["simulated_seconds"] / duration
+    simulated = estimate.details.simulated_seconds / duration
     return Run(np.array(list(estimate.params.values())), wall, simulated, cpu)
 
 
@@ -194,12 +194,14 @@ def run_sysid(
     sensors = sysid.TimeSeries.from_names(sensor_times, np.hstack([log.q, log.qd]), model)
     sequences = sysid.ModelSequences(case.name, spec, "fit", initial, control, sensors)
     options: dict = {}
-    if "delay" in case.truth:
-        largest = case.bounds["delay"][1]
+    if "command_delay" in case.truth:
+        largest = case.bounds["command_delay"][1]
 
         def delayed(params, predicted, measured, model, return_pred_all, state=None, **_):
             measured = sysid.apply_delayed_ts_window(measured, predicted, 0.0, largest)
-            predicted = sysid.apply_resample_and_delay(predicted, measured.times, params["delay"].value[0])
+            predicted = sysid.apply_resample_and_delay(
+                predicted, measured.times, params["command_delay"].value[0]
+            )
             residual = sysid.normalize_residual(
                 sysid.weighted_diff(predicted.data, measured.data), measured.data
             )
@@ -244,9 +246,9 @@ def truth_f_scale(case: cases.Case) -> float:
     measured = np.hstack([case.fit.q, case.fit.qd])
     exact = np.hstack([clean.fit.q, clean.fit.qd])
     if case.name == "c":
-        from idkit.sim.cases import delayed
+        from idkit.testing.rollout_cases import delayed
 
-        q, qd = delayed(clean.fit.t, clean.fit.q, clean.fit.qd, case.truth["delay"])
+        q, qd = delayed(clean.fit.t, clean.fit.q, clean.fit.qd, case.truth["command_delay"])
         exact = np.hstack([q, qd])
     residual = sysid.normalize_residual(measured - exact, measured)
     del model
