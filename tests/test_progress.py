@@ -26,14 +26,15 @@ def test_a_new_stage_prints_at_once_and_a_stage_at_most_once_per_interval():
         for step in range(10):  # one call a second
             now[0] = float(step)
             progress.report("search", step + 1, 10, 10.0 - step)
-        progress.report("polish", 1, best=1.5, what="error / noise")
+        progress.report("polish", best=2.0, what="error / noise")  # numbered by the reporter
+        progress.report("polish", best=1.5, what="error / noise")  # within the interval: not printed
     progress.report("search", 99)  # after the block: nobody listens
     assert lines == [
         "fit: search · iteration 1/10 · best cost 10 · 1,234 rollouts · 0.0 s",
         "fit: search · iteration 4/10 · best cost 7 · 1,234 rollouts · 3.0 s",
         "fit: search · iteration 7/10 · best cost 4 · 1,234 rollouts · 6.0 s",
         "fit: search · iteration 10/10 · best cost 1 · 1,234 rollouts · 9.0 s",
-        "fit: polish · iteration 1 · error / noise 1.5 · 1,234 rollouts · 9.0 s",
+        "fit: polish · iteration 1 · error / noise 2 · 1,234 rollouts · 9.0 s",
     ]
 
 

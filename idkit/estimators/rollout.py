@@ -341,15 +341,14 @@ def _solve(
     root = np.sqrt(shooting.measured.size)
     shooting.divisor = scales * root
     lower, upper = shooting.unknowns.coordinate_bounds()
-    steps, best = [sum(solve.iterations for solve in record)], [np.inf]  # for the progress lines
+    best = [np.inf]  # for the progress lines
 
     def residual(x: np.ndarray) -> np.ndarray:
         r = shooting.residual(x)
-        steps[0] += 1  # once per step tried: say where the polish is (its best error in noise levels)
-        if progress.listening():
+        if progress.listening():  # once per step tried: where the polish is (its best error in noise levels)
             error = r[:, 0] * shooting.divisor[shooting.channel_of_entry()]
             best[0] = min(best[0], float(mad_scale(error)))
-            progress.report("polish", steps[0], None, best[0], "error / noise")
+            progress.report("polish", best=best[0], what="error / noise")
         return r
 
     x, trace = least_squares(
