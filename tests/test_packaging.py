@@ -27,8 +27,8 @@ def test_package_list_covers_every_folder_that_ships():
     """Code packages and folders of data alike: a folder left out of the list is either missing from
     the wheel or, where package-data names it, one of setuptools' "Package would be ignored" banners."""
     listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
-    idkit = {name for name in shipped_folders(REPO / "idkit", ("idkit",)) if not name.startswith("idkit.conf")}
-    assert idkit | shipped_folders(REPO / "conf", ("idkit", "conf")) == listed
+    code = {name for name in shipped_folders(REPO / "idkit", ("idkit",)) if not name.startswith("idkit.conf")}
+    assert code | shipped_folders(REPO / "conf", ("idkit", "conf")) == listed
 
 
 def test_wheel_ships_configs_and_assets(tmp_path):
