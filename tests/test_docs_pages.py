@@ -35,10 +35,14 @@ def test_the_page_runs_as_written(page, tmp_path):
     assert git_status() == before, "a page's code wrote into the clone"
 
 
-def git_status() -> str:
-    return subprocess.run(
+def git_status() -> set[str]:
+    """The clone's new files and folders, untracked or ignored (edits of tracked files are not a
+    page's doing; caches are written by the suite itself)."""
+    lines = subprocess.run(
         ["git", "status", "--porcelain", "--ignored"], cwd=REPO, capture_output=True, text=True
-    ).stdout
+    ).stdout.splitlines()
+    caches = (".hypothesis", ".pytest_cache", ".ruff_cache", ".mypy_cache")
+    return {line[3:] for line in lines if line[:2] in ("??", "!!") and not line[3:].startswith(caches)}
 
 
 # ---- what the runner reads: checked on every page, fast ----
