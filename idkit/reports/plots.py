@@ -96,7 +96,7 @@ def traces(
     title: str,
     path: Path,
     joint_names: Sequence[str] | None = None,
-    unit: str = "N·m",
+    unit: str | Sequence[str] = "N·m",
     residuals: bool = True,
 ) -> Path:
     """Per joint, a measured signal ``[N, n]`` against predictions ``[N, n]`` over ``times[N]`` and,
@@ -105,10 +105,12 @@ def traces(
 
     Args:
         joint_names: the ``n`` joints' names for the axes (``None``: ``joint 1``, ``joint 2``, …).
-        unit: of the signal, for the axes.
+        unit: of the signal, for the axes: one for all joints, or one per joint (N·m on a revolute
+            joint, N on a prismatic one).
     """
     n = measured.shape[1]
     names = list(joint_names) if joint_names is not None else [f"joint {j + 1}" for j in range(n)]
+    units = [unit] * n if isinstance(unit, str) else list(unit)
     rows = 2 * n if residuals else n
     heights = [3, 1.4] * n if residuals else [1] * n
     fig, axes = _subplots(
@@ -121,7 +123,7 @@ def traces(
         ax.plot(times, measured[:, j], "k", lw=2.0, label="measured")
         for label, values in predicted.items():
             ax.plot(times, values[:, j], lw=1.0, label=label)
-        ax.set_ylabel(f"{names[j]} ({unit})", fontsize="small")
+        ax.set_ylabel(f"{names[j]} ({units[j]})", fontsize="small")
         ax.legend(fontsize=7, loc="upper right")
         if residuals:
             below = axes[step * j + 1, 0]

@@ -107,6 +107,12 @@ class RunResult:
         return IdentifiedModel(self.robot, self.estimate, validation=self.validation, result=self)
 
     @property
+    def joint_kinds(self) -> list[str] | None:
+        """The robot's ``joint_kinds`` where it has them (a plugin need not)."""
+        kinds = getattr(self.robot, "joint_kinds", None)
+        return None if kinds is None else [str(kind) for kind in kinds]
+
+    @property
     def joint_names(self) -> tuple[str, ...]:
         """The robot's joints, in the order of every per-joint figure (``()`` without the robot)."""
         return () if self.robot is None else tuple(self.robot.joint_names)
@@ -150,6 +156,8 @@ class RunResult:
             "parameter_error": self.parameter_error,
             "cost": {"name": self.cost_name, "value": self.estimate.cost},
             "joint_names": list(self.joint_names),
+            # per joint "revolute" (torque, N·m) or "prismatic" (force, N); null where the robot says not
+            "joint_kinds": self.joint_kinds,
             "nominal": self.nominal,
             "validation": {held.file: held.scores.to_dict() for held in self.validation},
             **(
