@@ -82,6 +82,8 @@ class RunResult:
         plausible: the same estimator with ``plausible=true``, scored on the same files, when the
             fit left links implausible (:mod:`idkit.studies.plausibility`).
         robot: the robot object the estimator fitted (``model`` puts the estimate back on it).
+        cost_ignored: ``cost`` was given to an estimator with its own criterion (a
+            :class:`CostIgnoredNote` said so): a sweep over costs repeats the same fit.
     """
 
     estimate: Estimate
@@ -93,6 +95,9 @@ class RunResult:
     mjcf: str | None = None
     plausible: PlausibleAlternative | None = None
     robot: Any = field(default=None, repr=False, compare=False)
+    #: the cost was given but the estimator minimises its own criterion (LS, TLS, RLS, pcls …): the
+    #: estimate is the same for any cost, which is only evaluated at it
+    cost_ignored: bool = False
 
     @functools.cached_property
     def model(self) -> IdentifiedModel:
@@ -154,7 +159,11 @@ class RunResult:
             "truth": self.truth,
             "relative_error": self.relative_error,
             "parameter_error": self.parameter_error,
-            "cost": {"name": self.cost_name, "value": self.estimate.cost},
+            "cost": {
+                "name": self.cost_name,
+                "value": self.estimate.cost,
+                "used_by_fit": not self.cost_ignored,
+            },
             "joint_names": list(self.joint_names),
             # per joint "revolute" (torque, N·m) or "prismatic" (force, N); null where the robot says not
             "joint_kinds": self.joint_kinds,
@@ -356,7 +365,11 @@ def run(
     )
     problem.check_identifiable()  # for every estimator, a third party's included, before its fit
     fitted = estimator_obj.fit(problem)
-    label = estimator_label(estimator, cost, with_cost=isinstance(estimator_obj, CostSearcher))
+    searches = isinstance(estimator_obj, CostSearcher)
+    label = estimator_label(estimator, cost, with_cost=searches)
+    cost_ignored = cost_obj is not None and not searches
+    if cost_ignored:
+        say_cost_ignored(label)
     refuse_meaningless(fitted, robot_obj.param_names, label)
     fitted = say_held(robot_obj, fitted, label)
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
@@ -386,4 +399,20 @@ def run(
         _identified_mjcf(model, identified_mjcf),
         alternative,
         robot_obj,
+        cost_ignored,
+    )
+
+
+class CostIgnoredNote(Note):
+    """An estimator with its own criterion was given a cost, which cannot change its estimate."""
+
+
+def say_cost_ignored(label: str) -> None:
+    """One note per estimator (the message names no cost, so a sweep over costs prints it once)."""
+    warnings.warn(
+        CostIgnoredNote(
+            f"{label} minimises its own criterion and ignores cost=: every cost gives the same estimate "
+            "(the cost is only evaluated at it, for the report), so a sweep over costs repeats this fit"
+        ),
+        stacklevel=3,
     )
