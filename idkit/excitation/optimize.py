@@ -60,6 +60,7 @@ from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
 from idkit.optim import swarm
 from idkit.options import positive_number
+from idkit.progress import Progress
 from idkit.runtime import resolve_threads, torch_threads
 from idkit.seeds import torch_generator
 
@@ -426,9 +427,17 @@ def _search(
     if method == "adam":
         best = torch.rand(budget["swarms"], dims, generator=generator, dtype=torch.float64).to(**like)
     else:
-        best = _swarm_search(
-            objective, dims, budget["swarms"], budget["particles"], budget["iterations"], generator, like
-        )
+        # one evaluation of every swarm per iteration, the start's included
+        with Progress("excitation search (particle swarm)", budget["iterations"], "iterations") as progress:
+            best = _swarm_search(
+                progress.counting(objective),
+                dims,
+                budget["swarms"],
+                budget["particles"],
+                budget["iterations"],
+                generator,
+                like,
+            )
         details.update(
             pso_best_loss=float(objective(best).min()),
             pso_seconds=time.perf_counter() - started,
@@ -436,7 +445,10 @@ def _search(
         )
     if method != "pso":
         started, cpu = time.perf_counter(), time.process_time()
-        best = _adam_search(objective, best, budget["adam_steps"], budget["learning_rate"])
+        with Progress("excitation polish (Adam)", budget["adam_steps"] + 1, "steps") as progress:
+            best = _adam_search(
+                progress.counting(objective), best, budget["adam_steps"], budget["learning_rate"]
+            )
         details.update(
             adam_best_loss=float(objective(best).min()),
             adam_seconds=time.perf_counter() - started,
