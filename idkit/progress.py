@@ -1,114 +1,105 @@
-"""Progress lines for a step that runs longer than a few seconds.
+"""Progress lines of a long fit: what it is doing, at most one line every few seconds.
 
-A user who starts a fit and sees nothing for a minute cannot tell a slow step from a hung one. A
-step that counts its work (iterations, fits) reports it here: nothing for the first
-:data:`QUIET_S` seconds — a quick step stays silent — then one line on stderr every
-:data:`EVERY_S` seconds with what is done, the time so far and an estimate of the time left, and
-one closing line. Lines, not a redrawn bar: they read the same in a terminal, a log file and a CI
-log. While a tqdm bar runs (the robustness study's), a line goes through ``tqdm.write``, which
-keeps the bar whole.
+A study that takes ``progress`` (the command sets it when stderr is a terminal, as for the robustness
+study's bar) opens :func:`reporting`; the estimator, wherever it is, calls :func:`report` with its stage,
+iteration and best cost — a call that costs a clock read and prints nothing when no study listens, so
+an estimator used from Python stays quiet. A line looks like::
 
-    with Progress("excitation search", total=iterations, unit="iterations") as progress:
-        for _ in range(iterations):
-            ...
-            progress.advance()
+    rollout: search · iteration 12/30 · best cost 3.21 · 1,234 rollouts · 8.1 s
+
+A new stage prints at once; within a stage at most one line per :data:`INTERVAL` seconds.
 """
 
 from __future__ import annotations
 
-import os
+import contextlib
 import sys
 import time
-from collections.abc import Callable
-from types import TracebackType
-from typing import Any, TextIO
+from collections.abc import Callable, Iterator
+from contextvars import ContextVar
+from dataclasses import dataclass, field
 
-#: Seconds a step runs before its first line.
-QUIET_S = 3.0
-#: Seconds between lines.
-EVERY_S = 10.0
-#: Set to ``0`` to silence every progress line (e.g. in a batch job whose log is read by a program).
-ENVIRONMENT = "IDKIT_PROGRESS"
+#: Seconds between two lines of the same stage, at least.
+INTERVAL = 3.0
 
 
-class Progress:
-    """Counts a step's work and prints a line now and then (module doc).
+def _stderr(line: str) -> None:
+    """Print on stderr; around a running tqdm bar, through tqdm (no torn bar)."""
+    tqdm = sys.modules.get("tqdm")
+    if tqdm is not None:
+        tqdm.tqdm.write(line, file=sys.stderr)
+    else:
+        print(line, file=sys.stderr, flush=True)
 
-    Args:
-        what: the step, as the line starts (``"pcls prior_weight=auto"``).
-        total: the work to do, in ``unit`` (``None``: unknown, no estimate of the time left).
-        unit: what is counted (``"iterations"``, ``"fits"``).
-        enabled: ``False`` prints nothing (and so does ``IDKIT_PROGRESS=0``).
-        stream: where lines go (default: ``sys.stderr`` at the time of each line).
-        clock: seconds, for tests (default ``time.monotonic``).
-    """
 
-    def __init__(
+@dataclass
+class Reporter:
+    """Where progress goes (:func:`reporting` makes one): ``write`` each line, ``label`` leading it."""
+
+    label: str
+    write: Callable[[str], None] = _stderr
+    interval: float = INTERVAL
+    clock: Callable[[], float] = time.monotonic
+    rollouts: Callable[[], int] | None = None
+    started: float = field(init=False)
+    _last: float = field(init=False, default=-float("inf"))
+    _stage: str | None = field(init=False, default=None)
+
+    def __post_init__(self) -> None:
+        self.started = self.clock()
+
+    def update(
         self,
-        what: str,
-        total: int | None = None,
-        unit: str = "steps",
-        *,
-        enabled: bool = True,
-        stream: TextIO | None = None,
-        clock: Callable[[], float] = time.monotonic,
+        stage: str,
+        iteration: int,
+        of: int | None = None,
+        best: float | None = None,
+        what: str = "best cost",
     ) -> None:
-        self.what, self.total, self.unit = what, total, unit
-        self.enabled = enabled and os.environ.get(ENVIRONMENT, "1") != "0"
-        self.stream, self.clock = stream, clock
-        self.done = 0
-        self.started = clock()
-        self.next_line = self.started + QUIET_S
-        self.lines = 0
-
-    def __enter__(self) -> Progress:
-        return self
-
-    def __exit__(
-        self, kind: type[BaseException] | None, error: BaseException | None, trace: TracebackType | None
-    ) -> None:
-        if kind is None:
-            self.finish()
-
-    def advance(self, amount: int = 1) -> None:
-        """``amount`` more units done; a line if one is due."""
-        self.done += amount
         now = self.clock()
-        if self.enabled and now >= self.next_line:
-            self.next_line = now + EVERY_S
-            self._say(self._status(now))
+        if stage == self._stage and now - self._last < self.interval:
+            return
+        self._stage, self._last = stage, now
+        parts = [f"{self.label}: {stage}", f"iteration {iteration}" + (f"/{of}" if of else "")]
+        if best is not None:
+            parts.append(f"{what} {best:.4g}")
+        if self.rollouts is not None:
+            parts.append(f"{self.rollouts():,} rollouts")
+        parts.append(f"{now - self.started:.1f} s")
+        self.write(" · ".join(parts))
 
-    def finish(self) -> None:
-        """The closing line, where the step printed any (a quick step stays silent)."""
-        if self.enabled and self.lines:
-            self._say(f"{self.what}: done, {self._count()} in {self.clock() - self.started:.0f} s")
 
-    def _count(self) -> str:
-        return f"{self.done} {self.unit}" if self.total is None else f"{self.done}/{self.total} {self.unit}"
+_current: ContextVar[Reporter | None] = ContextVar("idkit_progress", default=None)
 
-    def _status(self, now: float) -> str:
-        elapsed = now - self.started
-        line = f"{self.what}: {self._count()}, {elapsed:.0f} s"
-        if self.total and 0 < self.done < self.total:
-            line += f", about {elapsed * (self.total - self.done) / self.done:.0f} s left"
-        return line
 
-    def _say(self, line: str) -> None:
-        self.lines += 1
-        stream = self.stream or sys.stderr
-        bar: Any = sys.modules.get("tqdm")
-        if bar is not None and stream is sys.stderr:
-            bar.tqdm.write(line, file=stream)
-        else:
-            print(line, file=stream, flush=True)
+@contextlib.contextmanager
+def reporting(
+    label: str, enabled: bool = True, write: Callable[[str], None] = _stderr, interval: float = INTERVAL
+) -> Iterator[Reporter | None]:
+    """Within the block, :func:`report` calls print lines through ``write`` (``enabled=False``: nothing)."""
+    if not enabled:
+        yield None
+        return
+    reporter = Reporter(label, write, interval)
+    token = _current.set(reporter)
+    try:
+        yield reporter
+    finally:
+        _current.reset(token)
 
-    def counting(self, function: Callable[..., Any]) -> Callable[..., Any]:
-        """``function``, advancing this count by one on every call (an objective the search calls
-        once per iteration)."""
 
-        def counted(*args: Any, **kwargs: Any) -> Any:
-            result = function(*args, **kwargs)
-            self.advance()
-            return result
+def count_rollouts(counter: Callable[[], int]) -> None:
+    """Lines from here on show ``counter()`` rollouts run (the estimator that runs them says how many)."""
+    reporter = _current.get()
+    if reporter is not None:
+        reporter.rollouts = counter
 
-        return counted
+
+def report(
+    stage: str, iteration: int, of: int | None = None, best: float | None = None, what: str = "best cost"
+) -> None:
+    """Say where a fit is: ``stage`` (``search``, ``polish``), ``iteration`` (of ``of``), the ``best``
+    value so far (named ``what``). Nothing happens unless a study is :func:`reporting`."""
+    reporter = _current.get()
+    if reporter is not None:
+        reporter.update(stage, iteration, of, best, what)

@@ -32,7 +32,7 @@ from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator
 from idkit.notes import Note
 from idkit.problem import IdentificationError, Problem
-from idkit.progress import Progress
+from idkit.progress import report
 from idkit.robots.inertia import linked
 
 if TYPE_CHECKING:
@@ -136,7 +136,7 @@ def cross_validated_weight(
     per_fold: dict[float, list[float]] = {}
     squared: dict[float, np.ndarray] = {}
     failures: list[IdentificationError] = []
-    progress = Progress("pcls prior_weight=auto (cross-validation)", len(candidates) * folds, "fits")
+    fits, of = 0, len(candidates) * folds  # said to a study that listens (idkit.progress)
     for weight in candidates:
         errors = []
         try:
@@ -146,7 +146,8 @@ def cross_validated_weight(
                 Rk, bk, rest_k = blocks[k]
                 residual = Rk @ (K @ params) - bk
                 errors.append(float(residual @ residual) + rest_k)
-                progress.advance()
+                fits += 1
+                report("prior_weight=auto: cross-validation", fits, of)
         except IdentificationError as exc:  # a weight the solver cannot handle drops out
             failures.append(exc)
             scores[weight], per_fold[weight] = float("inf"), []
@@ -154,7 +155,6 @@ def cross_validated_weight(
         squared[weight] = np.array(errors) / sum(totals)
         scores[weight] = float(np.sqrt(squared[weight].sum()))
         per_fold[weight] = [float(np.sqrt(e / t)) for e, t in zip(errors, totals, strict=True)]
-    progress.finish()
     if not squared:  # infeasible constraints, or a solver that fails whatever the weight: its own words
         raise failures[0]
     best = min(squared, key=lambda w: scores[w])

@@ -45,6 +45,7 @@ from idkit.estimate import Estimate
 from idkit.interfaces import CostSearcher
 from idkit.model import IdentifiedModel
 from idkit.notes import Note
+from idkit.progress import reporting
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
 from idkit.studies.held import say_held
@@ -315,6 +316,7 @@ def run(
     identified_mjcf: bool | None = None,
     device: str = "cpu",
     dtype: str = "float64",
+    progress: bool = False,
 ) -> RunResult:
     """Identify a robot's parameters once.
 
@@ -341,6 +343,8 @@ def run(
         identified_mjcf: produce ``identified.xml`` (MJCF, :mod:`idkit.robots.mjcf_export`): ``None``
             for an ``mjcf`` robot only, ``True`` for a ``urdf`` robot too, ``False`` never.
         device, dtype: where and in which precision the estimator computes.
+        progress: lines every few seconds from the fit's long steps (pcls' prior-weight choice, a
+            search's iterations: :mod:`idkit.progress`); the command sets it on a terminal.
     """
     from idkit.problem import Problem
 
@@ -364,7 +368,8 @@ def run(
         robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype, recordings=recordings
     )
     problem.check_identifiable()  # for every estimator, a third party's included, before its fit
-    fitted = estimator_obj.fit(problem)
+    with reporting("fit", progress):
+        fitted = estimator_obj.fit(problem)
     searches = isinstance(estimator_obj, CostSearcher)
     label = estimator_label(estimator, cost, with_cost=searches)
     cost_ignored = cost_obj is not None and not searches
