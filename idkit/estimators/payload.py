@@ -273,21 +273,27 @@ def arm_model(robot: Any) -> ArmModel:
     """The robot's a-priori parameters with the joint terms its file records (module doc).
 
     Raises:
-        ValueError: the file's ``stribeck_velocity`` of a joint differs from the robot's, which
-            holds ``fs`` for another velocity scale.
+        ValueError: the file's ``stribeck_velocity`` or ``coulomb_velocity`` of a joint differs from
+            the robot's, whose friction would then not be the one the file's values were fitted with.
     """
     params = robot.nominal_params().double().numpy().copy()
     recorded = recorded_joint_terms(robot)
     nb = len(robot.tree.bodies)
     joint_params = robot.param_names[10 * nb :]
-    scales = getattr(robot, "stribeck_scales", None)
-    for j, joint in enumerate(robot.joint_names):
-        written = recorded.get(f"{joint}.{STRIBECK}")
-        if scales is not None and written is not None and not math.isclose(written, scales[j], rel_tol=1e-9):
-            raise ValueError(
-                f"payload: {robot.tree.source} records {STRIBECK}={written:g} for {joint} but the robot "
-                f"uses {scales[j]:g}; set robot.stribeck_velocity to the recorded value"
-            )
+    for key, attribute in ((STRIBECK, "stribeck_scales"), ("coulomb_velocity", "coulomb_scales")):
+        scales = getattr(robot, attribute, None)
+        for j, joint in enumerate(robot.joint_names):
+            written = recorded.get(f"{joint}.{key}")
+            used = 0.0 if scales is None else float(scales[j])  # coulomb_velocity 0: the sign
+            if (
+                written is not None
+                and (scales is not None or key != STRIBECK)
+                and not math.isclose(written, used, rel_tol=1e-9)
+            ):
+                raise ValueError(
+                    f"payload: {robot.tree.source} records {key}={written:g} for {joint} but the robot "
+                    f"uses {used:g}; set robot.{key} to the recorded value"
+                )
     used = {name: recorded[name] for name in joint_params if name in recorded}
     for name, value in used.items():
         params[robot.param_names.index(name)] = value
