@@ -80,7 +80,7 @@ def _real_robot_defaults(robot: Spec, data: Any, options: Mapping[str, Any]) -> 
         node = {"_name_": robot} if isinstance(robot, str) else dict(robot)
         given = {f"robot.{key}" for key in node}
     elif isinstance(robot, URDFRobot) and applies("single", "urdf", data, estimator):
-        given = {"robot.friction", "robot.offset", "robot.coulomb_velocity"}  # built already: kept as it is
+        given = {"robot.friction", "robot.offset"}  # built already: kept as it is
     else:
         return robot, options
     picked = chosen(given | set(options), searches_cost(estimator))

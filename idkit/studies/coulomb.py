@@ -51,6 +51,7 @@ class CoulombChoice:
     reason: str
 
     def to_dict(self) -> dict[str, Any]:
+        """For ``result.json`` (``data.coulomb_velocity``)."""
         return {
             "value": self.value,
             "scores": {str(k): v for k, v in self.scores.items()},
@@ -61,10 +62,8 @@ class CoulombChoice:
 
 def wants_choice(robot: Any) -> bool:
     """Whether ``robot`` asks for ``coulomb_velocity=auto`` and has a Coulomb term to smooth."""
-    return getattr(robot, "coulomb_velocity", None) == "auto" and getattr(robot, "friction", False) in (
-        True,
-        "asymmetric",
-    )
+    value, friction = getattr(robot, "coulomb_velocity", None), getattr(robot, "friction", False)
+    return isinstance(value, str) and value == "auto" and (friction is True or friction == "asymmetric")
 
 
 def choose_coulomb_velocity(
@@ -107,17 +106,25 @@ def choose_coulomb_velocity(
         spread = np.sqrt(folds) * float(np.std(excess, ddof=1))
         distance[value] = float(excess.sum() / spread) if spread > 0 else 0.0
     chosen = min(v for v in candidates if distance[v] <= 1.0)
-    shown = "sign(q̇)" if chosen == 0 else f"tanh(q̇ / {chosen:g})"
-    reason = (
-        f"Coulomb friction as {shown}: the smallest velocity scale whose {folds}-fold cross-validated "
-        f"torque error (least squares, contiguous blocks of the training data) is within one standard error "
-        f"of the lowest ({100 * scores[best]:.3g} % at {best:g}); {100 * scores[chosen]:.3g} % here, "
-        f"{100 * scores[0.0]:.3g} % with sign(q̇) — among "
-        + ", ".join(f"{v:g}" for v in candidates)
-        + " rad/s"
-        if 0.0 in scores
-        else ""
-    )
     return robot.with_options(coulomb_velocity=float(chosen)), CoulombChoice(
-        float(chosen), scores, folds, reason
+        float(chosen), scores, folds, _reason(chosen, best, scores, folds)
+    )
+
+
+def _reason(chosen: float, best: float, scores: dict[float, float], folds: int) -> str:
+    """The note's line: the choice, the cross-validated figures both ways, and how to override it."""
+    how = f"{folds}-fold cross-validated torque error (least squares, contiguous blocks of the training data)"
+    among = ", ".join(f"{v:g}" for v in scores) + " rad/s"
+    sign = scores.get(0.0, float("nan"))
+    if chosen == 0:
+        return (
+            f"Coulomb friction as sign(q̇): no velocity scale ({among}) lowers the {how} by more than one "
+            f"standard error ({100 * sign:.3g} % with the sign, {100 * scores[best]:.3g} % at the best, "
+            f"{best:g}); robot.coulomb_velocity=<scale> sets one"
+        )
+    return (
+        f"Coulomb friction as tanh(q̇ / {chosen:g}): the smallest velocity scale ({among}) whose {how} is "
+        f"within one standard error of the lowest ({100 * scores[best]:.3g} % at {best:g}): "
+        f"{100 * scores[chosen]:.3g} % against {100 * sign:.3g} % with sign(q̇); robot.coulomb_velocity=0 "
+        "keeps the sign"
     )

@@ -71,6 +71,8 @@ def chosen(given: Collection[str], searches_cost: bool = False) -> dict[str, Any
             continue
         if option == "cost" and "estimator" in given and searches_cost:
             continue
+        if option == "robot.coulomb_velocity" and "robot.friction" in given:  # part of the friction default
+            continue
         out[option] = value
     return out
 
@@ -97,10 +99,7 @@ def describe(options: Mapping[str, Any]) -> str:
         for key, name in (
             ("robot.friction", "friction"),
             ("robot.offset", "torque offsets"),
-            (
-                "robot.coulomb_velocity",
-                "Coulomb friction smoothed near zero speed if cross-validation prefers it",
-            ),
+            ("robot.coulomb_velocity", "a Coulomb term smoothed at rest where cross-validation prefers it"),
         )
         if key in options
     )
