@@ -284,15 +284,15 @@ def arm_model(robot: Any) -> ArmModel:
         scales = getattr(robot, attribute, None)
         for j, joint in enumerate(robot.joint_names):
             written = recorded.get(f"{joint}.{key}")
-            used = 0.0 if scales is None else float(scales[j])  # coulomb_velocity 0: the sign
+            current = 0.0 if scales is None else float(scales[j])  # coulomb_velocity 0: the sign
             if (
                 written is not None
                 and (scales is not None or key != STRIBECK)
-                and not math.isclose(written, used, rel_tol=1e-9)
+                and not math.isclose(written, current, rel_tol=1e-9)
             ):
                 raise ValueError(
                     f"payload: {robot.tree.source} records {key}={written:g} for {joint} but the robot "
-                    f"uses {used:g}; set robot.{key} to the recorded value"
+                    f"uses {current:g}; set robot.{key} to the recorded value"
                 )
     used = {name: recorded[name] for name in joint_params if name in recorded}
     for name, value in used.items():
