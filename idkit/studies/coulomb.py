@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import torch
 
 from idkit.conic.program import compress
 from idkit.notes import Note
@@ -26,6 +27,8 @@ from idkit.problem import Samples
 
 #: Velocity scales tried (rad/s or m/s); 0 is the sign.
 CANDIDATES: tuple[float, ...] = (0.0, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
+#: The drive terms whose ``sign(q̇)`` a velocity scale smooths (:func:`idkit.robots.drives.coulomb_sign`).
+COULOMB_TERMS = ("fc", "fc_pos", "fc_neg", "fs")
 #: Contiguous blocks of the training samples (as for the prior weight).
 FOLDS = 5
 
@@ -74,28 +77,23 @@ def choose_coulomb_velocity(
     N, B = samples.q.shape[0], len(robot.base_param_names)
     if N < folds * -(-(B + 1) // n) * 2:  # noqa: SIM300 (as the prior weight's rule reads)
         reason = f"{N} samples are too few to cross-validate over {folds} blocks; Coulomb friction by sign(q̇)"
-        return robot.with_options(coulomb_velocity=0.0), CoulombChoice(0.0, {}, folds, reason)
+        return robot, CoulombChoice(0.0, {}, folds, reason)  # "auto" until chosen: the sign
     bounds = np.linspace(0, N, folds + 1).round().astype(int)
     tau = samples.tau.double()
     totals = np.array([float(tau[a:z].square().sum()) for a, z in zip(bounds[:-1], bounds[1:], strict=True)])
-    standard = robot.standard_regressor(samples.q, samples.qd, samples.qdd).double()  # [N, n, P], sign(q̇)
-    drives = slice(len(robot.param_names) - robot.drives.size, len(robot.param_names))
+    X, columns = _candidate_columns(robot, samples, candidates)
+    blocks = [
+        compress(X[a:z].reshape(-1, X.shape[-1]), tau[a:z].reshape(-1))
+        for a, z in zip(bounds[:-1], bounds[1:], strict=True)
+    ]
     squared: dict[float, np.ndarray] = {}
-    for value in candidates:
-        smoothed = copy.copy(robot.drives)  # the same terms with this scale: only the friction columns change
-        smoothed.coulomb_scales = np.full(n, float(value)) if value > 0 else None
-        standard[..., drives] = smoothed.columns(samples.qd.double(), samples.qdd.double())
-        W = standard[..., list(robot.base.indices)]  # [N, n, B]: the base regressor (URDFRobot.regressor)
-        blocks = [
-            compress(W[a:z].reshape(-1, B), tau[a:z].reshape(-1))
-            for a, z in zip(bounds[:-1], bounds[1:], strict=True)
-        ]
+    for value, used in zip(candidates, columns, strict=True):
         errors = []
         for k, (R_k, b_k, rest_k) in enumerate(blocks):  # fit the other blocks, score this one
             others = [blocks[j] for j in range(folds) if j != k]
-            R = np.vstack([r for r, _, _ in others])
+            R = np.vstack([r[:, used] for r, _, _ in others])
             fit = np.linalg.lstsq(R, np.concatenate([b for _, b, _ in others]), rcond=None)[0]
-            residual = R_k @ fit - b_k
+            residual = R_k[:, used] @ fit - b_k
             errors.append(float(residual @ residual) + rest_k)
         squared[value] = np.array(errors) / totals.sum()
     scores = {value: float(np.sqrt(parts.sum())) for value, parts in squared.items()}
@@ -106,9 +104,39 @@ def choose_coulomb_velocity(
         spread = np.sqrt(folds) * float(np.std(excess, ddof=1))
         distance[value] = float(excess.sum() / spread) if spread > 0 else 0.0
     chosen = min(v for v in candidates if distance[v] <= 1.0)
-    return robot.with_options(coulomb_velocity=float(chosen)), CoulombChoice(
-        float(chosen), scores, folds, _reason(chosen, best, scores, folds)
-    )
+    chosen_robot = (
+        robot if chosen == 0 else robot.with_options(coulomb_velocity=float(chosen))
+    )  # "auto": the sign
+    return chosen_robot, CoulombChoice(float(chosen), scores, folds, _reason(chosen, best, scores, folds))
+
+
+def _candidate_columns(
+    robot: Any, samples: Samples, candidates: Sequence[float]
+) -> tuple[torch.Tensor, list[list[int]]]:
+    """One wide regressor ``X[N, n, B + c]`` holding the base regressor with ``sign(q̇)`` and, for every
+    other candidate, its own Coulomb columns; and each candidate's base regressor as column indices
+    into ``X``. One QR of ``[X | τ]`` per block then scores every candidate: for columns ``S``,
+    ``‖X_S a − τ‖² = ‖R_S a − b‖² + r²`` (what :func:`~idkit.conic.program.compress` keeps)."""
+    base = list(robot.base.indices)
+    qd, qdd = samples.qd.double(), samples.qdd.double()
+    sign = robot.standard_regressor(samples.q, samples.qd, samples.qdd).double()[..., base]  # [N, n, B]
+    first = len(robot.param_names) - robot.drives.size  # the drive parameters come last
+    coulomb = set(robot.drives.names_where(lambda term: term.suffix in COULOMB_TERMS))
+    moving = [j for j, k in enumerate(base) if robot.param_names[k] in coulomb]
+    wide, columns, width = [sign], [], len(base)
+    for value in candidates:
+        used = list(range(len(base)))
+        if value > 0:
+            smoothed = copy.copy(
+                robot.drives
+            )  # the same terms at this scale: only the Coulomb columns change
+            smoothed.coulomb_scales = np.full(robot.n_joints, float(value))
+            wide.append(smoothed.columns(qd, qdd)[..., [base[j] - first for j in moving]])
+            for i, j in enumerate(moving):
+                used[j] = width + i
+            width += len(moving)
+        columns.append(used)
+    return torch.cat(wide, dim=-1), columns
 
 
 def _reason(chosen: float, best: float, scores: dict[float, float], folds: int) -> str:

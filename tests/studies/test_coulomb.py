@@ -19,6 +19,7 @@ import torch
 from idkit.data.options import DataOptions
 from idkit.data.pipeline import read_training
 from idkit.data.recording import Recording, save_recording
+from idkit.problem import Samples
 from idkit.robots.urdf import URDFRobot
 from idkit.studies.coulomb import CANDIDATES, choose_coulomb_velocity, wants_choice
 from tests.tour_cases import TRUTH, tour_urdf, true_params
@@ -121,5 +122,15 @@ def test_the_kuka_keeps_the_sign_its_data_prefer(kuka_dir):
         warnings.simplefilter("ignore", UserWarning)
         samples, _, _ = load_data(robot, data=str(kuka_dir / "measurements_1.npz"))
     chosen, choice = choose_coulomb_velocity(robot, samples)
-    assert choice.value == 0 and chosen.coulomb_scales is None
+    assert choice.value == 0 and chosen.coulomb_scales is None  # the sign
     assert min(choice.scores, key=lambda v: choice.scores[v]) == 0.0
+
+
+def test_too_few_samples_keep_the_sign_and_say_why(tmp_path):
+    robot = URDFRobot(str(tour_urdf(tmp_path)), friction=True, offset=True, coulomb_velocity="auto")
+    q, qd, qdd = robot.random_states(20, torch.Generator().manual_seed(0))
+    short = Samples(q, qd, qdd, robot.inverse_dynamics(true_params(robot, TRUTH), q, qd, qdd))
+    chosen, choice = choose_coulomb_velocity(robot, short)
+    assert choice.value == 0 and chosen.coulomb_scales is None and choice.scores == {}
+    assert choice.reason.startswith("20 samples are too few to cross-validate over 5 blocks")
+    assert not wants_choice(URDFRobot(str(tour_urdf(tmp_path)), coulomb_velocity="auto"))  # no friction
