@@ -104,10 +104,10 @@ def choose_coulomb_velocity(
         spread = np.sqrt(folds) * float(np.std(excess, ddof=1))
         distance[value] = float(excess.sum() / spread) if spread > 0 else 0.0
     chosen = min(v for v in candidates if distance[v] <= 1.0)
-    chosen_robot = (
-        robot if chosen == 0 else robot.with_options(coulomb_velocity=float(chosen))
-    )  # "auto": the sign
-    return chosen_robot, CoulombChoice(float(chosen), scores, folds, _reason(chosen, best, scores, folds))
+    choice = CoulombChoice(float(chosen), scores, folds, _reason(chosen, best, scores, folds))
+    if chosen == 0:  # "auto" is the sign until a scale is chosen
+        return robot, choice
+    return robot.with_options(coulomb_velocity=float(chosen)), choice
 
 
 def _candidate_columns(
