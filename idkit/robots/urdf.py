@@ -152,6 +152,8 @@ class URDFRobot(Robot):
         self.coulomb_velocity = coulomb_velocity
         self.tree: KinematicTree = self._read_tree()
         self.joint_names = self.tree.joint_names
+        #: per joint, ``"revolute"`` or ``"prismatic"`` (reports give efforts in N·m or N)
+        self.joint_kinds = self.tree.joint_kinds
         self.stribeck_scales = self._check_stribeck(stribeck_velocity)
         self.coulomb_scales = self._check_coulomb(coulomb_velocity)
         self.effort_scales = check_effort_scale(effort_scale, self.joint_names, self.source_format)
