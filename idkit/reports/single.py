@@ -142,6 +142,8 @@ def _uncertainty_lines(uncertainty: Mapping[str, Any] | None, base: Mapping[str,
         spread_shown = "" if spread is None else f"{spread:12.3g}"
         lines.append(f"{name:<24}{shown:>12}{spread_shown:>12}{_percent(pct):>12}")
     cond = uncertainty.get("cond", float("nan"))
+    if uncertainty.get("std_source"):  # the estimate's record of its std (idkit.std_source)
+        lines.append(f"std: {uncertainty['std_source']}")
     lines.append(f"regressor rank {uncertainty.get('rank')} · condition number {cond:.3g}")
     unidentifiable = uncertainty.get("unidentifiable") or []
     lines.append("unidentifiable: " + ("; ".join(unidentifiable) if unidentifiable else "none"))

@@ -48,6 +48,7 @@ from idkit.notes import Note
 from idkit.progress import reporting
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
+from idkit.studies.coulomb import CoulombVelocityNote, choose_coulomb_velocity, wants_choice
 from idkit.studies.held import say_held
 from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
@@ -355,6 +356,10 @@ def run(
         refuse_training_files(data, validate)
     options = DataOptions.of(preprocess, recording)
     samples, truth, source, training = _load(robot_obj, scenario, seed, data, n_samples, params, options)
+    if data is not None and wants_choice(robot_obj):  # robot.coulomb_velocity=auto on measured data
+        robot_obj, choice = choose_coulomb_velocity(robot_obj, samples)
+        warnings.warn(f"robot.coulomb_velocity=auto: {choice.reason}", CoulombVelocityNote, stacklevel=2)
+        source = {**source, "coulomb_velocity": choice.to_dict()}
     held_out = [] if validate is None else read_held_out(robot_obj, validate, training)
     if data is not None:
         refuse_seen_samples(samples, held_out)
