@@ -145,6 +145,8 @@ class URDFRobot(Robot):
         self.package_dirs = package_dirs
         self.tree: KinematicTree = self._read_tree()
         self.joint_names = self.tree.joint_names
+        #: per joint, ``"revolute"`` or ``"prismatic"`` (reports give efforts in N·m or N)
+        self.joint_kinds = self.tree.joint_kinds
         self.stribeck_scales = self._check_stribeck(stribeck_velocity)
         self.effort_scales = check_effort_scale(effort_scale, self.joint_names, self.source_format)
         self.link_names = self.tree.link_names
