@@ -9,7 +9,8 @@ To try it without a robot, ``python -m idkit.data.demo`` writes a simulated arm'
 
 The public names below are imported lazily, so that ``import idkit`` (and ``idkit --help``) does not
 pay for torch until something needs one. The entries: :func:`identify` (a robot's recordings → an
-:class:`IdentifiedModel`) and :func:`run` (one fit of any kind → its result); the plugin interfaces
+:class:`IdentifiedModel`), :func:`identify_simulator` (a MuJoCo model and a robot's logs → a
+:class:`SimulatorModel`) and :func:`run` (one fit of any kind → its result); the plugin interfaces
 ``Robot``, ``Cost``, ``Estimator``; ``Problem``, ``Samples`` and ``Estimate``; the plugin ``registry``.
 """
 
@@ -20,17 +21,19 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # what the lazy names are, for type checkers, help() and the API docs
     from idkit import registry
-    from idkit.api import identify, run
+    from idkit.api import identify, identify_simulator, run
     from idkit.estimate import Estimate
     from idkit.interfaces import Cost, Estimator, Robot
     from idkit.model import IdentifiedModel, Parameters
     from idkit.problem import Problem, Samples
+    from idkit.sim.simulator_model import SimulatorModel
 
 #: The distribution that installs the package (``idkit`` on PyPI is an unrelated project).
 DISTRIBUTION = "robot-idkit"
 
 _LAZY = {
     "identify": "idkit.api",
+    "identify_simulator": "idkit.api",
     "run": "idkit.api",
     "IdentifiedModel": "idkit.model",
     "Parameters": "idkit.model",
@@ -40,6 +43,7 @@ _LAZY = {
     "Problem": "idkit.problem",
     "Samples": "idkit.problem",
     "Estimate": "idkit.estimate",
+    "SimulatorModel": "idkit.sim.simulator_model",
     "registry": "idkit.registry",
 }
 
@@ -53,7 +57,9 @@ __all__ = [
     "Problem",
     "Robot",
     "Samples",
+    "SimulatorModel",
     "identify",
+    "identify_simulator",
     "registry",
     "run",
 ]

@@ -44,6 +44,7 @@ class Reporter:
     started: float = field(init=False)
     _last: float = field(init=False, default=-float("inf"))
     _stage: str | None = field(init=False, default=None)
+    _calls: dict[str, int] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         self.started = self.clock()
@@ -51,11 +52,13 @@ class Reporter:
     def update(
         self,
         stage: str,
-        iteration: int,
+        iteration: int | None,
         of: int | None = None,
         best: float | None = None,
         what: str = "best cost",
     ) -> None:
+        self._calls[stage] = self._calls.get(stage, 0) + 1
+        iteration = self._calls[stage] if iteration is None else iteration
         now = self.clock()
         if stage == self._stage and now - self._last < self.interval:
             return
@@ -88,6 +91,11 @@ def reporting(
         _current.reset(token)
 
 
+def listening() -> bool:
+    """Whether a study is :func:`reporting` (a caller skips computing what only a line would show)."""
+    return _current.get() is not None
+
+
 def count_rollouts(counter: Callable[[], int]) -> None:
     """Lines from here on show ``counter()`` rollouts run (the estimator that runs them says how many)."""
     reporter = _current.get()
@@ -96,10 +104,15 @@ def count_rollouts(counter: Callable[[], int]) -> None:
 
 
 def report(
-    stage: str, iteration: int, of: int | None = None, best: float | None = None, what: str = "best cost"
+    stage: str,
+    iteration: int | None = None,
+    of: int | None = None,
+    best: float | None = None,
+    what: str = "best cost",
 ) -> None:
-    """Say where a fit is: ``stage`` (``search``, ``polish``), ``iteration`` (of ``of``), the ``best``
-    value so far (named ``what``). Nothing happens unless a study is :func:`reporting`."""
+    """Say where a fit is: ``stage`` (``search``, ``polish``), ``iteration`` (of ``of``; ``None``: the
+    count of this stage's reports so far), the ``best`` value so far (named ``what``). Nothing happens
+    unless a study is :func:`reporting`."""
     reporter = _current.get()
     if reporter is not None:
         reporter.update(stage, iteration, of, best, what)

@@ -58,6 +58,8 @@ def test_wheel_ships_configs_and_assets(tmp_path):
     assert "idkit/robots/assets/cylindrical.urdf" in names
     assert "idkit/robots/assets/arm.xml" in names
     assert "idkit/studies/data/paper-tables.csv" in names
+    for file in ("servo_arm.xml", "train.csv", "held_out.csv"):  # docs/rollout.md's example
+        assert f"idkit/examples/servo_arm/{file}" in names
     assert not [n for n in names if n.endswith((".c", ".so", ".pyd"))]  # nothing compiled, nothing to compile
 
 

@@ -383,7 +383,8 @@ def _traces(document: Mapping[str, Any], folder: Path) -> str:
     return "".join(parts)
 
 
-def _run(document: Mapping[str, Any]) -> str:
+def run_details(document: Mapping[str, Any]) -> str:
+    """The run's plugins, data, files and (collapsed) config: every page's last section."""
     import json
 
     plugins = document.get("plugins") or {}
@@ -435,6 +436,6 @@ def render(document: Mapping[str, Any], folder: str | Path) -> str:
             h.section("verdicts", "Verdicts", *verdicts),
             h.section("parameters", "Parameters", _parameters(payload)),
             h.section("prediction", "Measured vs predicted", _traces(document, Path(folder))),
-            h.section("run", "The run", _run(document)),
+            h.section("run", "The run", run_details(document)),
         ],
     )

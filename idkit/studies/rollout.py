@@ -24,12 +24,14 @@ import numpy as np
 
 from idkit.estimate import Estimate
 from idkit.optim.robust import mad_scale
+from idkit.progress import reporting
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
 
 if TYPE_CHECKING:
     from idkit.sim.details import RolloutDetails
+    from idkit.sim.simulator_model import SimulatorModel
     from idkit.sim.validation import HeldOut
 
 #: What ``rollout.params`` fits when not told: the joints' passive terms.
@@ -97,6 +99,7 @@ class RolloutResult:
         fit: the fit log replayed in its segments.
         validation: each ``validate=`` log's scores (:class:`idkit.sim.validation.HeldOut`): every
             mode that applies, at the fitted and at the start values.
+        robot: the model and the unknowns fitted (``model`` puts the estimate back on it).
     """
 
     estimate: Estimate
@@ -106,6 +109,7 @@ class RolloutResult:
     fit: Replay
     validation: list[HeldOut] = field(default_factory=list)
     mjcf_problem: str | None = None
+    robot: Any = field(default=None, repr=False)
 
     @property
     def seed(self) -> int:
@@ -118,6 +122,13 @@ class RolloutResult:
 
         details = self.estimate.details
         return details if isinstance(details, RolloutDetails) else None
+
+    @property
+    def model(self) -> SimulatorModel:
+        """The identified simulator (``simulate``, values with σ, ``save``, ``to_mujoco``)."""
+        from idkit.sim.simulator_model import SimulatorModel
+
+        return SimulatorModel.from_result(self)
 
     def payload(self) -> dict[str, Any]:
         """The task's part of ``result.json``."""
@@ -208,6 +219,7 @@ def run(
     seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
+    progress: bool = True,
 ) -> RolloutResult:
     """Identify a MuJoCo model's quantities from logged commands and joint states.
 
@@ -233,6 +245,8 @@ def run(
         threads: rollout threads (``None``: every CPU the process may use).
         seed: seeds the search.
         device, dtype: where a registered cost is evaluated.
+        progress: print a line every few seconds during the search and the polish (stage, iteration,
+            best cost, rollouts, elapsed: :mod:`idkit.progress`); the command sets it on a terminal.
     """
     from idkit.data.commands import read_robot_logs
     from idkit.data.files import as_paths, refuse_repeated_files, refuse_training_files
@@ -275,7 +289,8 @@ def run(
     )
     _note_artefacts(problem)
     fitter = build("estimator", estimator)
-    estimate = fitter.fit(problem)
+    with reporting("rollout", progress):
+        estimate = fitter.fit(problem)
     values = np.array([estimate.params[name] for name in unknowns.names])
     from idkit.sim.details import RolloutDetails
 
@@ -309,4 +324,4 @@ def run(
     described = {
         u.name: {"kind": u.kind, "start": u.start, "bounds": [u.lower, u.upper]} for u in unknowns.items
     }
-    return RolloutResult(estimate, described, provenance, text, fit, held_out, problem_text)
+    return RolloutResult(estimate, described, provenance, text, fit, held_out, problem_text, robot)
