@@ -20,7 +20,6 @@ from __future__ import annotations
 import functools
 import math
 import os
-import tempfile
 import types
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
@@ -307,8 +306,9 @@ class IdentifiedModel:
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write ``identified.urdf`` (suffix ``.urdf``) or MJCF (``.xml``/``.mjcf``) to ``path``.
 
-        The text is made in full before the file is opened, and the file replaced in one step, so a
-        refused model never leaves a half-written (or emptied) file behind.
+        The text is made in full before the file is opened, and the file replaced in one step
+        (:func:`idkit.reports.files.write_text`: a file replaced keeps its mode), so a refused model
+        never leaves a half-written (or emptied) file behind.
 
         Raises:
             ValueError: another suffix, or the writer refuses the model (see ``to_urdf``/``to_mjcf``).
@@ -321,16 +321,9 @@ class IdentifiedModel:
                 f"save: {str(path)!r} has suffix {path.suffix or '(none)'!r}; use .urdf (URDF) or .xml (MJCF)"
             )
         text = writers[suffix]()
-        folder = path.parent if str(path.parent) else Path(".")
-        handle, temporary = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(handle, "w", encoding="utf-8") as stream:
-                stream.write(text)
-            os.replace(temporary, path)
-        except BaseException:
-            Path(temporary).unlink(missing_ok=True)
-            raise
-        return path
+        from idkit.reports.files import write_text
+
+        return write_text(path, text)
 
     def to_pinocchio(self) -> Any:
         """A ``pinocchio.Model`` of the identified URDF, its ``armature`` set from the identified rotor

@@ -111,8 +111,11 @@ def task(cfg: DictConfig) -> Any:
     hydra_cfg = HydraConfig.get()
     run_dir = Path(hydra_cfg.runtime.output_dir)
     single = hydra_cfg.mode == RunMode.RUN
+    claimed = False  # the folder is this run's: what it holds may be tidied after a failure
     try:
         provenance.claim(run_dir, "hydra.run.dir" if single else "hydra.sweep.dir or hydra.sweep.subdir")
+        claimed = True
+        _refuse_missing(cfg)
         with output.one_line_warnings():  # also in a launcher's worker process
             apply_real_robot_defaults(cfg, hydra_cfg.overrides.task)
             full = HydraConfig.instance().cfg  # the whole config, {hydra: ...}, once Hydra has set it
@@ -122,15 +125,28 @@ def task(cfg: DictConfig) -> Any:
             return _run(cfg, run_dir)
     except Exception as exc:
         message = errors.one_line(exc)  # a refused input, or more memory than there is
+        left = provenance.abandon(run_dir) if single and claimed else ""
         if message is None:
             raise  # a bug: Hydra reports it with its traceback
         if single and not TRACEBACKS_REQUESTED:
-            errors.fail(message)  # before Hydra adds "Error executing job with overrides: ..."
+            errors.fail(message + left)  # before Hydra adds "Error executing job with overrides: ..."
         # a sweep goes on; the summary callback records the failed job's cause
         raise CompactHydraException(f"{errors.PREFIX}{message}") from exc
     except KeyboardInterrupt:
-        print(f"idkit: interrupted; no results were written to {run_dir}", file=sys.stderr)
+        left = provenance.abandon(run_dir) if single and claimed else ""
+        print(f"idkit: interrupted; no results were written to {run_dir}{left}", file=sys.stderr)
         sys.exit(INTERRUPTED)
+
+
+def _refuse_missing(cfg: DictConfig) -> None:
+    """A setting of the task's section still ``???`` (``rollout.model``) ends the run in one line
+    saying what it is, before the run records anything."""
+    section = get_task(cfg.task).section
+    node = cfg.get(section) if section else None
+    if isinstance(node, DictConfig):
+        required = errors.required_message(sorted(OmegaConf.missing_keys(node)))  # full dotted keys
+        if required:
+            raise ValueError(required)
 
 
 def main() -> None:
