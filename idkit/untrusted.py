@@ -68,9 +68,25 @@ def csv_text(cell: str) -> str:
     return cell
 
 
-def csv_header(names: Iterable[str]) -> str:
-    """One CSV line of column names, each through :func:`csv_cell` and quoted where it holds a comma
-    or quote (for writers that take the header as text, such as ``np.savetxt``)."""
+def csv_lines(rows: Iterable[Iterable[Any]]) -> str:
+    """CSV text of ``rows`` (each cell through :func:`csv_cell`), lines ending in ``\\n``.
+
+    A cell holding a line break (``\\r`` included) is quoted, so it cannot start a row of its own:
+    Python's writer quotes only the characters of its line terminator, hence the ``\\r\\n`` one
+    cut off each row.
+    """
     buffer = io.StringIO()
-    csv.writer(buffer, lineterminator="").writerow([csv_cell(name) for name in names])
-    return buffer.getvalue()
+    writer = csv.writer(buffer, lineterminator="\r\n")
+    lines = []
+    for row in rows:
+        buffer.seek(0)
+        buffer.truncate()
+        writer.writerow([csv_cell(cell) for cell in row])
+        lines.append(buffer.getvalue()[:-2])
+    return "".join(line + "\n" for line in lines)
+
+
+def csv_header(names: Iterable[str]) -> str:
+    """One CSV line of column names (:func:`csv_lines`, without its line end), for writers that take
+    the header as text, such as ``np.savetxt``."""
+    return csv_lines([names])[:-1]

@@ -15,7 +15,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from idkit.reports.result_file import RESULT_FILE
 from idkit.untrusted import safe_basename
@@ -44,20 +44,22 @@ def read_run(place: str) -> dict[str, Any]:
     return document
 
 
+#: A JSON object, or ``null``.
+_OBJECT_OR_NULL = (dict, type(None))
 #: What each task's compare section reads from ``payload``: key → the JSON type it must have.
-_READ = {
-    "single": {"estimate": dict, "validation": (dict, type(None))},
+_READ: dict[str, dict[str, type | tuple[type, ...]]] = {
+    "single": {"estimate": dict, "validation": _OBJECT_OR_NULL},
     "excitation": {"criterion": str, "check": dict},
 }
 #: Within a single fit's ``payload.estimate``.
-_ESTIMATE = {"params": (dict, type(None)), "base_params": (dict, type(None)), "details": (dict, type(None))}
+_ESTIMATE = dict.fromkeys(("params", "base_params", "details"), _OBJECT_OR_NULL)
 
 
 def _check_layout(document: dict[str, Any], path: Path) -> None:
     """Refuse, naming the key, a ``result.json`` whose parts the page reads have another JSON type
     (a damaged or hand-edited file: ``"payload": null``, an estimate that is a list)."""
 
-    def refuse(key: str, value: Any, wanted: str) -> None:
+    def refuse(key: str, value: Any, wanted: str) -> NoReturn:
         raise ValueError(f"{path}: {key} is {_json_type(value)}, expected {wanted}: not a result idkit wrote")
 
     payload = document["payload"]

@@ -10,7 +10,6 @@ steps, so that a model file appears only once its ``result.json`` is written
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 import os
@@ -22,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from idkit.estimate import json_safe
-from idkit.untrusted import csv_cell
+from idkit.untrusted import csv_lines
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -131,12 +130,8 @@ def write_json(path: str | Path, data: Any) -> Path:
 
 def write_csv(path: str | Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
     """A CSV with one header line, written atomically; a text cell that a spreadsheet would take for a
-    formula is escaped (:func:`idkit.untrusted.csv_cell`)."""
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow([csv_cell(cell) for cell in header])
-    writer.writerows([csv_cell(cell) for cell in row] for row in rows)
-    return write_text(path, buffer.getvalue())
+    formula is escaped (:func:`idkit.untrusted.csv_lines`)."""
+    return write_text(path, csv_lines([header, *rows]))
 
 
 def write_npz(path: str | Path, arrays: dict[str, Any]) -> Path:
