@@ -140,3 +140,20 @@ def test_ctrl_c_early_in_a_sweep_job_stops_the_sweep_with_130(run_idkit, tmp_pat
     assert len(calls) == 4 and not (sweep / "1").exists()  # no further job
     partial = json.loads((sweep / "0" / "result.json").read_text())
     assert partial["status"] == "partial" and partial["progress"]["done"] == 0
+
+
+def test_an_interrupted_run_leaves_no_empty_folder(run_idkit, tmp_path, monkeypatch):
+    import functools
+
+    import idkit.studies.single as single
+
+    @functools.wraps(single.run)  # the task reads the study's signature
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(single, "run", interrupted)
+    run = tmp_path / "run"
+    status, said = run_idkit("estimator=ls", "~cost", f"hydra.run.dir={run}")
+    assert status == INTERRUPTED, said
+    assert said == [f"idkit: interrupted; no results were written to {run}"]
+    assert not run.exists()
