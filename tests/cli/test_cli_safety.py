@@ -14,7 +14,7 @@ from idkit.cli.compare import main as compare_main
 
 def _result(folder, run_id="r1", task="paper", payload=None):
     folder.mkdir(parents=True, exist_ok=True)
-    document = {"task": task, "run_id": run_id, "label": run_id, "payload": {} if payload is None else payload}
+    document = {"task": task, "run_id": run_id, "label": run_id, "payload": payload or {}}
     (folder / "result.json").write_text(json.dumps(document))
     return folder
 
