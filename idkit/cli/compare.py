@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+from idkit.cli.output import debugging, single_line
 from idkit.reports.result_file import RESULT_FILE
 from idkit.untrusted import safe_basename
 
@@ -101,9 +102,19 @@ def main(argv: Sequence[str]) -> int:
     try:
         a, b = read_run(args.run_a), read_run(args.run_b)
         out = Path(args.out) if args.out else default_page(a, b)
-        written = files.write_text(out, compare.render(a, b, (args.run_a, args.run_b)))
+        try:
+            page = compare.render(a, b, (args.run_a, args.run_b))
+        except (KeyError, TypeError, AttributeError, IndexError) as exc:
+            if debugging():
+                raise
+            # a value of another type deeper than _check_layout looks (a parameter that is text)
+            raise ValueError(
+                f"{args.run_a}, {args.run_b}: a {RESULT_FILE} idkit cannot read "
+                f"({type(exc).__name__}: {exc}); written by another version, or edited?"
+            ) from None
+        written = files.write_text(out, page)
     except (ValueError, OSError) as exc:
-        print(f"idkit: compare: {exc}", file=sys.stderr)
+        print(f"idkit: compare: {single_line(str(exc))}", file=sys.stderr)
         return UNUSABLE
     print(f"compare page: {written}")
     return 0

@@ -157,3 +157,13 @@ def test_an_interrupted_run_leaves_no_empty_folder(run_idkit, tmp_path, monkeypa
     assert status == INTERRUPTED, said
     assert said == [f"idkit: interrupted; no results were written to {run}"]
     assert not run.exists()
+
+
+def test_compare_refuses_a_value_of_another_type_in_one_line(tmp_path, capsys):
+    payload = {"estimate": {"params": {"a": 1.0}}}
+    good = _result(tmp_path / "good", task="single", payload=payload)
+    odd = _result(tmp_path / "odd", task="single", payload={"estimate": {"params": {"a": "one"}}})
+    assert compare_main([str(good), str(odd)]) == 2
+    said = capsys.readouterr().err
+    assert said.startswith(f"idkit: compare: {good}, {odd}: a result.json idkit cannot read (TypeError: ")
+    assert said.count("\n") == 1 and not list(tmp_path.glob("*.html"))
