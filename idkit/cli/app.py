@@ -15,8 +15,11 @@ from __future__ import annotations
 import contextlib
 import inspect
 import os
+import signal
 import sys
+import threading
 import uuid
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, cast
 
@@ -112,6 +115,7 @@ def task(cfg: DictConfig) -> Any:
     run_dir = Path(hydra_cfg.runtime.output_dir)
     single = hydra_cfg.mode == RunMode.RUN
     claimed = False  # the folder is this run's: what it holds may be tidied after a failure
+    interrupts: list[int] = []
     try:
         provenance.claim(run_dir, "hydra.run.dir" if single else "hydra.sweep.dir or hydra.sweep.subdir")
         claimed = True
@@ -122,10 +126,14 @@ def task(cfg: DictConfig) -> Any:
             if not isinstance(full, DictConfig):
                 raise RuntimeError(f"hydra: no config to record (got {type(full).__name__})")
             provenance.record(run_dir, cfg, full)
-            return _run(cfg, run_dir)
+            with _noting_interrupts(interrupts):
+                return _run(cfg, run_dir)
     except Exception as exc:
-        message = errors.one_line(exc)  # a refused input, or more memory than there is
         left = provenance.abandon(run_dir) if single and claimed else ""
+        if interrupts:  # Ctrl-C, turned into another error by the code it stopped: still Ctrl-C
+            print(f"idkit: interrupted ({type(exc).__name__} on the way out){left}", file=sys.stderr)
+            sys.exit(INTERRUPTED)  # a sweep runs no further job
+        message = errors.one_line(exc)  # a refused input, or more memory than there is
         if message is None:
             raise  # a bug: Hydra reports it with its traceback
         if single and not TRACEBACKS_REQUESTED:
@@ -136,6 +144,30 @@ def task(cfg: DictConfig) -> Any:
         left = provenance.abandon(run_dir) if single and claimed else ""
         print(f"idkit: interrupted; no results were written to {run_dir}{left}", file=sys.stderr)
         sys.exit(INTERRUPTED)
+
+
+@contextlib.contextmanager
+def _noting_interrupts(seen: list[int]) -> Iterator[None]:
+    """Record each Ctrl-C in ``seen`` and raise ``KeyboardInterrupt`` as Python does: a library that
+    turns it into another error (an index error in a half-built result) then still ends the command,
+    and a sweep, with exit status 130."""
+    if threading.current_thread() is not threading.main_thread():
+        yield  # signals reach the main thread only
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is not signal.default_int_handler:  # ignored, or someone else's: left alone
+        yield
+        return
+
+    def noted(signum: int, frame: Any) -> None:
+        seen.append(signum)
+        signal.default_int_handler(signum, frame)
+
+    signal.signal(signal.SIGINT, noted)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _refuse_missing(cfg: DictConfig) -> None:

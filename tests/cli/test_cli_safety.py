@@ -167,3 +167,38 @@ def test_compare_refuses_a_value_of_another_type_in_one_line(tmp_path, capsys):
     said = capsys.readouterr().err
     assert said.startswith(f"idkit: compare: {good}, {odd}: a result.json idkit cannot read (TypeError: ")
     assert said.count("\n") == 1 and not list(tmp_path.glob("*.html"))
+
+
+def test_ctrl_c_turned_into_another_error_still_ends_the_sweep_with_130(run_idkit, tmp_path, monkeypatch):
+    """Whatever a job's code makes of the KeyboardInterrupt (here an IndexError, as a half-built result
+    gave), the command ends with 130 and the sweep runs no further job."""
+    import functools
+    import os
+    import signal
+    import time
+
+    import idkit.studies.single as single
+
+    # a process started in the background inherits SIGINT ignored: give it Python's own handler
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    jobs = []
+
+    @functools.wraps(single.run)
+    def interrupted(*args, **kwargs):
+        jobs.append(1)
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)  # the handler raises at once: never reached
+        except KeyboardInterrupt:
+            raise IndexError("boolean index did not match") from None
+
+    monkeypatch.setattr(single, "run", interrupted)
+    try:
+        status, said = run_idkit(
+            "-m", "estimator=ls", "~cost", "seed=0,1", f"hydra.sweep.dir={tmp_path / 's'}"
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert status == INTERRUPTED, said
+    assert said[-1] == "idkit: interrupted (IndexError on the way out)"
+    assert jobs == [1]
