@@ -269,3 +269,19 @@ def test_csv_lines_read_back_cell_for_cell(rows):
     if width == 1:  # a row of one empty cell is an empty line, which csv.reader yields as []
         back = [row or [""] for row in back]
     assert [[csv_text(cell) for cell in row] for row in back] == rows
+
+
+def test_a_torque_runs_model_of_random_bytes_names_the_file_and_the_option(tmp_path):
+    """``rollout.model=<run folder>`` reads its ``identified.xml`` under the same policy."""
+    from idkit.sim.from_run import read_torque_run
+
+    document = {
+        "task": "single",
+        "config": {"robot": {"_name_": "urdf", "urdf": "cylindrical"}},
+        "payload": {"estimate": {"params": {}}, "joint_names": ["j1"]},
+    }
+    (tmp_path / "result.json").write_text(json.dumps(document))
+    (tmp_path / "identified.xml").write_bytes(b"\xff\xfe<mujoco/>")
+    with pytest.raises(ValueError) as refused:
+        read_torque_run(tmp_path)
+    assert str(refused.value).startswith(f"rollout.model: {tmp_path / 'identified.xml'} is not a text model")
