@@ -283,5 +283,5 @@ def test_a_torque_runs_model_of_random_bytes_names_the_file_and_the_option(tmp_p
     (tmp_path / "result.json").write_text(json.dumps(document))
     (tmp_path / "identified.xml").write_bytes(b"\xff\xfe<mujoco/>")
     with pytest.raises(ValueError) as refused:
-        read_torque_run(tmp_path)
+        read_torque_run(tmp_path, lambda spec: None)  # refused before any robot is built
     assert str(refused.value).startswith(f"rollout.model: {tmp_path / 'identified.xml'} is not a text model")
