@@ -57,7 +57,25 @@ def identify(
         plots: with ``out_dir``, also the PNG plots.
         options: the rest of :func:`idkit.studies.single.run`'s keywords (``estimator``, ``cost``,
             ``seed``, ``preprocess``, ``recording``, ``device``, ``dtype`` ...).
+
+    Raises:
+        ValueError: no robot, or no data (a fit of a simulation is :func:`idkit.run`'s, not this).
+        TypeError: ``data`` or ``validate`` is not recordings (``3.5``).
     """
+    from idkit.data.files import RECORDINGS, as_paths
+
+    if robot is None:
+        raise ValueError(
+            'identify: robot is None; give a registry name ("urdf"), a config mapping '
+            '({"_name_": "urdf", "urdf": "arm.urdf"}) or a robot object'
+        )
+    if data is None:
+        raise ValueError(
+            f"identify: no data (data=None); give the recordings to identify from: {RECORDINGS} "
+            "(idkit.run(robot, scenario=...) fits a simulation instead)"
+        )
+    as_paths(data, "data")  # what is not recordings is refused before the robot is built
+    as_paths(validate, "validate")
     robot, options = _real_robot_defaults(robot, data, options)
     result = run(robot, data=data, validate=validate, out_dir=out_dir, plots=plots, **options)
     return result.model

@@ -58,7 +58,11 @@ class Plausibility:
                     f"got {mass_ratio!r}"
                 ) from None
             if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= 1 <= hi):
-                raise ValueError(f"{who}: mass_ratio [lo, hi] needs 0 <= lo <= 1 <= hi, got [{lo:g}, {hi:g}]")
+                raise ValueError(
+                    f"{who}: mass_ratio [lo, hi] needs 0 <= lo <= 1 <= hi, got [{lo:g}, {hi:g}]: the band is "
+                    "around each link's CAD mass (1 x CAD, also the prior the fit is drawn to); if the CAD "
+                    "masses are off, correct them in the model file, or bound the sum with total_mass"
+                )
             ratio = (lo, hi)
         total = None
         if total_mass is not None:

@@ -16,6 +16,7 @@ from idkit.reports.result_file import claim, write_result
 from idkit.reports.tables import markdown_table
 from idkit.reports.units import format_time
 from idkit.studies.paper import PaperTables, ScenarioTable
+from idkit.untrusted import safe_basename
 
 #: The paper's table number of each scenario.
 TABLES = {"state_noise": "II", "torque_noise": "III", "all_noise": "IV", "outliers": "V"}
@@ -133,7 +134,7 @@ def write(result: PaperTables, out_dir: str | Path, plots: bool = True) -> dict[
                     {e.estimator: e.params for e in t.estimates},
                     t.truth,
                     title=f"Table {TABLES.get(t.scenario, '')} ({t.scenario}): estimate / true value",
-                    path=out / f"paper_{t.scenario}.png",
+                    path=out / f"paper_{safe_basename(t.scenario)}.png",
                 )
             )
     return write_result(

@@ -137,8 +137,6 @@ def write(result: RolloutResult, out_dir: str | Path, plots: bool = True) -> dic
     """
     out = claim(out_dir, result.provenance)
     written: dict[str, str] = {}
-    if result.mjcf is not None:
-        written["identified_mjcf"] = str(files.write_text(out / MJCF_FILE, result.mjcf))
     found = history_table(result.estimate.details.get("history"))
     if found is not None:
         written["history"] = str(files.write_csv(out / "history.csv", *found))
@@ -155,8 +153,14 @@ def write(result: RolloutResult, out_dir: str | Path, plots: bool = True) -> dic
             written["convergence_plot"] = str(
                 figures.convergence(*found, title=f"{label}: search", path=out / "convergence.png")
             )
+    models = {"identified_mjcf": (MJCF_FILE, result.mjcf)} if result.mjcf is not None else None
     return write_result(
-        out, result.provenance, result.payload(), written, lambda document: rollout_page.render(document, out)
+        out,
+        result.provenance,
+        result.payload(),
+        written,
+        lambda document: rollout_page.render(document, out),
+        models=models,
     )
 
 

@@ -227,18 +227,27 @@ def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[st
                 path=out / "estimate.png",
             )
         )
-    if result.urdf is not None:
-        written["identified_urdf"] = str(files.write_text(out / URDF_FILE, result.urdf))
-    if result.mjcf is not None:
-        written["identified_mjcf"] = str(files.write_text(out / MJCF_FILE, result.mjcf))
     if plots:
         for k, held in enumerate(result.validation):
             path = out / f"validation_{k + 1}.png"
             n = held.scores.measured.shape[1]
             names, units = joint_labels(result, n), effort_units(result.joint_kinds, n)
             written[f"validation_plot_{k + 1}"] = str(_validation_plot(label, held, path, names, units))
+    models = {
+        key: (name, text)
+        for key, name, text in (
+            ("identified_urdf", URDF_FILE, result.urdf),
+            ("identified_mjcf", MJCF_FILE, result.mjcf),
+        )
+        if text is not None
+    }
     return write_result(
-        out, result.provenance, result.payload(), written, lambda document: single_page.render(document, out)
+        out,
+        result.provenance,
+        result.payload(),
+        written,
+        lambda document: single_page.render(document, out),
+        models=models,
     )
 
 

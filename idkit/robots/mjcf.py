@@ -41,6 +41,7 @@ from idkit.registry import PluginLoadError
 from idkit.robots.drives import Friction
 from idkit.robots.inertia import standard_parameters
 from idkit.robots.model_checks import check_model
+from idkit.robots.model_xml import model_text
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_model import Body, KinematicTree, LinkInertial, model_file
 from idkit.seeds import Seed
@@ -88,13 +89,14 @@ def read_mjcf_text(mjcf: str | os.PathLike) -> tuple[str, Path | None, str]:
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: a directory, not XML, or not an MJCF file (a URDF is pointed to ``robot=urdf``).
+        ValueError: a directory, not UTF-8 XML, a DTD (:mod:`idkit.robots.model_xml`), or not an MJCF
+            file (a URDF is pointed to ``robot=urdf``).
     """
     if isinstance(mjcf, str) and mjcf.lstrip().startswith("<"):
-        text, path, label = mjcf, None, "<MJCF text>"
+        text, path, label = model_text(mjcf.encode("utf-8"), "<MJCF text>", "mjcf"), None, "<MJCF text>"
     else:
         path = model_file(mjcf, "mjcf", ".xml")
-        text, label = path.read_text(encoding="utf-8"), str(path)
+        text, label = model_text(path.read_bytes(), str(path), "mjcf"), str(path)
     try:
         tag = ET.fromstring(text.encode("utf-8")).tag
     except ET.ParseError as error:

@@ -24,6 +24,7 @@ import numpy as np
 from idkit.data.commands import RobotLog
 from idkit.data.options import RecordingOptions
 from idkit.notes import Note
+from idkit.robots.model_xml import model_text
 from idkit.sim.model import SimModel
 from idkit.sim.quantities import servo_kind
 
@@ -143,7 +144,7 @@ def read_torque_run(folder: str | Path, build_robot: Callable[[Any], Any]) -> To
     recording = RecordingOptions(topic=topics.get("topic"), effort_topic=topics.get("effort_topic"))
     mjcf_path = folder / MJCF_FILE
     if mjcf_path.is_file():
-        mjcf = mjcf_path.read_text(encoding="utf-8")
+        mjcf = model_text(mjcf_path.read_bytes(), str(mjcf_path), "rollout.model")  # the one XML policy
     else:
         mjcf = _rebuild(result_path, lambda: build_robot(robot), params)
     return TorqueRun(folder, mjcf, joints, effort_scale, offsets, recording)

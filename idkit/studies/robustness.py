@@ -522,7 +522,10 @@ def run(
             param_names=list(robot_obj.param_names),
             truth=truth,
             params={
-                s: {k: np.asarray(v[:done], dtype=float) for k, v in by.items()} for s, by in found.items()
+                # [done, P] also when no trial is done (Ctrl-C in the first chunk): a flat empty array
+                # would not index like the others
+                s: {k: np.asarray(v[:done], dtype=float).reshape(-1, len(truth)) for k, v in by.items()}
+                for s, by in found.items()
             },
             baseline=baseline,
             focus=focus,
