@@ -50,7 +50,7 @@ from idkit.studies.build import Spec, build, describe, plain
 from idkit.studies.held import say_held
 from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
-from idkit.studies.plausibility import PlausibleAlternative, plausible_alternative
+from idkit.studies.plausibility import PlausibleAlternative, judged, plausible_alternative
 from idkit.studies.result import Provenance
 from idkit.studies.validation import Validation, validate_files
 
@@ -79,8 +79,8 @@ class RunResult:
             off, or not writable, e.g. a link mass <= 0).
         mjcf: the ``identified.xml`` (MJCF) text of an ``mjcf`` robot's fit, or of a ``urdf`` robot's
             with ``identified_mjcf=True`` (``None``: not asked, or not writable: non-physical inertia).
-        plausible: the same estimator with ``plausible=true``, scored on the same files, when the
-            fit left links implausible (:mod:`idkit.studies.plausibility`).
+        plausible: the fit the other ``plausible`` option gives, scored on the same files
+            (:mod:`idkit.studies.plausibility`).
         robot: the robot object the estimator fitted (``model`` puts the estimate back on it).
     """
 
@@ -350,7 +350,7 @@ def run(
     fitted = estimator_obj.fit(problem)
     label = estimator_label(estimator, cost, with_cost=isinstance(estimator_obj, CostSearcher))
     refuse_meaningless(fitted, robot_obj.param_names, label)
-    fitted = say_held(robot_obj, fitted, label)
+    fitted = judged(robot_obj, say_held(robot_obj, fitted, label))  # one plausibility verdict, any estimator
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
     provenance = Provenance(
         task="single",

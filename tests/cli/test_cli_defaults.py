@@ -63,7 +63,8 @@ def test_the_composed_config_is_changed_in_place_with_one_note():
     assert cfg.cost is None and cfg.robot.friction is True and cfg.robot.offset is False
     assert [str(w.message) for w in said] == [
         "measured data on a model robot: estimator=pcls cost=null robot.friction=true (a physically "
-        "consistent fit with friction); set any of them to change it, e.g. estimator=ls robot.friction=false"
+        "consistent fit with friction, its links kept plausible unless cross-validation says it costs "
+        "accuracy); set any of them to change it, e.g. estimator=ls robot.friction=false"
     ]
 
 
@@ -73,7 +74,10 @@ def test_the_note_describes_only_what_was_applied():
         "measured data on a model robot: cost=null robot.friction=true robot.offset=true (friction and "
         "torque offsets in the model); "
     )
-    assert "(a physically consistent fit with friction and torque offsets)" in describe(chosen(set()))
+    assert (
+        "(a physically consistent fit with friction and torque offsets, its links kept plausible unless "
+        "cross-validation says it costs accuracy)"
+    ) in describe(chosen(set()))
     assert "(no cost: the estimator minimises its own criterion)" in describe(
         chosen({"estimator", "robot.friction", "robot.offset"})
     )
