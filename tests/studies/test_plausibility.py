@@ -76,6 +76,15 @@ def test_the_study_prints_what_plausibility_costs_on_the_held_out_file():
     said = "with estimator.plausible=true (enforced: link masses within [0.5, 2] x CAD; mass inside"
     assert said in shown and f"{100 * bounded.rel_all:.2f} %" in shown
     assert f"plausible=auto: {choice['reason']}" in shown
+    bounded_by = "; ".join(f"{link}: nothing: no usable geometry" for link in ("a", "b", "c", "d"))
+    assert f"bounded by: {bounded_by}" in shown  # which bodies are bounded by what, by name
+    record = result.estimate.details["plausibility"]["links"]
+    for link, verdict in record.items():  # the table reads the one record, reasons included
+        row = next(line for line in shown.splitlines() if line.startswith(f"{link} "))
+        assert (
+            row.endswith(" !" + (f" ({'; '.join(verdict['reasons'])})" if verdict["reasons"] else ""))
+            != (verdict["plausible"])
+        )
     payload = result.payload()["plausible_alternative"]
     assert payload["option"] == "estimator.plausible=true" and "b" in payload["at_bound"]
 
