@@ -11,7 +11,10 @@ parameters (so they join the same conic program, :mod:`idkit.conic.program`):
 * ``geometry``: where the model has collision (or else visual) geometry for a link, its mass lies
   inside the ellipsoid bounding that geometry — the density-realisability condition of Wensing, Kim
   & Slotine (RA-L 2017), ``tr(J Q) >= 0``, which also puts the centre of mass inside it
-  (:mod:`idkit.robots.geometry` builds the ellipsoids).
+  (:mod:`idkit.robots.geometry` builds the ellipsoids; placeholder geometry is not among them).
+
+And the one verdict every report reads: :func:`plausibility_report` decides, per link, whether a fit
+is plausible and why not (:func:`plausibility_rule`), once, into ``details["plausibility"]``.
 """
 
 from __future__ import annotations
