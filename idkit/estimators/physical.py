@@ -329,6 +329,24 @@ class PhysicallyConsistentLS(Estimator):
         bounds = Plausibility.checked("pcls", ratio, self.total_mass, geometry=True)
         return replace(settings, plausibility=bounds)
 
+    def _band_fits_total(self, robot: URDFRobot, bounds: Plausibility) -> bool:
+        """Whether ``plausible="auto"``'s mass band can hold with the ``total_mass`` given; if not, the
+        given total is honoured, the band dropped, and a note says so."""
+        if bounds.total_mass is None or bounds.mass_ratio is None:
+            return True
+        nb = len(robot.link_names)
+        cad = float(robot.nominal_params()[0 : 10 * nb : 10].sum())
+        lo, hi = bounds.mass_ratio
+        if lo * cad <= bounds.total_mass <= hi * cad:
+            return True
+        warnings.warn(
+            f"pcls plausible=auto: total_mass={bounds.total_mass:g} kg is outside [{lo:g}, {hi:g}] x the CAD "
+            f"total {cad:g} kg, so the links' mass band is not tried; total_mass is enforced",
+            PlausibleNote,
+            stacklevel=3,
+        )
+        return False
+
     @property
     def name(self) -> str:
         weight = self.prior_weight
@@ -353,7 +371,7 @@ class PhysicallyConsistentLS(Estimator):
         scale2 = max(rest, NOISE_FLOOR * norm2) / max(W.shape[0] - W.shape[1], 1)
         variants = {False: settings}
         plausible_variant = self.bounded(settings)
-        if plausible_variant is not None:
+        if plausible_variant is not None and self._band_fits_total(robot, plausible_variant.plausibility):
             variants[True] = plausible_variant
         fitter = _Fitter(robot, reference, R, b, rest, W, tau, scale2, variants)
         chosen, choice_reason = fitter.choose(settings.prior_weight)

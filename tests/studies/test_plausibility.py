@@ -118,6 +118,12 @@ def test_a_given_band_is_honoured_and_a_band_without_plausibility_refused():
     assert "plausible_choice" not in fit.details  # given: enforced, not cross-validated away
     record = fit.details["plausibility"]
     assert record["enforced"].startswith("link masses within [0.8, 1.25] x CAD") and "b" in record["at_bound"]
+    heavy = PhysicallyConsistentLS(prior_weight=1.0, total_mass=40.0)  # the CAD total is about 5 kg
+    with pytest.warns(PlausibleNote, match=r"total_mass=40 kg is outside \[0.5, 2\] x the CAD total"):
+        fit = heavy.fit(problem)
+    assert "plausible_choice" not in fit.details and sum(fit.details["plausibility"]["mass"].values()) == (
+        pytest.approx(40.0, rel=1e-6)
+    )
     with pytest.raises(ValueError, match=r"^pcls: mass_ratio is the band plausible=true enforces"):
         PhysicallyConsistentLS(plausible=False, mass_ratio=(0.5, 2.0))
     with pytest.raises(ValueError, match=r"^pcls: plausible must be true, false or auto, got 'yes'$"):
