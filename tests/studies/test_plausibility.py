@@ -156,8 +156,8 @@ def test_a_point_mass_and_a_rod_are_degenerate_with_their_reason():
 
 def test_the_weight_moves_off_a_degenerate_fit_only_as_far_as_the_data_allow():
     """cross_validated_weight: the lowest error, unless its fit is degenerate; then the smallest larger
-    weight within one standard error whose fit is not (here: a stand-in that calls every weight below
-    30 degenerate)."""
+    weight whose fit is not (here: stand-ins that call every weight below 30, or every weight,
+    degenerate)."""
     from idkit.conic.program import ConsistentProgram, ConsistentSettings, compress
     from idkit.estimators.physical import cross_validated_weight
 
@@ -174,10 +174,12 @@ def test_the_weight_moves_off_a_degenerate_fit_only_as_far_as_the_data_allow():
     moved = cross_validated_weight(
         built.__getitem__, robot, W, tau, scale2, degenerate=lambda w: ["a"] if w < 30 else []
     )
-    allowed = sorted(w for w in plain.scores if w >= 30 and w > best and plain.standard_errors[w] <= 1)
     if best >= 30:
-        assert moved.weight == best
-    elif allowed:
-        assert moved.weight == allowed[0] and "a is degenerate" in moved.reason
-    else:
-        assert moved.weight == best and "stay degenerate" in moved.reason
+        assert moved.weight == best and moved.reason == plain.reason
+    else:  # the first weight that leaves none: 30, said with its cost in standard errors
+        assert (
+            moved.weight == 30 and "there a is degenerate (a rod, plate or point mass), so 30" in moved.reason
+        )
+        assert ("within one standard error" in moved.reason) == (plain.standard_errors[30] <= 1)
+    never = cross_validated_weight(built.__getitem__, robot, W, tau, scale2, degenerate=lambda w: ["a"])
+    assert never.weight == best and never.reason.endswith("and stay so at every weight")
