@@ -1,8 +1,8 @@
 """Rollout identification: idkit's ``rollout`` estimator beside ``mujoco.sysid`` on the same models and logs.
 
 Run: ``python bench/rollout.py [--cases a b c] [--starts 20] [--threads 2] [--sysid mujoco scipy robust]
-[--labels physical|shifted|both]``
-(needs the ``bench`` extra: ``mujoco[sysid]``). The cases are :mod:`idkit.sim.cases`:
+[--labels physical|shifted|both] [--jacobian-every 1 3]``
+(needs the ``bench`` extra: ``mujoco[sysid]``). The cases are :mod:`idkit.testing.rollout_cases`:
 
 * ``a``: ``mujoco.sysid``'s own integration-test arm (5 torque motors), its 5 armatures;
 * ``b``: a 7-joint arm under position and velocity servos, per joint armature, damping, friction loss,
@@ -27,7 +27,8 @@ Columns: success (every parameter within 5 % of the truth; the delay within 5 % 
 and largest relative error, the held-out error (1.4826 × the median absolute position error, rad, over
 the held-out log rolled out whole from its first logged state: the noise level when a model reproduces
 it within the noise, unmoved by glitches; the truth's own is in the table's title), wall
-time (median, and total) and the simulated time in lengths of the fit log (median: a rollout of the whole
+time (median, and total), CPU seconds of the process (median: user + system, every thread)
+and the simulated time in lengths of the fit log (median: a rollout of the whole
 log counts 1, of a segment its share; a finite-difference column is a rollout).
 Threads: ``--threads`` for both tools. Say the machine's load beside the numbers (``uptime``).
 """
@@ -51,12 +52,12 @@ import mujoco
 import numpy as np
 
 from idkit.estimators.rollout import RolloutEstimator
-from idkit.sim import cases
 from idkit.sim.model import load_model
 from idkit.sim.quantities import select_unknowns
+from idkit.testing import rollout_cases as cases
 
 SUCCESS = 0.05
-COLUMNS = ("median err", "max err", "held-out", "wall med", "wall sum", "logs sim")
+COLUMNS = ("median err", "max err", "held-out", "wall med", "wall sum", "CPU med", "logs sim")
 DELAY_SLACK = 1e-4
 
 
@@ -65,13 +66,14 @@ class Run:
     values: np.ndarray
     wall: float
     rollouts: int
+    cpu: float = float("nan")
 
 
 def relative_errors(case: cases.Case, values: np.ndarray) -> np.ndarray:
     truth = np.array(list(case.truth.values()))
     errors = np.abs(values - truth) / np.where(truth != 0, np.abs(truth), 1.0)
     for i, name in enumerate(case.truth):
-        if name == "delay":
+        if name == "command_delay":
             errors[i] = min(errors[i], abs(values[i] - truth[i]) / DELAY_SLACK * SUCCESS)
     return errors
 
@@ -93,7 +95,7 @@ def held_out_error(case: cases.Case, values: dict[str, float]) -> float:
     from idkit.sim.timing import held_averages
 
     drive = match_commands(sim, log)
-    delay = values.get("delay", 0.0)
+    delay = values.get("command_delay", 0.0)
     controls = held_averages(
         log.command_t,
         log.commands[:, list(drive.columns)],
@@ -108,15 +110,14 @@ def held_out_error(case: cases.Case, values: dict[str, float]) -> float:
     return float(1.4826 * np.median(np.abs(q - log.q[1:])))
 
 
-def run_idkit(case: cases.Case, start: dict[str, float], threads: int) -> Run:
+def run_idkit(case: cases.Case, start: dict[str, float], threads: int, **options: int) -> Run:
     problem = cases.problem_of(case, start, threads=threads)
-    began = time.perf_counter()
-    estimate = RolloutEstimator().fit(problem)
-    wall = time.perf_counter() - began
+    began, cpu = time.perf_counter(), time.process_time()
+    estimate = RolloutEstimator(**options).fit(problem)
+    wall, cpu = time.perf_counter() - began, time.process_time() - cpu
     duration = case.fit.t[-1] - case.fit.t[0]
-    return Run(
-        np.array(list(estimate.params.values())), wall, estimate.details["simulated_seconds"] / duration
-    )
+    simulated = estimate.details.simulated_seconds / duration
+    return Run(np.array(list(estimate.params.values())), wall, simulated, cpu)
 
 
 # --- mujoco.sysid -------------------------------------------------------------------------------
@@ -193,12 +194,14 @@ def run_sysid(
     sensors = sysid.TimeSeries.from_names(sensor_times, np.hstack([log.q, log.qd]), model)
     sequences = sysid.ModelSequences(case.name, spec, "fit", initial, control, sensors)
     options: dict = {}
-    if "delay" in case.truth:
-        largest = case.bounds["delay"][1]
+    if "command_delay" in case.truth:
+        largest = case.bounds["command_delay"][1]
 
         def delayed(params, predicted, measured, model, return_pred_all, state=None, **_):
             measured = sysid.apply_delayed_ts_window(measured, predicted, 0.0, largest)
-            predicted = sysid.apply_resample_and_delay(predicted, measured.times, params["delay"].value[0])
+            predicted = sysid.apply_resample_and_delay(
+                predicted, measured.times, params["command_delay"].value[0]
+            )
             residual = sysid.normalize_residual(
                 sysid.weighted_diff(predicted.data, measured.data), measured.data
             )
@@ -213,10 +216,10 @@ def run_sysid(
         return residual_fn(x, p, **kwargs)
 
     extra = {"loss": "soft_l1", "f_scale": f_scale} if f_scale is not None else {}
-    began = time.perf_counter()
+    began, cpu = time.perf_counter(), time.process_time()
     found, _ = sysid.optimize(params, counting, optimizer=optimizer, verbose=False, **extra)
-    wall = time.perf_counter() - began
-    return Run(np.array([found[name].value[0] for name in case.truth]), wall, counted["rollouts"])
+    wall, cpu = time.perf_counter() - began, time.process_time() - cpu
+    return Run(np.array([found[name].value[0] for name in case.truth]), wall, counted["rollouts"], cpu)
 
 
 def _kinds(case: cases.Case) -> list[str]:
@@ -243,9 +246,9 @@ def truth_f_scale(case: cases.Case) -> float:
     measured = np.hstack([case.fit.q, case.fit.qd])
     exact = np.hstack([clean.fit.q, clean.fit.qd])
     if case.name == "c":
-        from idkit.sim.cases import delayed
+        from idkit.testing.rollout_cases import delayed
 
-        q, qd = delayed(clean.fit.t, clean.fit.q, clean.fit.qd, case.truth["delay"])
+        q, qd = delayed(clean.fit.t, clean.fit.q, clean.fit.qd, case.truth["command_delay"])
         exact = np.hstack([q, qd])
     residual = sysid.normalize_residual(measured - exact, measured)
     del model
@@ -267,6 +270,7 @@ def table(rows: list[tuple[str, list[Run]]], case: cases.Case, reference: float)
             f"{statistics.median(float(np.median(e)) for e in errors):>11.2e}"
             f"{statistics.median(float(e.max()) for e in errors):>11.2e}{statistics.median(held):>11.2e}"
             f"{statistics.median(r.wall for r in runs):>10.1f}s{sum(r.wall for r in runs):>10.0f}s"
+            f"{statistics.median(r.cpu for r in runs):>10.1f}s"
             f"{statistics.median(r.rollouts for r in runs):>11.0f}"
         )
     return "\n".join(lines)
@@ -277,6 +281,13 @@ def main() -> None:
     parser.add_argument("--cases", nargs="+", default=["a", "b", "c"])
     parser.add_argument("--starts", type=int, default=20)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument(
+        "--jacobian-every",
+        type=int,
+        nargs="+",
+        default=[3],
+        help="idkit rows, one per value of the estimator's jacobian_every (1: the polish before Broyden)",
+    )
     parser.add_argument("--sysid", nargs="*", default=["mujoco", "scipy", "robust"])
     parser.add_argument(
         "--labels",
@@ -298,12 +309,14 @@ def main() -> None:
             configurations = [c for c in configurations if not c[2]]
         f_scale = truth_f_scale(case) if name == "c" else None
         conventions = {"physical": [False], "shifted": [True], "both": [False, True]}[args.labels]
-        rows: dict[str, list[Run]] = {"idkit rollout": []}
+        idkit_rows = {f"idkit rollout (jacobian_every={k})": k for k in args.jacobian_every}
+        rows: dict[str, list[Run]] = {label: [] for label in idkit_rows}
         for shifted in conventions:
             for label, _, _ in configurations:
                 rows[label + (" shifted" if shifted else "")] = []
         for i, start in enumerate(starts):
-            rows["idkit rollout"].append(run_idkit(case, start, args.threads))
+            for label, every in idkit_rows.items():
+                rows[label].append(run_idkit(case, start, args.threads, jacobian_every=every))
             for shifted in conventions:
                 for label, optimizer, robust in configurations:
                     run = run_sysid(

@@ -6,7 +6,7 @@ import json
 import math
 import numbers
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 #: How a non-finite float is written in JSON (strict JSON has no token for it). The spellings are
@@ -64,8 +64,9 @@ class Estimate:
 
     ``cost`` is the final value of the criterion the estimator minimised; ``details`` carries the
     per-run record (each run's parameters and cost, which runs were kept and why, convergence
-    history, threads, device) that an estimator chooses to keep. ``details["history"]``, if present,
-    follows the format of ``history_table``.
+    history, threads, device) that an estimator chooses to keep: a dict, or a typed record that reads
+    as a mapping (``rollout``'s :class:`idkit.sim.details.RolloutDetails`). ``details["history"]``, if
+    present, follows the format of ``history_table``.
     """
 
     estimator: str
@@ -73,15 +74,21 @@ class Estimate:
     cost: float | None
     wall_time_s: float
     base_params: dict[str, float] | None = None
-    details: dict[str, Any] = field(default_factory=dict)
+    details: Mapping[str, Any] = field(default_factory=dict)
 
     def vector(self) -> list[float]:
         """Parameter values in the robot's ``param_names`` order."""
         return list(self.params.values())
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain Python (floats stay typed, non-finite ones included); ``to_json`` encodes those."""
-        return to_python(asdict(self))
+        """Plain Python (floats stay typed, non-finite ones included); ``to_json`` encodes those.
+        ``details`` may be any mapping (a typed record that reads as one, e.g.
+        :class:`idkit.sim.details.RolloutDetails`): its items are what is written."""
+        if isinstance(self.details, dict):
+            return to_python(asdict(self))
+        plain = asdict(replace(self, details={}))
+        plain["details"] = dict(self.details)
+        return to_python(plain)
 
     def to_json(self, **kwargs: Any) -> str:
         """Strict JSON; a non-finite number is written as a string (``NON_FINITE_JSON``)."""

@@ -16,9 +16,10 @@ import numbers
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar, Generic, Protocol, TypeVar, runtime_checkable
 
 from idkit.hyperparameters import Hyperparameters
+from idkit.problem import IdentificationProblem, Problem
 from idkit.registry import create
 
 if TYPE_CHECKING:
@@ -26,7 +27,9 @@ if TYPE_CHECKING:
 
     from idkit.estimate import Estimate
     from idkit.limits import MotionLimits
-    from idkit.problem import Problem
+
+#: The kind of problem an estimator fits (:class:`idkit.problem.IdentificationProblem`).
+ProblemT = TypeVar("ProblemT", bound=IdentificationProblem)
 
 
 class Robot(ABC):
@@ -207,8 +210,14 @@ class Cost(ABC):
         return None
 
 
-class Estimator(Hyperparameters, ABC):
-    """Identifies a robot's parameters from one ``Problem``.
+class Estimator(Hyperparameters, ABC, Generic[ProblemT]):
+    """Identifies a robot's parameters from one identification problem of the kind it declares.
+
+    ``problem_type`` is that kind: the torque :class:`~idkit.problem.Problem` (the default) or another
+    implementation of :class:`~idkit.problem.IdentificationProblem` (``rollout``'s
+    :class:`~idkit.sim.problem.RolloutProblem`, declared as ``Estimator[RolloutProblem]`` with
+    ``problem_type = RolloutProblem``). The command line runs an estimator only in a task whose study
+    builds that kind, and the conformance suite checks it on problems of that kind.
 
     Hyperparameters follow scikit-learn's contract (:mod:`idkit.hyperparameters`): every constructor
     keyword stored unchanged under its own name, checked by ``resolve()`` at construction and again
@@ -231,8 +240,11 @@ class Estimator(Hyperparameters, ABC):
     ``idkit.testing.check_estimator`` checks it.
     """
 
+    #: The kind of problem ``fit`` takes (class docstring).
+    problem_type: ClassVar[type[IdentificationProblem]] = Problem
+
     @abstractmethod
-    def fit(self, problem: Problem) -> Estimate:
+    def fit(self, problem: ProblemT) -> Estimate:
         """Estimate the physical parameters (and base parameters where defined)."""
 
     def files_needed(self) -> dict[str, str]:
@@ -241,6 +253,19 @@ class Estimator(Hyperparameters, ABC):
         the data and hands it over in ``Problem.recordings[path]``. Optional for a plugin that does not
         subclass ``Estimator``: without it, none."""
         return {}
+
+
+def problem_type(estimator: Any) -> type[IdentificationProblem]:
+    """The kind of problem an estimator (or estimator class) fits: its ``problem_type``, else the torque
+    :class:`~idkit.problem.Problem` (a plugin that does not subclass :class:`Estimator`)."""
+    cls = estimator if isinstance(estimator, type) else type(estimator)
+    declared = getattr(cls, "problem_type", Problem)
+    if not isinstance(declared, type):  # a protocol with attributes allows no issubclass: the class only
+        raise TypeError(
+            f"{cls.__name__}.problem_type must be a class implementing idkit.problem.IdentificationProblem "
+            f"(e.g. idkit.problem.Problem), got {declared!r}"
+        )
+    return declared
 
 
 @runtime_checkable

@@ -1,4 +1,11 @@
-"""Measured samples and the identification problem handed to an estimator."""
+"""Measured samples and the identification problem handed to an estimator.
+
+An *identification problem* is one concept with two kinds: the torque :class:`Problem` (a robot's
+inverse dynamics against measured torques) and the rollout problem
+(:class:`idkit.sim.problem.RolloutProblem`: a simulator rolled out under logged commands against the
+measured joint states). Both implement :class:`IdentificationProblem`; an estimator declares the kind
+it fits (``Estimator.problem_type``), so that "which task runs this estimator" is a type check.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +13,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import torch
 from torch import Tensor
@@ -160,8 +167,56 @@ class Recorded:
     about: Mapping[str, Any] = field(default_factory=dict)
 
 
+class ParameterSpace(Protocol):
+    """What every problem's ``robot`` tells: the names of the parameters (or unknowns) a fit sets."""
+
+    @property
+    def param_names(self) -> tuple[str, ...]: ...
+
+    @property
+    def n_joints(self) -> int: ...
+
+
+@runtime_checkable
+class IdentificationProblem(Protocol):
+    """What an estimator and the conformance suite may use of any problem, whatever its kind.
+
+    Attributes:
+        robot: what is identified (``param_names``: the estimate's keys, in order).
+        samples: the measurements (their type is the kind's: ``Samples``, a ``RobotLog``).
+        cost: the criterion (``None``: the estimator's own).
+        seed: every random draw of a fit derives from it (:meth:`generator`).
+    """
+
+    robot: ParameterSpace
+    samples: Any
+    cost: Cost | None
+    seed: int
+
+    @property
+    def n_identifiable(self) -> int:
+        """How many values the measurements must determine."""
+        ...
+
+    def check_identifiable(self) -> None:
+        """Raise :class:`IdentificationError` when the measurements give fewer equations than values."""
+        ...
+
+    def evaluate(self, params: Tensor) -> Tensor:
+        """The problem's cost ``[...]`` at ``params[..., P]``."""
+        ...
+
+    def generator(self) -> torch.Generator:
+        """A fresh generator whose whole state comes from ``seed``."""
+        ...
+
+    def head(self, n: int) -> IdentificationProblem:
+        """The same problem on its first ``n`` samples."""
+        ...
+
+
 @dataclass(frozen=True)
-class Problem:
+class Problem(IdentificationProblem):
     """Everything an estimator needs: robot, samples, cost, seed and where to compute.
 
     ``cost`` may be ``None`` for estimators that fix their own criterion (the least-squares family).
@@ -252,3 +307,10 @@ class Problem:
     def generator(self) -> torch.Generator:
         """A fresh generator on the problem's device whose whole state comes from ``seed``."""
         return torch_generator(self.seed, self.device)
+
+    def head(self, n: int) -> Problem:
+        """The same problem on its first ``n`` samples (``recordings`` kept)."""
+        if not 1 <= n <= self.samples.n_samples:
+            raise ValueError(f"head({n}) of a problem of {self.samples.n_samples} samples")
+        s = self.samples
+        return replace(self, samples=Samples(s.q[:n], s.qd[:n], s.qdd[:n], s.tau[:n]))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import ModuleType
@@ -25,11 +26,17 @@ from idkit.registry import NAME_KEY
 
 @dataclass(frozen=True)
 class Task:
-    """Where a task's study and report live, and its config section (``None``: top level only)."""
+    """Where a task's study and report live, its config section (``None``: top level only) and the kind
+    of identification problem its study hands the estimator (``"module:Class"``)."""
 
     study: str
     report: str
     section: str | None = None
+    problem: str = "idkit.problem:Problem"
+
+    def problem_type(self) -> type:
+        module, _, attr = self.problem.partition(":")
+        return getattr(importlib.import_module(module), attr)
 
     def study_function(self) -> Callable[..., Any]:
         module, _, attr = self.study.partition(":")
@@ -45,7 +52,9 @@ TASKS: dict[str, Task] = {
     "robustness": Task("idkit.studies.robustness:run", "idkit.reports.robustness", "robustness"),
     "kuka": Task("idkit.studies.kuka:run", "idkit.reports.kuka", "kuka"),
     "excitation": Task("idkit.studies.excitation:run", "idkit.reports.excitation", "excitation"),
-    "rollout": Task("idkit.studies.rollout:run", "idkit.reports.rollout", "rollout"),
+    "rollout": Task(
+        "idkit.studies.rollout:run", "idkit.reports.rollout", "rollout", "idkit.sim.problem:RolloutProblem"
+    ),
 }
 
 #: Top-level keys read by the command line itself, not by a study.
@@ -114,19 +123,41 @@ def arguments(name: str, config: Mapping[str, Any], study: Callable[..., Any]) -
 
 
 def _refuse_foreign_estimator(name: str, estimator: Any) -> None:
-    """Refuse an estimator whose class declares another task (``task = "rollout"``) than ``name``."""
+    """Refuse an estimator that fits another kind of problem (its ``problem_type``) than task ``name``'s
+    study builds, naming the task that builds it.
+
+    A plugin written before ``problem_type`` existed may still declare its task by name
+    (``task = "rollout"``): that is honoured, with a ``DeprecationWarning``.
+    """
     plugin = estimator.get(NAME_KEY) if isinstance(estimator, Mapping) else None
     if plugin is None:
         return
     from idkit import registry
+    from idkit.interfaces import problem_type
 
     try:
-        own = getattr(registry.load("estimator", plugin), "task", None)
+        cls = registry.load("estimator", plugin)
     except registry.PluginError:
         return  # the study's build reports it
-    if own is not None and own != name:
+    legacy = getattr(cls, "task", None)
+    if isinstance(legacy, str) and problem_type(cls) is get_task("single").problem_type():
+        warnings.warn(
+            f"estimator {plugin}: the class attribute task = {legacy!r} is deprecated; declare the kind of "
+            "problem it fits instead (problem_type = ..., idkit.interfaces.Estimator)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        own = [legacy] if legacy in TASKS else []
+    else:
+        accepts = problem_type(cls)
+        if issubclass(get_task(name).problem_type(), accepts):
+            return
+        own = [task for task in TASKS if issubclass(get_task(task).problem_type(), accepts)]
+    if name not in own:
+        if not own:
+            raise ValueError(f"estimator={plugin} fits problems that no task of the command line builds")
         raise ValueError(
-            f"estimator={plugin} runs in the {own} task, not the {name} task: idkit +experiment={own} …"
+            f"estimator={plugin} runs in the {own[0]} task, not the {name} task: idkit +experiment={own[0]} …"
         )
 
 

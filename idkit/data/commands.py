@@ -26,13 +26,16 @@ Commands keep their own stamps: the simulator holds each until the next (:mod:`i
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from idkit.data.logs import JOINT_STATE, is_log, joint_values, read_stream, seconds_after
+from idkit.data.files import as_paths, refuse_repeated_files
+from idkit.data.logs import choose_topic, is_log, joint_values, read_stream, seconds_after
+from idkit.data.raw import check_increasing
 from idkit.data.table import NpzTable, read_quantities, read_table
 
 #: Column suffixes of commands, and what each drives (see the module docstring).
@@ -40,6 +43,8 @@ COMMAND_KINDS = ("ctrl", "q_ref", "qd_ref")
 #: A ``JointState`` array of a command topic → the command it carries.
 COMMAND_FIELDS = {"position": "q_ref", "velocity": "qd_ref", "effort": "ctrl"}
 INSTALL = "pip install robot-idkit[logs]"
+#: Logs joined into one are this many of their median steps apart: a gap (:mod:`idkit.sim.segments`).
+JOIN_GAP = 100
 
 
 @dataclass(frozen=True)
@@ -86,8 +91,8 @@ class RobotLog:
                     f"{self.source}: array {name!r} must be {list(shape)} ({len(times)} times × "
                     f"{shape[1]} names), got {list(getattr(self, name).shape)}"
                 )
-        for name in ("t", "command_t"):
-            _check_increasing(self.source, name, getattr(self, name))
+        check_increasing(self.source, self.t, "t", "state times")
+        check_increasing(self.source, self.command_t, "command_t", "command times")
         if self.t.size < 2:
             raise ValueError(f"{self.source}: a log needs at least 2 samples, got {self.t.size}")
         if not m:
@@ -112,18 +117,6 @@ class RobotLog:
             self.t[:n], self.q[:n], self.qd[:n], self.command_t[:keep], self.commands[:keep],
             self.joint_names, self.command_names, self.source,
         )  # fmt: skip
-
-
-def _check_increasing(source: str, name: str, t: np.ndarray) -> None:
-    if t.ndim != 1:
-        raise ValueError(f"{source}: {name!r} must be 1-D, got shape {list(t.shape)}")
-    steps = np.diff(t)
-    if (steps <= 0).any():
-        i = int(np.flatnonzero(steps <= 0)[0])
-        raise ValueError(
-            f"{source}: {name} must increase strictly; {name}[{i + 1}] = {float(t[i + 1])!r} follows "
-            f"{name}[{i}] = {float(t[i])!r}"
-        )
 
 
 def read_robot_log(
@@ -178,6 +171,52 @@ def read_robot_log(
     return RobotLog(t, states["q"], states["qd"], t, np.hstack(values), names, tuple(columns), str(path))
 
 
+def read_robot_logs(
+    files: Any,
+    joints: Sequence[str] | None = None,
+    state_topic: str | None = None,
+    command_topic: str | None = None,
+    reader: Callable[..., RobotLog] | None = None,
+) -> RobotLog:
+    """One log of ``files`` (a path or a list: :func:`idkit.data.files.as_paths`), each read by
+    ``reader`` (default :func:`read_robot_log`; a torque run's reads efforts as motor commands:
+    :meth:`idkit.sim.from_run.TorqueRun.reader`); several are joined one after another with a gap
+    between them (the segments restart after a gap: :mod:`idkit.sim.segments`).
+
+    Raises:
+        ValueError: no file, a file given twice, or files of other joints or commands than the first.
+    """
+    paths = as_paths(files)
+    if not paths:
+        raise ValueError("data: no log given")
+    refuse_repeated_files(paths, "data")
+    logs = [(reader or read_robot_log)(p, joints, state_topic, command_topic) for p in paths]
+    if len(logs) == 1:
+        return logs[0]
+    first = logs[0]
+    for path, log in zip(paths[1:], logs[1:], strict=True):
+        if log.joint_names != first.joint_names or log.command_names != first.command_names:
+            raise ValueError(
+                f"data: {path} has other joints or commands than {paths[0]}; join logs of one robot"
+            )
+    t, q, qd, ct, c = [], [], [], [], []
+    offset = 0.0
+    for log in logs:
+        step = float(np.median(np.diff(log.t)))
+        shift = offset - min(log.t[0], log.command_t[0])
+        t.append(log.t + shift)
+        q.append(log.q)
+        qd.append(log.qd)
+        ct.append(log.command_t + shift)
+        c.append(log.commands)
+        offset = max(log.t[-1], log.command_t[-1]) + shift + JOIN_GAP * step
+    joined = ", ".join(str(p) for p in paths)
+    return RobotLog(
+        np.concatenate(t), np.vstack(q), np.vstack(qd), np.concatenate(ct), np.vstack(c),
+        first.joint_names, first.command_names, joined,
+    )  # fmt: skip
+
+
 def save_robot_log(log: RobotLog, path: str | Path) -> Path:
     """Write ``log`` as the CSV :func:`read_robot_log` reads (17 significant digits round-trip float64);
     its commands must share the states' times."""
@@ -207,8 +246,14 @@ def _read_ros(
     try:
         with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
             types = {c.topic: c.msgtype for c in reader.connections}
-            command = _topic(path, types, command_topic, "command_topic", exclude=None)
-            state = _topic(path, types, state_topic, "state_topic", exclude=command)
+            if command_topic is None:
+                listing = ", ".join(f"{t} ({kind})" for t, kind in sorted(types.items())) or "none"
+                raise ValueError(
+                    f"{path}: name the commands' JointState topic (command_topic=…); the log's topics: "
+                    f"{listing}"
+                )
+            command = choose_topic(path, types, command_topic, "command_topic")
+            state = choose_topic(path, types, state_topic, "state_topic", besides=command, shared=False)
             streams = {
                 topic: read_stream(path, reader, [c for c in reader.connections if c.topic == topic], topic)
                 for topic in (state, command)
@@ -235,25 +280,3 @@ def _read_ros(
         seconds_after(states.stamps, origin), q, qd, seconds_after(commands.stamps, origin),
         np.hstack(values), tuple(wanted), tuple(columns), str(path),
     )  # fmt: skip
-
-
-def _topic(path: Path, types: dict[str, str], topic: str | None, option: str, exclude: str | None) -> str:
-    joint_states = sorted(t for t, kind in types.items() if kind == JOINT_STATE and t != exclude)
-    listing = ", ".join(f"{t} ({kind})" for t, kind in sorted(types.items())) or "none"
-    if topic is None:
-        if exclude is None:
-            raise ValueError(
-                f"{path}: name the commands' JointState topic ({option}=…); the log's topics: {listing}"
-            )
-        if len(joint_states) != 1:
-            found = ", ".join(joint_states) or "none"
-            raise ValueError(
-                f"{path}: the states' JointState topic is ambiguous (found {found} besides the commands' "
-                f"{exclude}); name it with state_topic=…"
-            )
-        return joint_states[0]
-    if topic not in types:
-        raise ValueError(f"{path}: no topic {topic!r} ({option}); the log's topics: {listing}")
-    if types[topic] != JOINT_STATE:
-        raise ValueError(f"{path}: topic {topic} ({option}) holds {types[topic]}, not sensor_msgs/JointState")
-    return topic

@@ -1,10 +1,11 @@
-"""A torque stream that lags the state stream: shift it back, or estimate the lag by cross-correlation.
+"""A torque stream that lags the state stream (the *torque lag*): shift it back, or estimate the lag.
 
 Drives and loggers often stamp the measured effort later than the positions it belongs to (a current
-filter, a second topic, a bus cycle). With ``recording.delay=<seconds>`` the torque at time ``t`` is
-read at ``t + delay`` (:func:`shift_torques`); with ``recording.delay=auto`` the delay is the lag at
-which the robot's regressor explains the shifted torques best (:func:`torque_delay`, called by
-:mod:`idkit.data.pipeline` with the robot's regressor). Why not the plain cross-correlation
+filter, a second topic, a bus cycle). With ``recording.torque_lag=<seconds>`` the torque at time ``t``
+is read at ``t + lag`` (:func:`shift_torques`); with ``recording.torque_lag=auto`` the lag is the one
+at which the robot's regressor explains the shifted torques best (:func:`estimate_torque_lag`, called
+by :mod:`idkit.data.pipeline` with the robot's regressor). Not the rollout's ``command_delay`` (the
+states behind the commands, :mod:`idkit.sim.timing`). Why not the plain cross-correlation
 with the a-priori (CAD) model's torques: on a 0.2 Hz trajectory of the cylindrical test arm whose
 torques trail by 20 ms, the friction the CAD model lacks (~12 % of the torque) moved that peak to
 41–59 ms per joint; fitting the regressor (friction included) at each lag finds 20 ms.
@@ -18,7 +19,7 @@ import numpy as np
 
 from idkit.data.raw import Recording
 
-#: Lags searched by :func:`torque_delay` (s, either sign).
+#: Lags searched by :func:`estimate_torque_lag` (s, either sign).
 MAX_LAG = 0.25
 #: A step between timestamps longer than this many median steps is a gap (as ``preprocess.max_gap``).
 GAP_STEPS = 5.0
@@ -41,14 +42,14 @@ def shift_torques(recording: Recording, delay: float) -> tuple[Recording, int]:
     )
     rows = np.flatnonzero(inside)
     if rows.size < 2:
-        raise ValueError(f"{recording.source}: recording.delay={delay:g} s leaves no samples")
+        raise ValueError(f"{recording.source}: recording.torque_lag={delay:g} s leaves no samples")
     tau = np.stack([np.interp(target[rows], t, column) for column in recording.tau.T], axis=1)
     qd = None if recording.qd is None else recording.qd[rows]
     shifted = replace(recording, t=t[rows], q=recording.q[rows], tau=tau, qd=qd)
     return shifted, int(t.size - rows.size)
 
 
-def torque_delay(
+def estimate_torque_lag(
     measured: np.ndarray, regressor: np.ndarray, times: np.ndarray, max_lag: float = MAX_LAG
 ) -> tuple[float, float]:
     """The lag (s) by which ``measured`` torques ``[N, n]`` trail the states, on uniformly spaced
@@ -73,7 +74,9 @@ def torque_delay(
         r for r in np.split(np.arange(times.size), np.flatnonzero(steps > 1.5 * h) + 1) if r.size > 2 * reach
     ]
     if not runs:
-        raise ValueError(f"recording.delay=auto: no stretch between gaps is longer than 2 × {max_lag:g} s")
+        raise ValueError(
+            f"recording.torque_lag=auto: no stretch between gaps is longer than 2 × {max_lag:g} s"
+        )
     centre = np.concatenate([r[reach : r.size - reach] for r in runs])
     basis = regressor[centre].reshape(-1, regressor.shape[-1])
     q, _ = np.linalg.qr(basis / np.maximum(np.linalg.norm(basis, axis=0), 1e-300))
@@ -84,9 +87,9 @@ def torque_delay(
     best = int(np.argmax(explained))
     if best in (0, lags.size - 1):
         raise ValueError(
-            f"recording.delay=auto: the model explains the torques best at the edge of the searched "
+            f"recording.torque_lag=auto: the model explains the torques best at the edge of the searched "
             f"±{max_lag:g} s ({lags[best] * h:+.3g} s): no delay explains them (joints, units, model?); "
-            "give recording.delay in s"
+            "give recording.torque_lag in s"
         )
     below, peak, above = explained[best - 1 : best + 2]
     curvature = below - 2 * peak + above

@@ -240,7 +240,7 @@ def refuse_delay_on_samples(path: str, delay: float | str) -> None:
         return
     shown = delay if isinstance(delay, str) else f"{delay:g}"
     raise ValueError(
-        f"{path}: recording.delay={shown} shifts a raw recording's torques, but this file holds samples "
+        f"{path}: recording.torque_lag={shown} shifts a raw recording's torques, but this file holds samples "
         "used as they are (preprocess=on reads a samples file with timestamps as a recording)"
     )
 

@@ -170,8 +170,8 @@ def _read_streams(path: Path, options: RecordingOptions) -> tuple[Stream, Stream
             types = {c.topic: c.msgtype for c in connections}
             effort = None
             if options.effort_topic is not None:
-                effort = _choose(path, types, options.effort_topic, "recording.effort_topic")
-            state = _choose(path, types, options.topic, "recording.topic", besides=effort)
+                effort = choose_topic(path, types, options.effort_topic, "recording.effort_topic")
+            state = choose_topic(path, types, options.topic, "recording.topic", besides=effort)
             if effort == state:  # the efforts are on the state messages themselves
                 effort = None
             streams = {}
@@ -185,21 +185,38 @@ def _read_streams(path: Path, options: RecordingOptions) -> tuple[Stream, Stream
     return streams[state], (streams[effort] if effort is not None else None), sorted(types)
 
 
-def _choose(
-    path: Path, types: dict[str, str], topic: str | None, option: str, besides: str | None = None
+def choose_topic(
+    path: Path,
+    types: dict[str, str],
+    topic: str | None,
+    option: str,
+    besides: str | None = None,
+    shared: bool = True,
 ) -> str:
-    """The ``JointState`` topic to read: ``topic``, or the log's only one (``besides`` the effort topic,
-    when the efforts come from another)."""
+    """The ``JointState`` topic to read (every reader of ROS logs chooses here): ``topic``, or the log's
+    only one besides the topic ``besides`` already chosen for something else (the efforts' topic, the
+    commands'). When ``besides`` is the only one, it is returned if it may carry this stream too
+    (``shared``: efforts on the state messages), else refused.
+
+    Raises:
+        ValueError: no such topic, not a ``JointState``, none, or several to choose from (naming the
+            option that chooses and listing the log's topics).
+    """
     joint_states = sorted(t for t, kind in types.items() if kind == JOINT_STATE)
     listing = ", ".join(f"{t} ({kind})" for t, kind in sorted(types.items())) or "none"
     if topic is None:
         others = [t for t in joint_states if t != besides]
+        apart = f" besides {besides}" if besides else ""
         if not joint_states:
             raise ValueError(f"{path}: no sensor_msgs/JointState topic; the log's topics: {listing}")
-        if not others:  # the effort topic is the only one: it carries the positions too
-            return joint_states[0]
+        if not others:
+            if shared:  # the effort topic is the only one: it carries the positions too
+                return joint_states[0]
+            raise ValueError(
+                f"{path}: no sensor_msgs/JointState topic{apart}; name it with {option}=…; the log's "
+                f"topics: {listing}"
+            )
         if len(others) > 1:
-            apart = f" besides the effort topic {besides}" if besides else ""
             raise ValueError(
                 f"{path}: several JointState topics{apart}: {', '.join(others)}; choose the one of the "
                 f"positions with {option}=…"

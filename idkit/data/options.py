@@ -10,6 +10,7 @@ None``), so the command line's option checker (:func:`idkit.options.check_settin
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, Literal, get_args
@@ -17,7 +18,7 @@ from typing import Any, Literal, get_args
 from idkit.data.preprocess import PreprocessOptions
 from idkit.options import check_section
 
-#: The largest torque delay (s) ``recording.delay`` takes: more is a unit mistake, not a lag.
+#: The largest torque lag (s) ``recording.torque_lag`` takes: more is a unit mistake, not a lag.
 MAX_DELAY_S = 1.0
 #: When preprocessing runs (``preprocess.apply``, :mod:`idkit.data.load`).
 Apply = Literal["auto", "on", "off"]
@@ -57,14 +58,18 @@ class RecordingOptions:
         topic: a ROS log's ``sensor_msgs/JointState`` topic of positions (and efforts); ``None``: the
             log's only one (:mod:`idkit.data.logs`), or with ``effort_topic`` the only other one.
         effort_topic: a ``JointState`` topic carrying the efforts, if not ``topic``.
-        delay: seconds by which the torques trail the states (the torque at ``t`` is read at
-            ``t + delay``; at most :data:`MAX_DELAY_S`), or ``"auto"``: the lag at which the robot's
-            regressor explains the shifted torques best (:mod:`idkit.data.delay`). ``0``: none.
+        torque_lag: seconds by which the torques trail the states (the torque at ``t`` is read at
+            ``t + torque_lag``; at most :data:`MAX_DELAY_S`), or ``"auto"``: the lag at which the
+            robot's regressor explains the shifted torques best (:mod:`idkit.data.delay`). ``0``: none.
+            Not the rollout's ``command_delay`` (states behind commands, :mod:`idkit.sim.timing`).
+        delay: the former name of ``torque_lag`` (``recording.delay=…``), still read with a
+            ``FutureWarning``; ``None``: not given.
     """
 
     topic: str | None = None
     effort_topic: str | None = None
-    delay: float | Literal["auto"] = 0.0
+    torque_lag: float | Literal["auto"] = 0.0
+    delay: float | Literal["auto"] | None = None
 
     def __post_init__(self) -> None:
         for name in ("topic", "effort_topic"):
@@ -75,18 +80,35 @@ class RecordingOptions:
                     "null"
                     + (" (the log's only one)" if name == "topic" else " (efforts on the topic's messages)")
                 )
-        if self.delay != "auto":
-            if isinstance(self.delay, bool) or not isinstance(self.delay, (int, float)):
-                raise ValueError(f"recording.delay must be 'auto' or seconds, got {self.delay!r}")
-            if not math.isfinite(self.delay):
-                raise ValueError(f"recording.delay must be 'auto' or finite seconds, got {self.delay!r}")
-            if abs(self.delay) > MAX_DELAY_S:
+        key = "torque_lag"
+        if self.delay is not None:
+            key = "delay"
+            if self.torque_lag != 0.0 and self.torque_lag != self.delay:
                 raise ValueError(
-                    f"recording.delay={self.delay:g} s: a torque delay is a filter's or a bus's, "
-                    f"milliseconds (at most ±{MAX_DELAY_S:g} s here); milliseconds given as seconds? "
-                    f"({self.delay:g} ms is {self.delay / 1000:g})"
+                    f"recording.torque_lag={self.torque_lag} and its old name recording.delay={self.delay} "
+                    "are both set; give recording.torque_lag only"
                 )
-            object.__setattr__(self, "delay", float(self.delay))
+            warnings.warn(
+                "recording.delay is now recording.torque_lag (seconds by which the torques trail the states; "
+                "not the rollout's command_delay): recording.delay still works but is deprecated",
+                FutureWarning,
+                stacklevel=3,
+            )
+            object.__setattr__(self, "torque_lag", self.delay)
+            object.__setattr__(self, "delay", None)
+        lag = self.torque_lag
+        if lag != "auto":
+            if isinstance(lag, bool) or not isinstance(lag, (int, float)):
+                raise ValueError(f"recording.{key} must be 'auto' or seconds, got {lag!r}")
+            if not math.isfinite(lag):
+                raise ValueError(f"recording.{key} must be 'auto' or finite seconds, got {lag!r}")
+            if abs(lag) > MAX_DELAY_S:
+                raise ValueError(
+                    f"recording.{key}={lag:g} s: a torque lag is a filter's or a bus's, "
+                    f"milliseconds (at most ±{MAX_DELAY_S:g} s here); milliseconds given as seconds? "
+                    f"({lag:g} ms is {lag / 1000:g})"
+                )
+            object.__setattr__(self, "torque_lag", float(lag))
 
 
 @dataclass(frozen=True)

@@ -13,13 +13,13 @@ reference) goes through the same steps, in order:
    robot's ``effort_scale``). From here on every torque — fitted, held out, plotted, in
    ``result.json`` — is a joint torque (N·m, N on a prismatic joint);
 4. **preprocessed** (:mod:`idkit.data.preprocess`: split at gaps, resampled, filtered, differentiated,
-   trimmed), the torques first shifted back by ``recording.delay``.
+   trimmed), the torques first shifted back by ``recording.torque_lag``.
 
 What is automatic is resolved once, on the training files (:func:`read_training`):
 ``preprocess.cutoff=auto`` is chosen on the training recordings alone
 (:func:`idkit.data.cutoff.choose_cutoff`, scored in the band held-out files are scored in) and said in
 one line (a :class:`CutoffNote`); the resolved :class:`~idkit.data.options.DataOptions` then read
-every other file, so their states are made as the training states were. ``recording.delay=auto`` is
+every other file, so their states are made as the training states were. ``recording.torque_lag=auto`` is
 estimated per recording (the lag at which the robot's regressor explains its torques best) and said
 per file (a :class:`DelayWarning`). Held-out files (:func:`read_held_out`) keep every sample
 (``decimate`` and ``min_speed`` select training samples only), so their score covers the whole
@@ -37,7 +37,7 @@ from typing import Any
 import torch
 
 from idkit.data.cutoff import CutoffChoice, choose_cutoff, lowest_rate
-from idkit.data.delay import shift_torques, torque_delay
+from idkit.data.delay import estimate_torque_lag, shift_torques
 from idkit.data.files import as_paths, refuse_data_file, refuse_data_samples, refuse_repeated_files
 from idkit.data.load import DataFile, Source, from_source, read_source, refuse_delay_on_samples
 from idkit.data.options import DataOptions
@@ -224,7 +224,7 @@ def _read(robot: Robot, path: Any, options: DataOptions, role: str) -> Source:
     assert held is not None  # a Source holds one of them
     _check_joints(robot, source.path, held.n_joints, role)
     if source.recording is None:
-        refuse_delay_on_samples(source.path, options.recording.delay)
+        refuse_delay_on_samples(source.path, options.recording.torque_lag)
     source = _in_joint_torques(robot, source)
     measured = options.preprocess.velocities == "measured"
     check_recording(robot, source, role, measured_velocities=measured, max_gap=options.preprocess.max_gap)
@@ -256,7 +256,7 @@ def _check_joints(robot: Robot, path: str, joints: int, role: str) -> None:
 def _made(robot: Robot, source: Source, options: DataOptions, stride: int, role: str) -> DataFile:
     """Step 4 of the module doc: the file's samples, its torque delay applied (estimated first for
     ``delay=auto``)."""
-    delay = options.recording.delay
+    delay = options.recording.torque_lag
     if source.recording is not None and options.preprocess.cutoff == "auto":
         raise ValueError(
             f"{role} file {source.path}: preprocess.cutoff=auto is chosen on the training (data=) "
@@ -272,10 +272,10 @@ def _made(robot: Robot, source: Source, options: DataOptions, stride: int, role:
 
 
 def _aligned(robot: Robot, source: Source, options: DataOptions) -> Recording:
-    """A training recording with its torques shifted back by ``recording.delay`` for choosing the
+    """A training recording with its torques shifted back by ``recording.torque_lag`` for choosing the
     cut-off; ``delay=auto`` is estimated here at the default cut-off (and again at the chosen one)."""
     assert source.recording is not None
-    delay = options.recording.delay
+    delay = options.recording.torque_lag
     if delay == "auto":
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -305,17 +305,17 @@ def _auto_cutoff(robot: Robot, recordings: list[Recording], options: PreprocessO
 
 def _estimated_delay(robot: Robot, item: DataFile) -> tuple[float, float]:
     """``(delay, explained)``: the lag (s) at which the robot's regressor explains ``item``'s torques
-    best, and the share it explains there (:func:`idkit.data.delay.torque_delay`)."""
+    best, and the share it explains there (:func:`idkit.data.delay.estimate_torque_lag`)."""
     samples = item.samples
     assert item.times is not None  # a preprocessed recording has its times
     if not robot.has_regressor:
         raise ValueError(
-            f"{item.path}: recording.delay=auto needs a robot with a linear regressor; give the delay in s"
+            f"{item.path}: recording.torque_lag=auto needs a robot with a linear regressor; give the lag in s"
         )
     with torch.no_grad():
         regressor = robot.regressor(samples.q, samples.qd, samples.qdd).double().numpy()
     try:
-        return torque_delay(samples.tau.double().numpy(), regressor, item.times)
+        return estimate_torque_lag(samples.tau.double().numpy(), regressor, item.times)
     except ValueError as exc:
         raise ValueError(f"{item.path}: {exc}") from None
 
@@ -328,8 +328,8 @@ def _with_estimated_delay(
     shifted = from_source(source, options, stride, delay)
     shifted = replace(shifted, delay={**(shifted.delay or {}), "estimated": True, "explained": peak})
     warnings.warn(
-        f"{item.path}: the torques trail the states by {delay * 1e3:.3g} ms (recording.delay=auto: there "
-        f"the robot's regressor explains {100 * peak:.4g} % of them); shifted back",
+        f"{item.path}: the torques trail the states by {delay * 1e3:.3g} ms (recording.torque_lag=auto: "
+        f"there the robot's regressor explains {100 * peak:.4g} % of them); shifted back",
         DelayWarning,
         stacklevel=4,
     )

@@ -12,6 +12,27 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def check_increasing(source: str, t: np.ndarray, name: str = "t", what: str = "timestamps") -> None:
+    """Refuse times ``t[N]`` that are not 1-D and strictly increasing, naming the first offending sample
+    (every reader's check: torque recordings, command logs' states and commands).
+
+    Args:
+        source: the file, for the message.
+        t: the times.
+        name: the array's name in the message (``t``, ``command_t``).
+        what: what the times are (``timestamps``, ``command times``).
+    """
+    if t.ndim != 1:
+        raise ValueError(f"{source}: {what} {name!r} must be 1-D, got shape {list(t.shape)}")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        i = int(np.flatnonzero(steps <= 0)[0])
+        raise ValueError(
+            f"{source}: {what} must increase strictly; {name}[{i + 1}] = {float(t[i + 1])!r} follows "
+            f"{name}[{i}] = {float(t[i])!r}"
+        )
+
+
 @dataclass(frozen=True)
 class Recording:
     """A raw recording of an ``n``-joint robot (float64 numpy arrays).
@@ -54,13 +75,7 @@ class Recording:
             if value is not None and not np.isfinite(value).all():
                 index = np.argwhere(~np.isfinite(value))[0]
                 raise ValueError(f"{self.source}: array {name!r} has a non-finite value at sample {index[0]}")
-        steps = np.diff(t)
-        if (steps <= 0).any():
-            i = int(np.flatnonzero(steps <= 0)[0])
-            raise ValueError(
-                f"{self.source}: timestamps must increase strictly; t[{i + 1}] = {float(t[i + 1])!r} follows "
-                f"t[{i}] = {float(t[i])!r}"
-            )
+        check_increasing(self.source, t)
 
     @property
     def n_joints(self) -> int:

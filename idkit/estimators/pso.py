@@ -425,7 +425,7 @@ class ParticleSwarm(Estimator):
                 )
             )
             for estimate, engine in zip(estimates[-1], engines, strict=True):
-                estimate.details.update(engine)
+                estimate.details = {**estimate.details, **engine}
         return estimates
 
     def _objective(self, problems: list[Problem], costs: list[Cost]) -> Objective:

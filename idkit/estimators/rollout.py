@@ -17,11 +17,13 @@ measured joint positions and velocities. The fit, in three steps:
    free as well (:mod:`idkit.sim.shooting`: a segment's noisy first sample no longer biases the fit),
    on the search's segments and then on all. The loss's scale is each channel's median absolute
    residual (:mod:`idkit.optim.robust`), re-estimated until it settles; none is set by hand.
-3. **Uncertainty.** Standard deviations, 95 % intervals and flat directions from the polish's Jacobian
-   (:mod:`idkit.sim.uncertainty`), in ``Estimate.details``.
+3. **Uncertainty.** Standard deviations, 95 % intervals and flat directions from the polish's Jacobian,
+   widened from the spread over stretches of the log when the residual says the model, not the noise,
+   limits the fit (:mod:`idkit.sim.uncertainty`), in ``Estimate.details``.
 
 ``Estimate.cost`` is the search's score at the result on the problem's own error (segments from the
-logged states); ``details`` holds the polish's, the scales, the fitted initial states, the rollouts run.
+logged states); ``details`` is a :class:`~idkit.sim.details.RolloutDetails`: the polish's solves, the
+uncertainty, the fitted initial states, the rollouts run.
 """
 
 from __future__ import annotations
@@ -37,13 +39,15 @@ from idkit.optim.blocks import SearchResult, cooperative_search
 from idkit.optim.levenberg import least_squares
 from idkit.optim.robust import LOSSES, TUNING, Loss, channel_log_scales, mad_scale
 from idkit.runtime import torch_threads
+from idkit.sim.details import PolishSolve, RolloutDetails, SearchSummary, States
 from idkit.sim.initial import robust_states
+from idkit.sim.log_check import warn_unsupported
 from idkit.sim.problem import RolloutProblem
 from idkit.sim.shooting import Shooting
-from idkit.sim.uncertainty import uncertainty
+from idkit.sim.uncertainty import heavier_links_change, uncertainty
 
 #: Where the registry's conformance suite finds a small rollout problem for this estimator.
-CONFORMANCE_PROBLEM = "idkit.sim.cases:conformance_problem"
+CONFORMANCE_PROBLEM = "idkit.testing.rollout_cases:conformance_problem"
 #: A robust scale re-estimated within ``exp(±SETTLED)`` of the last is settled (Huber's estimate hardly
 #: moves with its scale; a re-solve costs Jacobians).
 SETTLED = 0.3
@@ -59,7 +63,7 @@ EXACT = 0.1
 TRIM = 0.1
 
 
-class RolloutEstimator(Estimator):
+class RolloutEstimator(Estimator[RolloutProblem]):
     """Identify simulator parameters by rolling a MuJoCo model out under the logged commands.
 
     Args:
@@ -74,10 +78,14 @@ class RolloutEstimator(Estimator):
         polish_iterations: Levenberg–Marquardt iterations at most per scale re-estimate.
         free_initial: fit every segment's initial state in the polish's robust stages.
         threads: rollout threads (``None``: the problem's).
+        jacobian_every: polish iterations at most per finite-difference Jacobian (each costs a
+            rollout per unknown and segment); between two, the last one follows the steps taken
+            (:meth:`idkit.optim.levenberg.BlockJacobian.broyden`). 1: a new one every iteration.
     """
 
-    #: The command line's task that runs it (``idkit +experiment=rollout``); other tasks refuse it.
-    task: ClassVar[str] = "rollout"
+    #: The kind of problem it fits: the command line runs it in the task that builds one
+    #: (``idkit +experiment=rollout``) and refuses it in the others.
+    problem_type: ClassVar[type[RolloutProblem]] = RolloutProblem
     conformance_problem: ClassVar[str] = CONFORMANCE_PROBLEM
     conformance_options: ClassVar[dict[str, Any]] = {"particles": 4, "iterations": 3, "polish_iterations": 5}
 
@@ -91,6 +99,7 @@ class RolloutEstimator(Estimator):
         polish_iterations: int = 50,
         free_initial: bool = True,
         threads: int | None = None,
+        jacobian_every: int = 3,
     ) -> None:
         self.particles = particles
         self.iterations = iterations
@@ -100,6 +109,7 @@ class RolloutEstimator(Estimator):
         self.polish_iterations = polish_iterations
         self.free_initial = free_initial
         self.threads = threads
+        self.jacobian_every = jacobian_every
         self.resolve()
 
     def resolve(self) -> None:
@@ -115,15 +125,17 @@ class RolloutEstimator(Estimator):
             raise ValueError(f"rollout: search_share must be in (0, 1], got {self.search_share}")
         if self.loss not in LOSSES:
             raise ValueError(f"rollout: loss must be one of {', '.join(LOSSES)}, got {self.loss!r}")
+        if self.jacobian_every < 1:
+            raise ValueError(f"rollout: jacobian_every must be >= 1, got {self.jacobian_every}")
         if self.threads is not None and self.threads < 1:
             raise ValueError(f"rollout: threads must be >= 1 or null, got {self.threads}")
 
-    def fit(self, problem: Any) -> Estimate:
+    def fit(self, problem: RolloutProblem) -> Estimate:
         with torch_threads(1):  # the swarm's and the costs' tensors are small (idkit.runtime)
             return self._fit(problem)
 
-    def _fit(self, problem: Any) -> Estimate:
-        if not isinstance(problem, RolloutProblem):
+    def _fit(self, problem: RolloutProblem) -> Estimate:
+        if not isinstance(problem, RolloutProblem):  # a caller without a type checker
             raise ValueError(
                 "estimator rollout identifies a simulator from logged commands and joint states, not from "
                 "torques: run it as `idkit +experiment=rollout rollout.model=<MJCF or URDF> data=<log>` "
@@ -148,27 +160,25 @@ class RolloutEstimator(Estimator):
         simulators = {id(s): s for s in (search_sim, full_sim)}.values()
         rollouts = sum(s.counter.rollouts for s in simulators)
         steps = sum(s.counter.steps for s in simulators)
-        details = {
-            "loss": self.loss,
-            "criterion": "problem cost" if problem.cost is not None else f"sum of log trimmed RMS ({TRIM:g})",
-            "search": None
+        details = RolloutDetails(
+            loss=self.loss,
+            criterion="problem cost" if problem.cost is not None else f"sum of log trimmed RMS ({TRIM:g})",
+            search=None
             if found is None
-            else {
-                "cost": found.cost,
-                "evaluations": found.evaluations,
-                "start": unknowns.from_coordinates(found.x),
-            },
-            "history": [] if found is None else found.history,
-            "polish": polished["record"],
-            **polished["uncertainty"].to_dict(),
-            "exact_fit": polished["exact"],
-            "segments": [list(s) for s in full_sim.segments],
-            "initial_states": polished["initial"],
-            "search_initial_states": {"q": initial[0], "qd": initial[1]},
-            "bodies": unknowns.bodies(problem.robot.sim, values),
-            "rollouts": rollouts,
-            "simulated_seconds": steps * problem.robot.sim.timestep,
-        }
+            else SearchSummary(found.cost, found.evaluations, unknowns.from_coordinates(found.x)),
+            history=[] if found is None else list(found.history),
+            polish=tuple(polished["record"]),
+            uncertainty=polished["uncertainty"],
+            exact_fit=polished["exact"],
+            segments=tuple((int(a), int(b)) for a, b in full_sim.segments),
+            initial_states=polished["initial"],
+            search_initial_states=States(initial[0], initial[1]),
+            bodies=unknowns.bodies(problem.robot.sim, values),
+            rollouts=rollouts,
+            simulated_seconds=steps * problem.robot.sim.timestep,
+            outliers=problem.outliers(),
+        )
+        warn_unsupported(unknowns, values, details.uncertainty.std)
         return Estimate(
             "rollout",
             dict(zip(unknowns.names, (float(v) for v in values), strict=True)),
@@ -182,7 +192,7 @@ class RolloutEstimator(Estimator):
             f"RolloutEstimator(particles={self.particles}, iterations={self.iterations}, "
             f"cooperative={self.cooperative}, search_share={self.search_share}, loss={self.loss!r}, "
             f"polish_iterations={self.polish_iterations}, free_initial={self.free_initial}, "
-            f"threads={self.threads})"
+            f"threads={self.threads}, jacobian_every={self.jacobian_every})"
         )
 
 
@@ -265,7 +275,7 @@ def _polish(
     robust stage the scale is re-estimated until it settles (``ROUNDS`` solves at most); the very last
     solve has a tight tolerance."""
     search_sim, full_sim = simulators
-    record: list[dict[str, Any]] = []
+    record: list[PolishSolve] = []
     x, offsets = z, dict[int, np.ndarray]()
     shooting: Shooting | None = None
     stages = _STAGES if search_sim is not full_sim else _STAGES[:1] + _STAGES[2:]
@@ -331,16 +341,18 @@ def _solve(
         max_iter=options.polish_iterations,
         ftol=TIGHT if tight else LOOSE,
         xtol=1e-7,
+        refresh=options.jacobian_every,
     )
     record.append(
-        {
-            "segments": len(shooting.simulator.segments),
-            "initial_states_free": shooting.free_initial,
-            "iterations": trace.jacobians,
-            "losses": trace.losses,
-            "stop": trace.status,
-            "scales": (scales * shooting.scales).tolist(),
-        }
+        PolishSolve(
+            segments=len(shooting.simulator.segments),
+            initial_states_free=shooting.free_initial,
+            iterations=len(trace.losses) - 1,
+            losses=list(trace.losses),
+            stop=trace.status,
+            scales=(scales * shooting.scales).tolist(),
+            jacobians=trace.jacobians,
+        )
     )
     return x
 
@@ -361,13 +373,18 @@ def _finish(
     values, initial = shooting.split(x[:, None])
     n = shooting.n_unknowns
     threshold = TUNING[options.loss] / np.sqrt(residual.size)
-    found = uncertainty(jac, residual[:, 0], threshold, options.loss, problem.robot.unknowns, x[:n])
+    edges = np.cumsum([0, *(v.samples.size for v in shooting.simulator.views)]) * shooting.n_channels
+    found = uncertainty(
+        jac, residual[:, 0], threshold, options.loss, problem.robot.unknowns, x[:n],
+        list(zip(edges[:-1], edges[1:], strict=True)), mad_scale(error),
+        heavier_links_change(shooting, x, residual[:, 0]),
+    )  # fmt: skip
     states = shooting.simulator.initial_states if initial is None else (initial[0][0], initial[1][0])
     return {
         "z": x[:n],
         "record": record,
         "uncertainty": found,
-        "initial": {"q": states[0], "qd": states[1]},
+        "initial": States(states[0], states[1]),
         "exact": exact,
     }
 

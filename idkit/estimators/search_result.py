@@ -78,7 +78,7 @@ def per_cost_estimates(
             details["history"] = history[:, c].T  # [R, T]
         name = label.format(cost=cost_label(cost))
         estimate = make_estimate(problem, objective, name, mean[c], float(values[c]), wall, details)
-        estimate.details["at_bound"] = {**runs_at[c], **estimate.details["at_bound"]}
+        estimate.details = {**estimate.details, "at_bound": {**runs_at[c], **estimate.details["at_bound"]}}
         estimates.append(estimate)
     return estimates
 

@@ -73,6 +73,24 @@ class BlockJacobian:
         """``(column_start, column_stop)`` of each block."""
         return [(c, c + v.shape[1]) for _, _, c, v in self.blocks]
 
+    def broyden(self, dx: np.ndarray, dr: np.ndarray) -> BlockJacobian:
+        """The Jacobian updated by a step ``dx`` that changed the residual by ``dr`` (Schubert's sparse
+        Broyden update: each row moves within its own non-zeros — the dense columns and its block's —
+        just enough that ``J dx = dr``)."""
+        d = self.dense.shape[1]
+        miss = dr - self.dense @ dx[:d]
+        norm = np.full(dr.shape, float(dx[:d] @ dx[:d]))
+        for row_start, row_stop, col_start, values in self.blocks:
+            part = dx[col_start : col_start + values.shape[1]]
+            miss[row_start:row_stop] -= values @ part
+            norm[row_start:row_stop] += part @ part
+        scale = np.divide(miss, norm, out=np.zeros_like(miss), where=norm > 0)
+        dense = self.dense + scale[:, None] * dx[None, :d]
+        blocks = tuple(
+            (a, b, c, v + scale[a:b, None] * dx[None, c : c + v.shape[1]]) for a, b, c, v in self.blocks
+        )
+        return BlockJacobian(dense, blocks)
+
 
 def gauss_newton(
     jac: BlockJacobian, r: np.ndarray, loss: Loss, k: float, hessian: str
@@ -141,6 +159,7 @@ def least_squares(
     max_iter: int = 50,
     ftol: float = 1e-8,
     xtol: float = 1e-8,
+    refresh: int = 1,
 ) -> tuple[np.ndarray, Trace]:
     """Minimise ``Σ ρ(residual(x))`` from ``x0`` (module docstring).
 
@@ -153,6 +172,10 @@ def least_squares(
         loss, k: the loss and its threshold in the residual's units.
         hessian: ``"newton"`` (``ρ''`` weights) or ``"irls"`` (``ψ(r)/r``).
         max_iter, ftol, xtol: the stopping rules.
+        refresh: at most this many iterations on one evaluated Jacobian, updated between them by
+            :meth:`BlockJacobian.broyden` (1: a new Jacobian every iteration). An updated one is
+            replaced by an evaluated one as soon as its step is rejected or predicts the loss badly,
+            and before any stop: a solve ends only on a step from an evaluated Jacobian.
     """
     dense = lower.size
     x = np.array(x0, dtype=np.float64)
@@ -163,38 +186,89 @@ def least_squares(
     value = float(rho(loss, r, k).sum())
     trace.losses.append(value)
     mu, nu = 1e-3, 2.0
+    jac: BlockJacobian | None = None
+    age = 0  # iterations since the Jacobian was evaluated
     for _ in range(max_iter):
-        jac = jacobian(x[:, None], r[:, None])
-        trace.jacobians += 1
+        if jac is None or age >= refresh:
+            jac, age = jacobian(x[:, None], r[:, None]), 0
+            trace.jacobians += 1
         grad, hess = gauss_newton(jac, r, loss, k, hessian)
-        blocks = jac.column_blocks()
-        while True:
-            step = _step(hess, grad, mu, x, lower, upper, dense, blocks)
-            if step is None:
-                mu, nu = mu * nu, 2 * nu
-                if mu > 1e12:
-                    trace.status = "no_step"
-                    return x, trace
-                continue
-            candidate = x + step
-            r_new = residual(candidate[:, None])[:, 0]
-            trace.residuals += 1
-            new = float(rho(loss, r_new, k).sum())
-            predicted = -(grad @ step + 0.5 * step @ hess @ step)
-            if np.isfinite(new) and new < value:
-                ratio = (value - new) / predicted if predicted > 0 else 0.0
-                mu *= max(1 / 3, 1 - (2 * ratio - 1) ** 3)
-                nu = 2.0
-                break
-            mu, nu = mu * nu, 2 * nu
-            if mu > 1e12:
-                trace.status = "no_reduction"
-                return x, trace
+        attempt = _damped_step(hess, grad, mu, nu, x, value, lower, upper, jac, residual, loss, k, age > 0)
+        trace.residuals += attempt.residuals
+        mu, nu = attempt.mu, attempt.nu
+        if attempt.status == "stale":  # an updated Jacobian's step failed: evaluate one
+            age = refresh
+            continue
+        if attempt.status != "accepted":
+            trace.status = attempt.status
+            return x, trace
+        step, r_new, new = attempt.step, attempt.residual, attempt.value
         moved = np.linalg.norm(step[:dense]) <= xtol * (xtol + np.linalg.norm(x[:dense]))
         reduced = value - new <= ftol * max(value, 1e-300)
-        x, r, value = candidate, r_new, new
+        stop = (moved or reduced) and attempt.fresh  # a stop is confirmed on an evaluated Jacobian
+        if refresh > 1 and attempt.ratio > 0.25 and not (moved or reduced):
+            jac, age = jac.broyden(step, r_new - r), age + 1
+        else:
+            age = refresh
+        x, r, value = x + step, r_new, new
         trace.losses.append(value)
-        if moved or reduced:
+        if stop:
             trace.status = "xtol" if moved else "ftol"
             break
     return x, trace
+
+
+@dataclass
+class _Attempt:
+    """The outcome of one Levenberg–Marquardt iteration's damped steps."""
+
+    status: str  # accepted, stale, no_step or no_reduction
+    mu: float
+    nu: float
+    fresh: bool
+    residuals: int = 0
+    step: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    value: float = np.inf
+    ratio: float = 0.0
+
+
+def _damped_step(
+    hess: np.ndarray,
+    grad: np.ndarray,
+    mu: float,
+    nu: float,
+    x: np.ndarray,
+    value: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    jac: BlockJacobian,
+    residual: Callable[[np.ndarray], np.ndarray],
+    loss: Loss,
+    k: float,
+    stale: bool,
+) -> _Attempt:
+    """Damp until a step lowers the loss (Nielsen's rule for ``μ``); a ``stale`` (updated) Jacobian's
+    first failure hands back instead, to evaluate a new one before damping further."""
+    dense, blocks = lower.size, jac.column_blocks()
+    attempt = _Attempt("no_step", mu, nu, not stale)
+    while True:
+        step = _step(hess, grad, attempt.mu, x, lower, upper, dense, blocks)
+        if step is not None:
+            r_new = residual((x + step)[:, None])[:, 0]
+            attempt.residuals += 1
+            new = float(rho(loss, r_new, k).sum())
+            predicted = -(grad @ step + 0.5 * step @ hess @ step)
+            if np.isfinite(new) and new < value:
+                attempt.ratio = (value - new) / predicted if predicted > 0 else 0.0
+                attempt.mu *= max(1 / 3, 1 - (2 * attempt.ratio - 1) ** 3)
+                attempt.nu = 2.0
+                attempt.status, attempt.step, attempt.residual, attempt.value = "accepted", step, r_new, new
+                return attempt
+            if stale:
+                attempt.status = "stale"
+                return attempt
+            attempt.status = "no_reduction"
+        attempt.mu, attempt.nu = attempt.mu * attempt.nu, 2 * attempt.nu
+        if attempt.mu > 1e12:
+            return attempt

@@ -217,7 +217,11 @@ def recorded_choices(document: Mapping[str, Any]) -> Iterator[tuple[str, Any, st
     for file, delay in ((document.get("data") or {}).get("delays") or {}).items():
         if isinstance(delay, Mapping) and delay.get("estimated"):
             seconds = next((delay[k] for k in ("seconds", "delay", "s") if k in delay), None)
-            yield f"torque delay of {file} (recording.delay=auto)", seconds, "estimated from the recording"
+            yield (
+                f"torque delay of {file} (recording.torque_lag=auto)",
+                seconds,
+                "estimated from the recording",
+            )
 
 
 def _choices(document: Mapping[str, Any]) -> str:

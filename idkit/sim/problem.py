@@ -6,10 +6,10 @@ segments predict, each row divided by its channel's *scale* — the measurement 
 log itself (:func:`noise_scale`), floored at a millionth of the channel's spread — so that every
 registered cost compares dimensionless numbers, and ``huber``'s ``delta=1.5`` means 1.5 noise levels.
 
-:class:`RolloutProblem` quacks like :class:`idkit.problem.Problem` where estimators and the
-conformance suite look (``robot.param_names``, ``samples``, ``cost``, ``seed``, ``evaluate``,
-``check_identifiable``); its ``robot`` is a :class:`SimRobot` (the model and the unknowns) and its
-``samples`` a :class:`~idkit.data.commands.RobotLog`.
+:class:`RolloutProblem` is the rollout kind of :class:`idkit.problem.IdentificationProblem` (the torque
+:class:`~idkit.problem.Problem` is the other): its ``robot`` is a :class:`SimRobot` (the model and the
+unknowns) and its ``samples`` a :class:`~idkit.data.commands.RobotLog`. An estimator that fits it
+declares ``problem_type = RolloutProblem``.
 """
 
 from __future__ import annotations
@@ -20,15 +20,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from idkit.data.artefacts import Artefacts, find_artefacts
 from idkit.data.commands import RobotLog
-from idkit.problem import IdentificationError, resolve_dtype
+from idkit.problem import IdentificationError, IdentificationProblem, resolve_dtype
 from idkit.seeds import check_seed
+from idkit.sim.log_check import check_delay_bound, check_log
 from idkit.sim.model import SimModel
 from idkit.sim.quantities import Unknowns
 from idkit.sim.segments import split
 from idkit.sim.simulate import BatchSimulator
 
 if TYPE_CHECKING:
+    import torch
     from torch import Tensor
 
     from idkit.interfaces import Cost
@@ -107,7 +110,7 @@ class SimRobot:
 
 
 @dataclass(frozen=True)
-class RolloutProblem:
+class RolloutProblem(IdentificationProblem):
     """Everything a rollout estimator needs (module docstring).
 
     Attributes:
@@ -118,6 +121,8 @@ class RolloutProblem:
         segment: seconds per multiple-shooting segment (``None``: the whole log, split only at gaps).
         threads: rollout threads (``None``: every CPU the process may use).
         device, dtype: where torch costs are evaluated (rollouts are MuJoCo's, float64 on the CPU).
+        leave_out_stalls: leave a driver's stalled rows out of the error (:mod:`idkit.data.artefacts`);
+            ``False`` fits them as data (to measure what they do).
     """
 
     robot: SimRobot
@@ -128,6 +133,7 @@ class RolloutProblem:
     threads: int | None = None
     device: str = "cpu"
     dtype: Any = "float64"
+    leave_out_stalls: bool = True
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -140,6 +146,9 @@ class RolloutProblem:
                 f"{', '.join(self.robot.joint_names)}"
             )
         split(self.samples.t, self.segment)  # refuse a bad segment length here, not in a fit
+        log = self.samples
+        check_log(self.robot.sim, log.t, log.q, log.qd, log.joint_names, log.source)
+        check_delay_bound(self.robot.unknowns, log.t, log.source)
 
     @property
     def n_identifiable(self) -> int:
@@ -147,7 +156,8 @@ class RolloutProblem:
 
     def check_identifiable(self) -> None:
         """``IdentificationError`` when the predicted samples give fewer equations than unknowns."""
-        equations = 2 * self.samples.n_joints * (self.samples.n_samples - len(self.segments()))
+        predicted = sum(stop - start - 1 for start, stop in self.segments())
+        equations = 2 * self.samples.n_joints * predicted
         if equations < self.n_identifiable:
             raise IdentificationError(
                 f"{self.samples.source}: {equations} equations (2 × {self.samples.n_joints} joints × "
@@ -156,7 +166,23 @@ class RolloutProblem:
             )
 
     def segments(self) -> list[tuple[int, int]]:
-        return split(self.samples.t, self.segment)
+        """The log's segments, around its gaps and stalled rows (:meth:`artefacts`)."""
+        return split(self.samples.t, self.segment, self.artefacts().stalled)
+
+    def artefacts(self) -> Artefacts:
+        """The driver's artefacts in the log (:mod:`idkit.data.artefacts`): stalled rows are left out of
+        every segment, so of the error."""
+        if "artefacts" not in self._cache:
+            log = self.samples
+            found = find_artefacts(log.t, log.q, log.qd, log.command_t, log.commands)
+            if not self.leave_out_stalls:
+                found = replace(found, stalled=np.zeros_like(found.stalled), stalls=0)
+            self._cache["artefacts"] = found
+        return self._cache["artefacts"]
+
+    def outliers(self) -> dict[str, int]:
+        """How many log samples the fit treats as a driver's artefacts, not data (by kind)."""
+        return self.artefacts().counts()
 
     def scales(self) -> np.ndarray:
         """``[2n]`` channel scales (module docstring)."""
@@ -214,7 +240,7 @@ class RolloutProblem:
         measured = torch.from_numpy(self.measured(simulator))
         return self.cost(error, measured).reshape(params.shape[:-1])
 
-    def generator(self) -> Any:
+    def generator(self) -> torch.Generator:
         """A fresh torch generator whose whole state comes from ``seed``."""
         from idkit.seeds import torch_generator
 

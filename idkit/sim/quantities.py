@@ -11,7 +11,9 @@ A quantity is a number of the compiled model, named ``<element>.<kind>``:
 * per body moved by a joint in scope: ``inertia``, its mass, centre of mass and rotational inertia as
   10 log-Cholesky coordinates (:mod:`idkit.sim.inertia`: every value is a physical body), named
   ``<body>.inertia.alpha`` … ``<body>.inertia.t3``; ``<body>.inertia`` in ``params`` picks one body;
-* ``delay``: seconds by which the logged states trail the commands (:mod:`idkit.sim.timing`).
+* ``command_delay``: seconds by which the logged states trail the commands (:mod:`idkit.sim.timing`;
+  the former ``delay``, still read with a ``FutureWarning``). Not the torque path's
+  ``recording.torque_lag`` (torques behind states, :mod:`idkit.data.delay`).
 
 ``params`` names the unknowns: a kind (``damping``: one unknown per joint in scope, or per actuator
 driving one) or a quantity's name (``j1.damping``). An actuator's quantity may also be named after the
@@ -20,13 +22,14 @@ joint it drives (``j1.kp`` for ``p1.kp``) when no other actuator of that kind dr
 ``shared`` is one unknown for all its elements, named after the kind. Each unknown has a start (the
 model's value unless given) and bounds (given, or ``box`` times the start). Optimisers search in
 *coordinates*: ``log(value)`` where the lower bound is positive (a factor counts the same at any
-size), ``value / (upper − lower)`` otherwise (always for ``bias``, ``delay`` and the inertia
+size), ``value / (upper − lower)`` otherwise (always for ``bias``, ``command_delay`` and the inertia
 coordinates, which are logarithms or lengths already). An inertia's default bounds are ``±ln √10`` on
 ``alpha`` and ``d`` (a factor 10 on the mass) and ``±2`` radii of gyration on ``s`` and ``t``.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -39,14 +42,16 @@ from idkit.sim.model import SimModel
 
 JOINT_KINDS = ("armature", "damping", "frictionloss", "stiffness")
 ACTUATOR_KINDS = ("kp", "kv", "gear", "bias")
-DELAY = "delay"
+DELAY = "command_delay"
+#: The former name of ``command_delay``, still read (with a ``FutureWarning``) in params, bounds, start.
+OLD_DELAY = "delay"
 INERTIA = "inertia"
 KINDS = (*JOINT_KINDS, *ACTUATOR_KINDS, INERTIA, DELAY)
 #: Kinds whose change needs ``mj_setConst`` (constants MuJoCo derives from the mass matrix at qpos0).
 MASS_KINDS = ("armature", INERTIA)
 #: Kinds searched in their own units, never in logarithms.
 LINEAR_KINDS = ("bias", INERTIA, DELAY)
-#: Default search box of ``delay`` (s) when no bounds are given.
+#: Default search box of ``command_delay`` (s) when no bounds are given.
 DELAY_BOUNDS = (0.0, 0.05)
 #: MuJoCo's gain and bias types read here (``mjtGain``/``mjtBias``).
 _FIXED, _NONE, _AFFINE = 0, 0, 1
@@ -145,14 +150,18 @@ def write_quantity(spec: Any, sim: SimModel, kind: str, target: int, value: floa
     actuator.gainprm, actuator.biasprm = gain, bias
 
 
+#: An estimate within this fraction of its box (in coordinates) from a bound is on it.
+AT_BOUND = 1e-6
+
+
 @dataclass(frozen=True)
 class Unknown:
     """One fitted number: a quantity (or a kind shared by several elements) with its start and bounds.
 
     Attributes:
-        name: ``<element>.<kind>``, the kind for a shared one, or ``delay``.
+        name: ``<element>.<kind>``, the kind for a shared one, or ``command_delay``.
         kind: one of ``KINDS``.
-        targets: the joint or actuator indices it sets (``()`` for ``delay``).
+        targets: the joint or actuator indices it sets (``()`` for ``command_delay``).
         start, lower, upper: the start value and the search bounds.
     """
 
@@ -214,10 +223,19 @@ class Unknowns:
     def coordinate_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         return self.to_coordinates(self.vector("lower")), self.to_coordinates(self.vector("upper"))
 
+    def at_bound(self, values: np.ndarray, tolerance: float = AT_BOUND) -> list[str]:
+        """The names of the unknowns whose ``values[P]`` lie on a bound: within ``tolerance`` of the
+        box's width in the optimisers' coordinates (where a bounded solver stops)."""
+        z = self.to_coordinates(values)
+        lower, upper = self.coordinate_bounds()
+        near = tolerance * (upper - lower)
+        on = (z <= lower + near) | (z >= upper - near)
+        return [name for name, hit in zip(self.names, on, strict=True) if hit]
+
     def joints(self, sim: SimModel) -> list[int | None]:
         """The model joint each unknown belongs to (its own, or the one its actuator drives); ``None``
-        for ``delay``, a body's inertia (it moves every joint above it), a shared unknown, and an actuator
-        that drives no joint directly."""
+        for ``command_delay``, a body's inertia (it moves every joint above it), a shared unknown, and
+        an actuator that drives no joint directly."""
         out: list[int | None] = []
         for unknown in self.items:
             if len(unknown.targets) != 1 or unknown.kind == INERTIA:
@@ -229,7 +247,7 @@ class Unknowns:
         return out
 
     def apply(self, model: Any, values: np.ndarray) -> None:
-        """Write ``values[P]`` into a compiled model (every quantity but ``delay``)."""
+        """Write ``values[P]`` into a compiled model (every quantity but ``command_delay``)."""
         for unknown, value in zip(self.items, values, strict=True):
             if unknown.kind != INERTIA:
                 for target in unknown.targets:
@@ -240,7 +258,7 @@ class Unknowns:
             model.body_inertia[body], model.body_iquat[body] = moments, iquat
 
     def write(self, spec: Any, sim: SimModel, values: np.ndarray) -> None:
-        """Write ``values[P]`` into an ``MjSpec`` (every quantity but ``delay``)."""
+        """Write ``values[P]`` into an ``MjSpec`` (every quantity but ``command_delay``)."""
         for unknown, value in zip(self.items, values, strict=True):
             if unknown.kind != INERTIA:
                 for target in unknown.targets:
@@ -345,7 +363,7 @@ def select_unknowns(
         params: kinds and/or quantity names, in the order the unknowns are listed.
         shared: kinds fitted as one value for all their elements.
         bounds: ``{name or kind: [lower, upper]}``; a name beats its kind.
-        start: ``{name or kind: value}``; default the model's value (``delay``: 0).
+        start: ``{name or kind: value}``; default the model's value (``command_delay``: 0).
         box: ``(a, b)``: bounds ``[a·start, b·start]`` of an unknown without given bounds.
 
     Raises:
@@ -353,7 +371,7 @@ def select_unknowns(
             a start outside its bounds, bounds that are not ``lower < upper``, or an unknown whose
             start is not positive and has no bounds — each naming it.
     """
-    bounds, start = dict(bounds or {}), dict(start or {})
+    params, bounds, start = _renamed(params, bounds, start)
     if len(box) != 2 or not 0 < box[0] < 1 < box[1]:
         raise ValueError(f"box must be (a, b) with 0 < a < 1 < b, got {list(box)}")
     for kind in shared:
@@ -385,6 +403,27 @@ def select_unknowns(
                 + ", ".join(u.name for u in items)
             )
     return Unknowns(tuple(items))
+
+
+def _renamed(
+    params: Sequence[str], bounds: Mapping[str, Sequence[float]] | None, start: Mapping[str, float] | None
+) -> tuple[list[str], dict[str, Sequence[float]], dict[str, float]]:
+    """``params``, ``bounds`` and ``start`` with the deprecated ``delay`` read as ``command_delay``."""
+    bounds, start = dict(bounds or {}), dict(start or {})
+    if OLD_DELAY not in (*params, *bounds, *start):
+        return list(params), bounds, start
+    warnings.warn(
+        f"rollout: {OLD_DELAY!r} is now called {DELAY!r} (seconds by which the logged states trail the "
+        f"commands; not recording.torque_lag, the torques' lag behind the states): {OLD_DELAY!r} still "
+        "works but is deprecated",
+        FutureWarning,
+        stacklevel=3,
+    )
+    if DELAY in bounds and OLD_DELAY in bounds or DELAY in start and OLD_DELAY in start:
+        raise ValueError(f"give {DELAY} once (both {DELAY!r} and its old name {OLD_DELAY!r} are set)")
+    bounds = {DELAY if k == OLD_DELAY else k: v for k, v in bounds.items()}
+    start = {DELAY if k == OLD_DELAY else k: v for k, v in start.items()}
+    return [DELAY if p == OLD_DELAY else p for p in params], bounds, start
 
 
 def _expand(

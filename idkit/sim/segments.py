@@ -6,7 +6,8 @@ tenths of a second, each restarted from the logged state at its first sample, ke
 near the measured trajectory. A segment ``(start, stop)`` predicts samples ``start .. stop - 1`` (its
 first sample is its initial state, predicted exactly when that state is the logged one), and the next
 segment starts at ``stop``, so every sample is predicted once. A segment never spans a gap in the log's
-times (a step over ``GAP`` of the median step): a new one starts after it.
+times (a step over ``GAP`` of the median step) nor an excluded row (a driver's stalled repeat,
+:mod:`idkit.data.artefacts`): a new one starts after it, and excluded rows are predicted by none.
 """
 
 from __future__ import annotations
@@ -17,9 +18,10 @@ import numpy as np
 GAP = 5.0
 
 
-def split(t: np.ndarray, length: float | None) -> list[tuple[int, int]]:
+def split(t: np.ndarray, length: float | None, excluded: np.ndarray | None = None) -> list[tuple[int, int]]:
     """``(start, stop)`` sample indices (``stop`` excluded) of segments about ``length`` seconds long
-    (``None``: one per stretch between gaps), equal in sample count within a stretch.
+    (``None``: one per stretch between gaps), equal in sample count within a stretch; rows marked in
+    ``excluded[N]`` end a stretch and belong to no segment.
 
     Raises:
         ValueError: ``length`` not positive, or a stretch of fewer than 2 samples.
@@ -28,11 +30,8 @@ def split(t: np.ndarray, length: float | None) -> list[tuple[int, int]]:
         raise ValueError(
             f"segment must be a positive number of seconds (or null: whole stretches), got {length}"
         )
-    steps = np.diff(t)
-    cuts = np.flatnonzero(steps > GAP * np.median(steps))
-    edges = [0, *(int(c) + 1 for c in cuts), t.size]
     segments: list[tuple[int, int]] = []
-    for first, stop in zip(edges[:-1], edges[1:], strict=True):
+    for first, stop in stretches(t, excluded):
         if stop - first < 2:
             continue  # a lone sample between two gaps predicts nothing
         count = 1 if length is None else max(1, int(round((t[stop - 1] - t[first]) / length)))
@@ -42,3 +41,23 @@ def split(t: np.ndarray, length: float | None) -> list[tuple[int, int]]:
     if not segments:
         raise ValueError("the log has no two consecutive samples to simulate between")
     return segments
+
+
+def stretches(t: np.ndarray, excluded: np.ndarray | None = None) -> list[tuple[int, int]]:
+    """``(first, stop)`` of each run of kept samples between gaps (a step over ``GAP`` median steps)
+    and excluded rows."""
+    steps = np.diff(t)
+    cut = np.zeros(t.size, dtype=bool)  # cut[i]: a new stretch starts at i
+    cut[1:] = steps > GAP * np.median(steps)
+    keep = np.ones(t.size, dtype=bool) if excluded is None else ~np.asarray(excluded, dtype=bool)
+    out: list[tuple[int, int]] = []
+    first: int | None = None
+    for i in range(t.size):
+        if first is not None and (cut[i] or not keep[i]):
+            out.append((first, i))
+            first = None
+        if first is None and keep[i]:
+            first = i
+    if first is not None:
+        out.append((first, t.size))
+    return out

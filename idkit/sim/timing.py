@@ -3,9 +3,10 @@
 * A logged state ``(t_i, q_i, qd_i)`` is the joint state measured at ``t_i``.
 * A logged command ``c_j`` at ``τ_j`` acts from ``τ_j`` until the next command (zero-order hold, what a
   digital controller does); before the first it is the first, after the last the last.
-* ``delay`` ``d`` (an unknown, or 0): the states measured at ``t`` are the robot's at ``t − d`` (sensor
-  and transport lag). Equivalently the commands reach the robot ``d`` late; both are modelled by
-  running the simulator ``d`` behind the log's clock.
+* ``command_delay`` ``d`` (an unknown, or 0; not the torque path's ``recording.torque_lag``): the
+  states measured at ``t`` are the robot's at ``t − d`` (sensor and transport lag). Equivalently the
+  commands reach the robot ``d`` late; both are modelled by running the simulator ``d`` behind the
+  log's clock.
 * A segment starting at sample ``s`` starts the simulator at physical time ``t_s − d`` from the logged
   state ``(q_s, qd_s)``. Simulator step ``k`` spans ``[t_s − d + k·dt, t_s − d + (k+1)·dt]`` and gets
   the held command's average over that span: one command when the span lies within its hold, a blend

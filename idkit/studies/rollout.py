@@ -1,12 +1,15 @@
 """Simulator parameters from robot logs (the ``rollout`` task): model + logs → fitted model.
 
 ``run``'s signature is the command line's config (``idkit +experiment=rollout rollout.model=arm.xml
-data=run.csv 'rollout.params=[armature,damping,frictionloss,kp,kv,delay]'``). It reads the model
-(:mod:`idkit.sim.model`) and the logs of commands and joint states (:mod:`idkit.data.commands`),
+data=run.csv 'rollout.params=[armature,damping,frictionloss,kp,kv,command_delay]'``). It reads the model
+(:mod:`idkit.sim.model`) and the logs of commands and joint states (read, checked and joined by
+:mod:`idkit.data.commands`, as torque logs are by :mod:`idkit.data.pipeline`),
 chooses the unknowns (:mod:`idkit.sim.quantities`), hands the estimator a
 :class:`~idkit.sim.problem.RolloutProblem`, and replays the fitted model on every log: the fit log in
-its segments from the fitted initial states, each ``validate=`` log whole from its first logged state —
-what a user rolling ``identified.xml`` out under the logged commands gets.
+its segments from the fitted initial states; each ``validate=`` log is scored by
+:mod:`idkit.sim.validation` on the horizon the model is for (segments of ``segment`` seconds from the
+logged state; also whole where position servos make a whole rollout stable), at the fitted values and
+at the start values (the model before this fit) side by side, the default mode's verdict marked.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +26,10 @@ from idkit.optim.robust import mad_scale
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
+
+if TYPE_CHECKING:
+    from idkit.sim.details import RolloutDetails
+    from idkit.sim.validation import HeldOut
 
 #: What ``rollout.params`` fits when not told: the joints' passive terms.
 DEFAULT_PARAMS = ("armature", "damping", "frictionloss")
@@ -82,12 +89,13 @@ class RolloutResult:
     """A rollout identification and what it reproduces.
 
     Attributes:
-        estimate: the estimator's result (values, uncertainty and flat directions in ``details``).
+        estimate: the estimator's result (values; uncertainty and flat directions in ``details``).
         unknowns: per unknown its kind, start and bounds.
         provenance: the envelope (task, seed, data, plugins, config, run id).
         mjcf: the ``identified.xml`` text (``None`` if MuJoCo refused it: ``mjcf_problem`` says why).
         fit: the fit log replayed in its segments.
-        validation: each ``validate=`` log replayed whole.
+        validation: each ``validate=`` log's scores (:class:`idkit.sim.validation.HeldOut`): every
+            mode that applies, at the fitted and at the start values.
     """
 
     estimate: Estimate
@@ -95,12 +103,20 @@ class RolloutResult:
     provenance: Provenance
     mjcf: str | None
     fit: Replay
-    validation: list[Replay] = field(default_factory=list)
+    validation: list[HeldOut] = field(default_factory=list)
     mjcf_problem: str | None = None
 
     @property
     def seed(self) -> int:
         return self.provenance.seed
+
+    @property
+    def details(self) -> RolloutDetails | None:
+        """The estimator's typed record (``None``: an estimator of another make kept a plain dict)."""
+        from idkit.sim.details import RolloutDetails
+
+        details = self.estimate.details
+        return details if isinstance(details, RolloutDetails) else None
 
     def payload(self) -> dict[str, Any]:
         """The task's part of ``result.json``."""
@@ -108,47 +124,13 @@ class RolloutResult:
             "estimate": self.estimate.to_dict(),
             "unknowns": self.unknowns,
             "fit": {self.fit.file: self.fit.scores()},
-            "validation": {r.file: r.scores() for r in self.validation},
+            "validation": {
+                file: [r.scores() for r in self.validation if r.file == file]
+                for file in dict.fromkeys(r.file for r in self.validation)
+            },
             "identified_xml": None if self.mjcf is None else "identified.xml",
             "identified_xml_problem": self.mjcf_problem,
         }
-
-
-def read_logs(
-    data: Any, joints: Sequence[str] | None, state_topic: str | None, command_topic: str | None
-) -> Any:
-    """One log of the ``data`` file(s), read by :func:`idkit.data.commands.read_robot_log`; several are
-    joined one after another with a gap between them (the segments restart after a gap)."""
-    from idkit.data.commands import RobotLog, read_robot_log
-
-    paths = list(data) if isinstance(data, (list, tuple)) else [data]
-    if not paths:
-        raise ValueError("data: no log given")
-    logs = [read_robot_log(p, joints, state_topic, command_topic) for p in paths]
-    if len(logs) == 1:
-        return logs[0]
-    first = logs[0]
-    for path, log in zip(paths[1:], logs[1:], strict=True):
-        if log.joint_names != first.joint_names or log.command_names != first.command_names:
-            raise ValueError(
-                f"data: {path} has other joints or commands than {paths[0]}; join logs of one robot"
-            )
-    t, q, qd, ct, c = [], [], [], [], []
-    offset = 0.0
-    for log in logs:
-        step = float(np.median(np.diff(log.t)))
-        shift = offset - min(log.t[0], log.command_t[0])
-        t.append(log.t + shift)
-        q.append(log.q)
-        qd.append(log.qd)
-        ct.append(log.command_t + shift)
-        c.append(log.commands)
-        offset = max(log.t[-1], log.command_t[-1]) + shift + 100 * step
-    joined = ", ".join(str(p) for p in paths)
-    return RobotLog(
-        np.concatenate(t), np.vstack(q), np.vstack(qd), np.concatenate(ct), np.vstack(c),
-        first.joint_names, first.command_names, joined,
-    )  # fmt: skip
 
 
 def _joints(sim: Any, log: Any, joints: Sequence[str] | None) -> tuple[str, ...]:
@@ -164,6 +146,27 @@ def _joints(sim: Any, log: Any, joints: Sequence[str] | None) -> tuple[str, ...]
     return found
 
 
+def _note_artefacts(problem: Any) -> None:
+    """Say in one ``note:`` line what the fit leaves out of the log as a driver's artefacts."""
+    from idkit.notes import Note
+
+    counts = problem.outliers()
+    parts = []
+    if counts["stalled"]:
+        parts.append(
+            f"{counts['stalled']} stalled rows ({counts['stalls']} stretches repeating the last row)"
+        )
+    if counts["dropped"]:
+        parts.append(f"{counts['dropped']} samples missing in gaps")
+    if parts:
+        warnings.warn(
+            f"{problem.samples.source}: {' and '.join(parts)} left out of the fit as the driver's, not "
+            "the robot's",
+            Note,
+            stacklevel=3,
+        )
+
+
 def replay(problem: Any, values: np.ndarray, file: str, initial: Any = None, whole: bool = False) -> Replay:
     """The fitted model's prediction of ``problem``'s log: in its segments from ``initial`` (default
     the logged states) or, ``whole``, in one rollout per stretch between gaps."""
@@ -171,7 +174,7 @@ def replay(problem: Any, values: np.ndarray, file: str, initial: Any = None, who
     from idkit.sim.segments import split
 
     log = problem.samples
-    segments = split(log.t, None) if whole else problem.segments()
+    segments = split(log.t, None, problem.artefacts().stalled) if whole else problem.segments()
     simulator = problem.simulator(segments, initial=initial)
     try:
         q, qd = simulator.predict(values[None])
@@ -208,37 +211,48 @@ def run(
     """Identify a MuJoCo model's quantities from logged commands and joint states.
 
     Args:
-        model: the MJCF (``.xml``) or URDF (``.urdf``) file, or its text.
+        model: the MJCF (``.xml``) or URDF (``.urdf``) file, or its text; or a torque fit's run folder
+            (:mod:`idkit.sim.from_run`: its model, with the logs' efforts as motor commands).
         data: the fit log (CSV, ``.npz``, ROS log) or a list of logs of one robot (joined).
         estimator: ``"rollout"`` (a registry name, a config mapping or an object) with its options.
         cost: the search's score, a registered cost of the scaled error ``E`` (``None``: the
             estimator's robust default).
         params: the unknowns: kinds (``armature``, ``damping``, ``frictionloss``, ``stiffness``,
-            ``kp``, ``kv``, ``gear``, ``bias``, ``inertia``, ``delay``) and/or names (``j1.damping``,
+            ``kp``, ``kv``, ``gear``, ``bias``, ``inertia``, ``command_delay``) and/or names (``j1.damping``,
             ``link3.inertia``).
         joints: the joints in scope (default: the model's that the log holds).
         shared: kinds fitted as one value for all their elements.
-        bounds: ``{name or kind: [lower, upper]}`` (default ``box`` × the start; ``delay``: [0, 0.05] s).
-        start: ``{name or kind: value}`` (default the model's values; ``delay``: 0).
+        bounds: ``{name or kind: [lower, upper]}`` (default ``box`` × the start; ``command_delay``:
+            [0, 0.05] s).
+        start: ``{name or kind: value}`` (default the model's values; ``command_delay``: 0).
         box: ``(a, b)``: the bounds of an unknown without given bounds, as factors of its start.
         segment: seconds per multiple-shooting segment (``None``: whole stretches between gaps).
-        validate: held-out logs, each replayed whole with the fitted model.
+        validate: held-out logs, each scored by :func:`idkit.sim.validation.held_out`.
         state_topic, command_topic: a ROS log's ``JointState`` topics (:mod:`idkit.data.commands`).
         threads: rollout threads (``None``: every CPU the process may use).
         seed: seeds the search.
         device, dtype: where a registered cost is evaluated.
     """
+    from idkit.data.commands import read_robot_logs
+    from idkit.data.files import as_paths, refuse_repeated_files, refuse_training_files
     from idkit.sim.export import identified_xml
+    from idkit.sim.from_run import is_run_folder, read_torque_run
     from idkit.sim.model import load_model
+    from idkit.sim.passive_bounds import derived_bounds
     from idkit.sim.problem import RolloutProblem, SimRobot
     from idkit.sim.quantities import select_unknowns
+    from idkit.sim.validation import held_out as score_held_out
 
-    sim = load_model(model)
-    log = read_logs(data, None, state_topic, command_topic)
+    torque_run = read_torque_run(model) if is_run_folder(model) else None
+    sim = load_model(model) if torque_run is None else torque_run.model()
+    reader = None if torque_run is None else torque_run.reader(sim)
+    log = read_robot_logs(data, None, state_topic, command_topic, reader)
     scope = _joints(sim, log, joints)
     log_joints = tuple(j for j in log.joint_names if j in {*sim.joint_names()})
     if log_joints != log.joint_names:
-        log = read_logs(data, log_joints, state_topic, command_topic)
+        log = read_robot_logs(data, log_joints, state_topic, command_topic, reader)
+    if torque_run is not None:
+        bounds = derived_bounds(sim, log, scope, params, bounds)
     unlogged = [j for j in sim.joint_names() if j not in log_joints]
     if unlogged:
         warnings.warn(
@@ -258,20 +272,25 @@ def run(
         device=device,
         dtype=dtype,
     )
+    _note_artefacts(problem)
     fitter = build("estimator", estimator)
     estimate = fitter.fit(problem)
     values = np.array([estimate.params[name] for name in unknowns.names])
-    fitted = estimate.details.get("initial_states")
-    initial = None if fitted is None else (np.asarray(fitted["q"]), np.asarray(fitted["qd"]))
+    from idkit.sim.details import RolloutDetails
+
+    details = estimate.details
+    fitted = details.initial_states if isinstance(details, RolloutDetails) else None
+    initial = None if fitted is None else (fitted.q, fitted.qd)
     fit = replay(problem, values, log.source, initial)
     held_out = []
-    for path in (
-        list(validate) if isinstance(validate, (list, tuple)) else ([] if validate is None else [validate])
-    ):
-        other = RolloutProblem(
-            robot, read_logs(path, log.joint_names, state_topic, command_topic), threads=threads
+    refuse_repeated_files(validate, "validate")
+    refuse_training_files(data, validate)
+    for path in as_paths(validate):
+        other = read_robot_logs(path, log.joint_names, state_topic, command_topic, reader)
+        compared = {"fitted": values, "start": unknowns.vector("start")}
+        held_out += score_held_out(
+            robot, compared, other, segment, file=str(path), seed=problem.seed, threads=threads
         )
-        held_out.append(replay(other, values, str(path), whole=True))
     try:
         text, problem_text = identified_xml(sim, unknowns, values), None
     except ValueError as error:
@@ -282,7 +301,7 @@ def run(
         seed=seed,
         data={
             "model": sim.label,
-            "files": [str(p) for p in (data if isinstance(data, (list, tuple)) else [data])],
+            "files": [str(p) for p in as_paths(data)],
         },
         plugins={"estimator": describe("estimator", estimator), "cost": describe("cost", cost)},
     )

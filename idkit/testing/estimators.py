@@ -15,7 +15,7 @@ import functools
 import inspect
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 from typing import Any, Protocol
 
@@ -25,9 +25,9 @@ from torch import Tensor
 
 from idkit.estimate import Estimate, HistoryError, history_table
 from idkit.hyperparameters import get_params
-from idkit.interfaces import Cost, Estimator, Robot
+from idkit.interfaces import Cost, Estimator, Robot, problem_type
 from idkit.model import IdentifiedModel
-from idkit.problem import Problem, Samples
+from idkit.problem import IdentificationProblem, Problem, Samples
 from idkit.testing._common import (
     call,
     check_hyperparameters,
@@ -40,7 +40,7 @@ from idkit.testing._common import (
 
 
 class ProblemFactory(Protocol):
-    def __call__(self, *, dtype: str = "float64", seed: int = 0) -> Problem: ...
+    def __call__(self, *, dtype: str = "float64", seed: int = 0) -> Any: ...
 
 
 def make_problem(
@@ -86,17 +86,23 @@ def make_problem(
 
 
 def problem_factory_for(estimator: Estimator) -> ProblemFactory:
-    """The problems an estimator is checked on: those of the factory its class declares as
-    ``conformance_problem`` (``"module:function"``, called with ``dtype`` and ``seed``: an estimator
-    whose problems are not torque problems, e.g. ``rollout``'s), else ``make_problem`` on the robot it
-    declares as ``conformance_robot`` (``(registered name, options)``: e.g. ``pcls`` needs a ``urdf``
-    robot), else on the default."""
+    """The problems an estimator is checked on, of the kind it fits (``problem_type``): those of the
+    factory its class declares as ``conformance_problem`` (``"module:function"``, called with ``dtype``
+    and ``seed``; required when the kind is not the torque ``Problem``, e.g. ``rollout``'s), else
+    ``make_problem`` on the robot it declares as ``conformance_robot`` (``(registered name, options)``:
+    e.g. ``pcls`` needs a ``urdf`` robot), else on the default."""
     factory = getattr(type(estimator), "conformance_problem", None)
     if factory is not None:
         import importlib
 
         module, _, name = factory.partition(":")
         return getattr(importlib.import_module(module), name)
+    kind = problem_type(estimator)
+    if not issubclass(kind, Problem):
+        fail(
+            f"{type(estimator).__name__} fits {kind.__name__} problems, which idkit cannot make: name a "
+            'factory of small ones as the class attribute conformance_problem = "package.module:function"'
+        )
     spec = getattr(type(estimator), "conformance_robot", None)
     if spec is None:
         return make_problem
@@ -139,8 +145,11 @@ def check_estimator_estimate(estimator: Estimator, problem_factory: ProblemFacto
         _finite_floats(est.base_params, "Estimate.base_params", robot.base_param_names)
     if not (isinstance(est.wall_time_s, float) and math.isfinite(est.wall_time_s) and est.wall_time_s >= 0):
         fail(f"Estimate.wall_time_s must be a finite float >= 0, got {est.wall_time_s!r}")
-    if not isinstance(est.details, dict):
-        fail(f"Estimate.details must be a dict, got {type(est.details).__name__}")
+    if not isinstance(est.details, Mapping):
+        fail(
+            "Estimate.details must be a dict (or a record that reads as a mapping), got "
+            f"{type(est.details).__name__}"
+        )
 
 
 @conformance_check
@@ -259,12 +268,9 @@ def check_estimator_too_few_equations(
     )
 
 
-def _first_samples(problem: Any, n: int) -> Any:
-    """The problem on its first ``n`` samples (a problem of another kind says how: ``head(n)``)."""
-    if hasattr(problem, "head"):
-        return problem.head(n)
-    s = problem.samples
-    return replace(problem, samples=Samples(s.q[:n], s.qd[:n], s.qdd[:n], s.tau[:n]))
+def _first_samples(problem: IdentificationProblem, n: int) -> IdentificationProblem:
+    """The problem on its first ``n`` samples (every kind says how: ``head(n)``)."""
+    return problem.head(n)
 
 
 class _WithoutRegressor(Robot):
@@ -295,12 +301,11 @@ def check_estimator_unsupported_problem(
     works or raises ValueError/NotImplementedError saying what is missing, never a stray
     AttributeError/TypeError from deep inside."""
     problem = problem_factory(dtype="float64", seed=0)
-    variants = {
-        "problem.cost = None": Problem(problem.robot, problem.samples, cost=None),
-        "a robot without regressor()": Problem(
+    variants: dict[str, IdentificationProblem] = {"problem.cost = None": replace(problem, cost=None)}
+    if isinstance(problem, Problem):  # the torque kind: its robot may lack the linear part
+        variants["a robot without regressor()"] = Problem(
             _WithoutRegressor(problem.robot), problem.samples, cost=problem.cost
-        ),
-    }
+        )
     for what, variant in variants.items():
         try:
             estimator.fit(variant)

@@ -7,9 +7,9 @@ import pytest
 from bag_cases import Stream, write_ros1, write_ros2
 
 from idkit.data.commands import RobotLog, read_robot_log, save_robot_log
-from idkit.sim import cases
 from idkit.sim.drive import match_commands
 from idkit.sim.model import load_model
+from idkit.testing import rollout_cases as cases
 
 
 @pytest.fixture(scope="module")
@@ -102,3 +102,43 @@ def test_a_log_must_be_ordered_and_finite(arm7):
     q[5, 2] = np.nan
     with pytest.raises(ValueError, match="non-finite value at sample 5"):
         RobotLog(arm7.t, q, arm7.qd, arm7.t, arm7.commands, arm7.joint_names, arm7.command_names)
+
+
+def test_state_and_command_times_are_checked_by_the_torque_paths_check(arm7):
+    """One timestamp check for every reader (idkit.data.raw.check_increasing): the same words."""
+    from idkit.data.raw import Recording
+
+    t = arm7.t.copy()
+    t[4] = t[3]
+    with pytest.raises(ValueError, match=r"^<log>: state times must increase strictly; t\[4\] = "):
+        RobotLog(t, arm7.q, arm7.qd, arm7.t, arm7.commands, arm7.joint_names, arm7.command_names)
+    with pytest.raises(ValueError, match=r"command times must increase strictly; command_t\[4\]"):
+        RobotLog(arm7.t, arm7.q, arm7.qd, t, arm7.commands, arm7.joint_names, arm7.command_names)
+    with pytest.raises(ValueError, match=r"^x: timestamps must increase strictly; t\[4\] = "):
+        Recording(t, arm7.q, arm7.q, source="x")
+
+
+def test_a_bag_whose_only_joint_state_topic_is_the_commands_is_refused(tmp_path, arm7):
+    """The states cannot be the commands' topic: the one topic chooser of idkit.data.logs says so."""
+    path = write_ros2(tmp_path / "run", _streams(arm7, list(arm7.joint_names))[1:])
+    with pytest.raises(
+        ValueError, match=r"no sensor_msgs/JointState topic besides /commands; name it with state_topic"
+    ):
+        read_robot_log(path, command_topic="/commands")
+
+
+def test_several_logs_join_with_a_gap_and_a_file_given_twice_is_refused(tmp_path, arm7):
+    from idkit.data.commands import read_robot_logs
+    from idkit.sim.segments import split
+
+    first = save_robot_log(arm7.head(200), tmp_path / "a.csv")
+    second = save_robot_log(arm7.head(300), tmp_path / "b.csv")
+    joined = read_robot_logs([first, second])
+    assert joined.n_samples == 500 and joined.source == f"{first}, {second}"
+    np.testing.assert_array_equal(joined.q[200:], arm7.q[:300])
+    assert split(joined.t, None) == [(0, 200), (200, 500)]  # the rollout restarts after the join
+    assert read_robot_logs(str(first)).n_samples == 200
+    with pytest.raises(ValueError, match="gives .*b.csv twice"):
+        read_robot_logs([second, first, second])
+    with pytest.raises(ValueError, match="no log given"):
+        read_robot_logs([])

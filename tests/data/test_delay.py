@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from idkit.data.delay import shift_torques, torque_delay
+from idkit.data.delay import estimate_torque_lag, shift_torques
 from idkit.data.recording import Recording
 
 RATE = 200.0
@@ -23,18 +23,18 @@ def signal(t: np.ndarray) -> np.ndarray:
 @given(delay=st.floats(-0.2, 0.2))
 def test_the_lag_of_a_delayed_copy_is_found_to_a_tenth_of_a_step(delay):
     t = np.arange(4000) / RATE
-    estimate, peak = torque_delay(signal(t - delay), signal(t)[:, :, None], t)
+    estimate, peak = estimate_torque_lag(signal(t - delay), signal(t)[:, :, None], t)
     assert estimate == pytest.approx(delay, abs=0.1 / RATE) and peak > 0.95
 
 
 def test_runs_between_gaps_are_correlated_apart_and_no_lag_at_the_edge_is_believed():
     t = np.arange(4000) / RATE
     t[2000:] += 3.0
-    estimate, _ = torque_delay(signal(t - 0.02), signal(t)[:, :, None], t)
+    estimate, _ = estimate_torque_lag(signal(t - 0.02), signal(t)[:, :, None], t)
     assert estimate == pytest.approx(0.02, abs=0.1 / RATE)
     t = np.arange(4000) / RATE  # a lag of 0.3 s, beyond the ±0.25 s searched: the edge wins
     with pytest.raises(ValueError, match=r"best at the edge of the searched ±0.25 s \(\+0.25 s\)"):
-        torque_delay(signal(t - 0.3), signal(t)[:, :, None], t)
+        estimate_torque_lag(signal(t - 0.3), signal(t)[:, :, None], t)
 
 
 def test_shift_reads_each_torque_later_and_never_across_a_gap():

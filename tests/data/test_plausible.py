@@ -184,9 +184,21 @@ def test_a_delay_in_milliseconds_given_as_seconds_is_refused():
     from idkit.data.options import RecordingOptions
 
     with pytest.raises(ValueError) as caught:
-        RecordingOptions(delay=20)
+        RecordingOptions(torque_lag=20)
     assert str(caught.value) == (
-        "recording.delay=20 s: a torque delay is a filter's or a bus's, milliseconds (at most ±1 s here); "
+        "recording.torque_lag=20 s: a torque lag is a filter's or a bus's, milliseconds (at most ±1 s here); "
         "milliseconds given as seconds? (20 ms is 0.02)"
     )
-    assert RecordingOptions(delay=-0.02).delay == -0.02
+    assert RecordingOptions(torque_lag=-0.02).torque_lag == -0.02
+
+
+def test_the_old_name_recording_delay_still_works_and_says_it_is_deprecated():
+    from idkit.data.options import RecordingOptions
+
+    with pytest.warns(FutureWarning, match="recording.delay is now recording.torque_lag"):
+        options = RecordingOptions(delay=0.01)
+    assert options.torque_lag == 0.01 and options.delay is None
+    with pytest.warns(FutureWarning), pytest.raises(ValueError, match=r"^recording.delay=20 s: a torque lag"):
+        RecordingOptions(delay=20)
+    with pytest.raises(ValueError, match="are both set; give recording.torque_lag only"):
+        RecordingOptions(torque_lag=0.02, delay=0.01)

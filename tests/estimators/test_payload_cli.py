@@ -142,7 +142,7 @@ def test_the_reference_is_preprocessed_as_the_data(files, raw, correction):
         cost=None,
         data=str(data),
         preprocess={"cutoff": 3.0},
-        recording={"delay": 0.02},
+        recording={"torque_lag": 0.02},
         identified_urdf=False,
     )
     details = result.estimate.details
@@ -152,7 +152,7 @@ def test_the_reference_is_preprocessed_as_the_data(files, raw, correction):
         URDFRobot(str(files / "arm.urdf")),
         data=str(data),
         preprocess={"cutoff": 3.0},
-        recording={"delay": 0.02},
+        recording={"torque_lag": 0.02},
     )[0]
     assert made["samples"] == trained.n_samples  # the trim of 3 Hz (1 s at each end), not of 10 Hz
     assert details["payload"]["mass"] == pytest.approx(MASS, rel=2e-3)

@@ -13,12 +13,12 @@ from idkit import registry
 from idkit.data.commands import RobotLog
 from idkit.estimators.rollout import RolloutEstimator
 from idkit.problem import Problem
-from idkit.sim import cases
-from idkit.sim.cases import Case, corrupt, simulate
 from idkit.sim.model import load_model
 from idkit.sim.problem import RolloutProblem, SimRobot
 from idkit.sim.quantities import select_unknowns
 from idkit.testing import make_problem
+from idkit.testing import rollout_cases as cases
+from idkit.testing.rollout_cases import Case, corrupt, simulate
 
 PENDULUM = cases.ARM5.split('<body name="link3"')[0] + (
     "</body></body></worldbody><actuator>"
@@ -35,7 +35,7 @@ def test_recovers_case_a_from_far_starts():
     for start in [case.start, *case.starts(2, seed=3)]:
         estimate = RolloutEstimator().fit(cases.problem_of(case, start, threads=1))
         assert _errors(estimate, case.truth).max() < 1e-6
-        assert estimate.details["exact_fit"]
+        assert estimate.details.exact_fit
 
 
 def test_is_robust_to_glitches_without_a_tuned_scale():
@@ -74,12 +74,12 @@ def test_reports_uncertainty_and_names_a_flat_direction():
     )
     problem = RolloutProblem(SimRobot(sim, unknowns, log.joint_names), log, threads=1)
     estimate = RolloutEstimator().fit(problem)
-    flat = estimate.details["flat_directions"]
+    flat = estimate.details.uncertainty.flat
     assert len(flat) == 1 and set(flat[0]["direction"]) == {"joint1.damping", "act1.kv"}
     assert estimate.params["joint1.damping"] + estimate.params["act1.kv"] == pytest.approx(3.0, rel=1e-6)
     assert estimate.params["joint2.armature"] == pytest.approx(0.4, rel=1e-6)
-    assert np.isinf(estimate.details["sigma"]["act1.kv"])
-    assert np.isfinite(estimate.details["sigma"]["joint2.armature"])
+    assert np.isinf(estimate.details.uncertainty.std["act1.kv"])
+    assert np.isfinite(estimate.details.uncertainty.std["joint2.armature"])
 
 
 def test_refuses_a_torque_problem_naming_the_task():
@@ -106,7 +106,7 @@ def test_a_registered_cost_is_what_the_search_minimises_and_reports():
     assert estimate.cost == pytest.approx(
         float(problem.evaluate(torch.tensor(values, dtype=torch.float64))), rel=1e-9
     )
-    assert estimate.details["criterion"] == "problem cost"
+    assert estimate.details.criterion == "problem cost"
 
 
 @pytest.mark.slow
@@ -117,9 +117,9 @@ def test_36_unknowns_under_servos_from_random_starts(corrupted):
     case = cases.case_b(corrupted=corrupted)
     for start in [case.start, *case.starts(2, seed=7)]:
         estimate = RolloutEstimator().fit(cases.problem_of(case, start))
-        errors = {k: abs(estimate.params[k] / v - 1) for k, v in case.truth.items() if k != "delay"}
+        errors = {k: abs(estimate.params[k] / v - 1) for k, v in case.truth.items() if k != "command_delay"}
         assert max(errors.values()) < 0.05, max(errors, key=errors.get)
-        assert abs(estimate.params["delay"] - case.truth["delay"]) < 1e-4
+        assert abs(estimate.params["command_delay"] - case.truth["command_delay"]) < 1e-4
 
 
 def test_a_links_inertia_is_recovered_through_its_physical_coordinates():
@@ -131,11 +131,11 @@ def test_a_links_inertia_is_recovered_through_its_physical_coordinates():
     unknowns = select_unknowns(sim, case.fit.joint_names, ["link5.inertia"], start=start)
     problem = RolloutProblem(SimRobot(sim, unknowns, case.fit.joint_names), case.fit, threads=1)
     estimate = RolloutEstimator(iterations=0).fit(problem)  # the polish alone: the parametrisation
-    body = estimate.details["bodies"]["link5"]
+    body = estimate.details.bodies["link5"]
     assert body["mass"] == pytest.approx(0.2, rel=1e-6)
     np.testing.assert_allclose(body["com"], [0, 0, 0.03], atol=1e-8)
     np.testing.assert_allclose(body["inertia"], np.diag([0.002, 0.002, 0.001]), atol=1e-9)
-    assert not estimate.details["flat_directions"]
+    assert not estimate.details.uncertainty.flat
 
 
 @pytest.mark.statistical
@@ -156,8 +156,8 @@ def test_sigma_from_the_jacobian_is_the_spread_over_noise_draws():
         case = Case("p", PENDULUM, ("armature", "damping"), truth, log, log, {}, start)
         estimate = RolloutEstimator().fit(cases.problem_of(case, threads=1))
         for name, value in truth.items():
-            z.append((estimate.params[name] - value) / estimate.details["sigma"][name])
-            low, high = estimate.details["ci95"][name]
+            z.append((estimate.params[name] - value) / estimate.details.uncertainty.std[name])
+            low, high = estimate.details.uncertainty.interval95[name]
             inside.append(low <= value <= high)
     assert 0.8 < float(np.sqrt(np.mean(np.square(z)))) < 1.25
     assert 0.88 <= float(np.mean(inside)) <= 1.0

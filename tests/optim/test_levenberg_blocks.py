@@ -152,3 +152,32 @@ def test_cooperative_search_finds_a_separable_minimum_and_repeats_under_a_seed()
     assert runs[0].history == sorted(runs[0].history, reverse=True)
     with pytest.raises(ValueError, match="partition"):
         cooperative_search(objective, lower, upper, start, blocks[:2], 4, 2, torch.Generator())
+
+
+def test_broyden_update_meets_the_secant_equation_within_the_sparsity():
+    t, segment, y = _data(False)
+    jac = _jacobian(t, segment)(np.array([[1.0], [0.2], [0], [0], [0], [0]]), None)
+    rng = np.random.default_rng(1)
+    dx, dr = rng.normal(size=6), rng.normal(size=t.size)
+    updated = jac.broyden(dx, dr)
+    full = np.zeros((t.size, 6))
+    full[:, :2] = updated.dense
+    for a, b, c, v in updated.blocks:
+        full[a:b, c : c + v.shape[1]] = v
+    np.testing.assert_allclose(full @ dx, dr, atol=1e-12)  # J dx = dr, row by row
+    for (*_, v), (*_, old) in zip(updated.blocks, jac.blocks, strict=True):
+        assert v.shape == old.shape  # no fill-in outside a segment's own rows
+
+
+@pytest.mark.parametrize(("loss", "outliers"), [("linear", False), ("huber", True)])
+def test_updated_jacobians_reach_the_same_optimum_with_fewer_evaluated(loss, outliers):
+    t, segment, y = _data(outliers)
+    x0 = np.array([1.0, 0.2, 0.0, 0.0, 0.0, 0.0])
+    lower, upper = np.array([0.1, -3.0]), np.array([10.0, 3.0])
+    residual, jacobian = _residual(t, segment, y), _jacobian(t, segment)
+    options = {"hessian": "irls", "ftol": 1e-12, "xtol": 1e-12, "max_iter": 200}
+    every, traced = least_squares(x0, residual, jacobian, lower, upper, loss, 0.05, **options)
+    updated, trace = least_squares(x0, residual, jacobian, lower, upper, loss, 0.05, refresh=4, **options)
+    np.testing.assert_allclose(updated, every, atol=1e-6)
+    assert trace.jacobians < traced.jacobians
+    assert trace.losses == sorted(trace.losses, reverse=True)

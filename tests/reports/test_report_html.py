@@ -139,7 +139,7 @@ def test_every_recorded_reason_is_a_choice_on_the_page():
     assert list(single_page.recorded_choices(document)) == [
         ("low-pass cut-off (preprocess.cutoff=auto)", 4.0, "auto: lowest error"),
         ("prior weight (estimator.prior_weight=auto)", 300.0, "within 1 SE"),
-        ("torque delay of a.csv (recording.delay=auto)", 0.004, "estimated from the recording"),
+        ("torque delay of a.csv (recording.torque_lag=auto)", 0.004, "estimated from the recording"),
     ]
 
 

@@ -10,12 +10,12 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from idkit.robots.inertia import centroidal
-from idkit.sim import cases
 from idkit.sim.export import identified_xml
 from idkit.sim.inertia import coordinates, from_mujoco, mujoco_inertial, standard
 from idkit.sim.model import load_model
 from idkit.sim.problem import RolloutProblem, SimRobot
 from idkit.sim.quantities import select_unknowns
+from idkit.testing import rollout_cases as cases
 
 
 @settings(max_examples=50, deadline=None)

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from idkit.sim import cases
 from idkit.sim.model import load_model
 from idkit.sim.quantities import select_unknowns, servo_kind
+from idkit.testing import rollout_cases as cases
 
 SERVO = """<mujoco><worldbody><body><joint name="a" axis="0 1 0" damping="0.5"/><geom size="0.1" mass="1"/>
 <body pos="0 0 -0.3"><joint name="b" axis="0 1 0"/><geom size="0.1" mass="1"/></body></body></worldbody>
@@ -112,3 +112,21 @@ def test_an_actuator_quantity_answers_to_its_joints_name(servo):
     assert named.names == ("pa.kp",) and named.vector("start")[0] == 60.0
     with pytest.raises(ValueError, match="no kv named 'a.kv'"):
         select_unknowns(servo, ("a",), ["a.kv"])
+
+
+def test_the_old_name_delay_reads_as_command_delay_and_says_it_is_deprecated():
+    sim = load_model(cases.ARM7)
+    with pytest.warns(FutureWarning, match="'delay' is now called 'command_delay'"):
+        old = select_unknowns(
+            sim, ("j1",), ("damping", "delay"), bounds={"delay": [0, 0.01]}, start={"delay": 0.002}
+        )
+    new = select_unknowns(
+        sim,
+        ("j1",),
+        ("damping", "command_delay"),
+        bounds={"command_delay": [0, 0.01]},
+        start={"command_delay": 0.002},
+    )
+    assert old == new and old.names[-1] == "command_delay"
+    with pytest.warns(FutureWarning), pytest.raises(ValueError, match="give command_delay once"):
+        select_unknowns(sim, ("j1",), ("delay",), start={"delay": 0.0, "command_delay": 0.0})

@@ -13,13 +13,13 @@ import pytest
 from mujoco import rollout
 
 from idkit.data.commands import RobotLog
-from idkit.sim import cases
 from idkit.sim.export import identified_xml, start_state
 from idkit.sim.model import load_model
 from idkit.sim.problem import RolloutProblem, SimRobot
 from idkit.sim.quantities import select_unknowns
 from idkit.sim.segments import split
 from idkit.sim.timing import held_averages, readout
+from idkit.testing import rollout_cases as cases
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +29,7 @@ def arm7_log() -> RobotLog:
 
 def _problem(case_model: str, log: RobotLog, params, start=None, segment=0.5) -> RolloutProblem:
     sim = load_model(case_model)
-    bounds = {"delay": [0.0, 0.02]} if "delay" in params else None
+    bounds = {"command_delay": [0.0, 0.02]} if "command_delay" in params else None
     unknowns = select_unknowns(sim, log.joint_names, params, start=start, bounds=bounds)
     return RolloutProblem(SimRobot(sim, unknowns, log.joint_names), log, segment=segment, threads=1)
 
@@ -39,7 +39,10 @@ def test_a_fit_at_the_truth_has_zero_error(arm7_log, segment):
     """MuJoCo's sensor row k is computed before step k, its state row k after: the log pairs the state
     at t_k with the command from t_k, and the simulator reproduces it exactly, in any segments."""
     problem = _problem(
-        cases.ARM7, arm7_log, ["armature", "damping", "frictionloss", "kp", "kv", "delay"], segment=segment
+        cases.ARM7,
+        arm7_log,
+        ["armature", "damping", "frictionloss", "kp", "kv", "command_delay"],
+        segment=segment,
     )
     truth = problem.robot.unknowns.vector("start")
     simulator = problem.simulator()
@@ -78,7 +81,9 @@ def test_the_delay_is_mujocos_actuator_delay(arm7_log):
     """A fitted delay written into identified.xml (actuator delay, linear history) reproduces idkit's
     rollout once the buffer holds the first command (start_state)."""
     delay = 0.0073  # 3.65 steps: between two samples
-    problem = _problem(cases.ARM7, arm7_log, ["damping", "delay"], start={"delay": delay}, segment=None)
+    problem = _problem(
+        cases.ARM7, arm7_log, ["damping", "command_delay"], start={"command_delay": delay}, segment=None
+    )
     values = problem.robot.unknowns.vector("start")
     simulator = problem.simulator()
     try:

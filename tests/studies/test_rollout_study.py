@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -14,11 +15,12 @@ from mujoco import rollout
 
 from idkit.data.commands import save_robot_log
 from idkit.estimators.rollout import RolloutEstimator
+from idkit.notes import Note
 from idkit.reports import rollout as report
-from idkit.sim import cases
 from idkit.sim.export import identified_xml, start_state
 from idkit.sim.model import load_model
 from idkit.studies.rollout import run
+from idkit.testing import rollout_cases as cases
 
 PARAMS = ["armature", "damping"]
 
@@ -45,8 +47,10 @@ def test_the_study_fits_writes_and_the_written_model_reproduces_a_held_out_log(f
     truth |= {"joint4.damping": 0.4, "joint5.damping": 0.2}
     for name, value in truth.items():
         assert result.estimate.params[name] == pytest.approx(value, rel=1e-6)
-    (held,) = result.validation
-    assert held.rms.max() < 1e-6
+    fitted, start = result.validation  # torque motors: segments only, at the fitted and start values
+    assert (fitted.mode, fitted.values, fitted.default) == ("segments", "fitted", True)
+    assert fitted.rms.max() < 1e-6 and fitted.verdict == "within noise"
+    assert start.values == "start" and start.rms.max() > 1e-3  # damping 0.7 where the truth is 1.0
     written = report.write(result, tmp_path / "run")
     assert {"identified_mjcf", "fit_plot", "validation_plot_1", "result"} <= set(written)
     assert "joint1.armature" in report.text(result)
@@ -139,3 +143,18 @@ def test_identified_xml_of_a_corrupted_log_reproduces_the_held_out_log_within_th
     assert best < 5 * cases.NOISE[0]  # the truth reproduces it within the noise (and the first sample's)
     assert _held_out_error(fitted, log) < 1.1 * best
     assert _held_out_error(start, log) > 10 * best
+
+
+def test_a_stalled_driver_is_left_out_noted_and_counted_and_the_fit_stays_exact(files, tmp_path):
+    """Case a's noiseless log with three 20 ms stalls: the repeats left out, so the fit stays exact,
+    said in one note and counted in the result."""
+    folder, case = files
+    save_robot_log(cases.stalled(case.fit, seconds=0.02), tmp_path / "stalled.csv")
+    with pytest.warns(Note, match=r"stalled.csv: 30 stalled rows \(3 stretches repeating the last row\)"):
+        result = run(str(folder / "arm.xml"), str(tmp_path / "stalled.csv"), params=PARAMS)
+    assert result.details.outliers == {"stalled": 30, "stalls": 3, "dropped": 0}
+    assert result.estimate.params["joint1.damping"] == pytest.approx(1.0, rel=1e-6)
+    assert "left out as the driver's: 30 stalled rows in 3 stretches" in report.text(result)
+    written = report.write(result, tmp_path / "run", plots=False)
+    payload = json.loads(Path(written["result"]).read_text())["payload"]
+    assert payload["estimate"]["details"]["outliers"]["stalled"] == 30

@@ -266,8 +266,8 @@ def test_a_typo_in_a_section_from_python_is_named_as_that_key(files):
         ValueError, match=r"^preprocess has no option 'velocitiez'; its options \(closest first\): velocities"
     ):
         single.run(robot, "ls", None, data=str(files["train"]), preprocess={"velocitiez": "measured"})
-    with pytest.raises(ValueError, match=r"^setting 'recording\.delay' must be a float or 'auto'"):
-        single.run(robot, "ls", None, data=str(files["train"]), recording={"delay": "late"})
+    with pytest.raises(ValueError, match=r"^setting 'recording\.torque_lag' must be a float or 'auto'"):
+        single.run(robot, "ls", None, data=str(files["train"]), recording={"torque_lag": "late"})
 
 
 def test_recording_with_other_joints_is_named(files, tmp_path):
@@ -629,19 +629,19 @@ def test_a_torque_delay_on_samples_used_as_they_are_is_refused(files, tmp_path, 
     np.savez(samples, q=q, qd=qd, qdd=qdd, tau=tau)
     cases = (("auto", samples), ("auto", f"[{files['train']},{samples}]"), ("0.02", samples))
     for k, (delay, data) in enumerate(cases):
-        args = [*ls_args(files, data), f"recording.delay={delay}"]
+        args = [*ls_args(files, data), f"recording.torque_lag={delay}"]
         code, out, err = idkit_main(monkeypatch, capsys, *args, run_dir=tmp_path / str(k))
         assert code == 1 and out == "", err
         assert err.splitlines() == [
-            f"idkit: {samples}: recording.delay={delay} shifts a raw recording's torques, but this file "
+            f"idkit: {samples}: recording.torque_lag={delay} shifts a raw recording's torques, but this file "
             "holds samples used as they are (preprocess=on reads a samples file with timestamps as a "
             "recording)"
         ]
         assert not (tmp_path / str(k) / "result.json").exists()
     in_memory = single.load_data(robot, data=samples)[0]
-    with pytest.raises(ValueError, match=r"^<Samples>: recording\.delay=0\.01 shifts a raw recording's"):
-        single.run(robot, "ls", None, data=in_memory, recording={"delay": 0.01})
-    assert single.run(robot, "ls", None, data=in_memory, recording={"delay": 0}).estimate is not None
+    with pytest.raises(ValueError, match=r"^<Samples>: recording\.torque_lag=0\.01 shifts a raw recording's"):
+        single.run(robot, "ls", None, data=in_memory, recording={"torque_lag": 0.01})
+    assert single.run(robot, "ls", None, data=in_memory, recording={"torque_lag": 0}).estimate is not None
 
 
 def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
@@ -660,11 +660,13 @@ def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
         DelayWarning, match=r"late\.csv: the torques trail the states by (19\.[5-9]|20(\.[0-5])?) ms"
     ):
         found, data = command(
-            *robot_args(files), f"data={late}", "recording.delay=auto", *quiet, out=tmp_path / "a"
+            *robot_args(files), f"data={late}", "recording.torque_lag=auto", *quiet, out=tmp_path / "a"
         )
     delay = data["data"]["delays"][str(late)]
     assert delay["seconds"] == pytest.approx(0.02, abs=5e-4) and delay["estimated"] is True
-    given, _ = command(*robot_args(files), f"data={late}", "recording.delay=0.02", *quiet, out=tmp_path / "b")
+    given, _ = command(
+        *robot_args(files), f"data={late}", "recording.torque_lag=0.02", *quiet, out=tmp_path / "b"
+    )
     ignored, _ = command(*robot_args(files), f"data={late}", *quiet, out=tmp_path / "c")
     true = dict(zip(robot.base_param_names, robot.base_params(truth(robot)).tolist(), strict=True))
 
@@ -679,8 +681,10 @@ def test_a_torque_delay_is_estimated_applied_and_recorded(files, tmp_path):
     floor = error(command(*robot_args(files), f"data={aligned}", *quiet, out=tmp_path / "e")[0])
     assert error(given) < 1.1 * floor and error(ignored) > 5 * floor
     assert error(found) < 1.1 * floor + error(ignored) / 40
-    with pytest.raises(ValueError, match=r"setting 'recording\.delay' must be a float or 'auto', got 'soon'"):
-        command(*robot_args(files), f"data={late}", "recording.delay=soon", *quiet, out=tmp_path / "d")
+    with pytest.raises(
+        ValueError, match=r"setting 'recording\.torque_lag' must be a float or 'auto', got 'soon'"
+    ):
+        command(*robot_args(files), f"data={late}", "recording.torque_lag=soon", *quiet, out=tmp_path / "d")
 
 
 def test_a_current_recording_with_its_effort_scale_is_the_recording_in_newton_metres(files, tmp_path):

@@ -1,4 +1,5 @@
-"""Simulated robots and logs for rollout identification: the bench's cases, the tests', the docs'.
+"""Simulated robots and logs for rollout identification: the bench's cases, the tests', the docs' —
+fixtures, so they live beside the other test helpers of :mod:`idkit.testing`, not in the simulator.
 
 * ``a``: the 5-DOF arm of ``mujoco.sysid``'s integration test (torque motors), its five armatures,
   2 s of sinusoidal torques logged at 500 Hz;
@@ -142,7 +143,7 @@ class Case:
             draw = np.exp(rng.uniform(np.log(low), np.log(high), len(self.truth)))
             out.append(
                 {
-                    k: (0.0 if k == "delay" else v * f)
+                    k: (0.0 if k == "command_delay" else v * f)
                     for (k, v), f in zip(self.truth.items(), draw, strict=True)
                 }
             )
@@ -199,6 +200,22 @@ def corrupt(
     return q, qd
 
 
+def stalled(log: RobotLog, stretches: int = 3, seconds: float = 0.04, seed: int = 0) -> RobotLog:
+    """``log`` with ``stretches`` stalls of its driver: for ``seconds`` each, the states repeat the row
+    before (the commands go on), at evenly spread places jittered by ``seed``."""
+    rng = np.random.default_rng(seed)
+    rows = max(1, int(round(seconds / float(np.median(np.diff(log.t))))))
+    q, qd = log.q.copy(), log.qd.copy()
+    places = np.linspace(0, log.n_samples, stretches + 2)[1:-1].astype(int)
+    for place in places + rng.integers(-rows, rows + 1, size=stretches):
+        q[place + 1 : place + 1 + rows] = q[place]
+        qd[place + 1 : place + 1 + rows] = qd[place]
+    return RobotLog(
+        log.t, q, qd, log.command_t, log.commands, log.joint_names, log.command_names,
+        f"{log.source} with {stretches} stalls",
+    )  # fmt: skip
+
+
 def _references(t: np.ndarray, n: int, seed: int) -> np.ndarray:
     """``[N, 2n]`` smooth position references (three sines a joint, from 0) and their rates."""
     rng = np.random.default_rng(seed)
@@ -219,7 +236,7 @@ def _truth(
     from idkit.sim.quantities import select_unknowns
 
     unknowns = select_unknowns(
-        load_model(model_text), joints, params, start={"delay": delay} if delay else None
+        load_model(model_text), joints, params, start={"command_delay": delay} if delay else None
     )
     return dict(zip(unknowns.names, unknowns.vector("start").tolist(), strict=True))
 
@@ -259,10 +276,12 @@ def case_b(corrupted: bool = False, seed: int = 0) -> Case:
         logs.append(
             RobotLog(t, q, qd, t, references, joints, names, f"case {'c' if corrupted else 'b'} ({motion})")
         )
-    params = ("armature", "damping", "frictionloss", "kp", "kv", "delay")
+    params = ("armature", "damping", "frictionloss", "kp", "kv", "command_delay")
     truth = _truth(ARM7, params, joints, DELAY if corrupted else 0.0)
-    bounds: dict[str, list[float]] = {k: [0.1 * v, 10.0 * v] for k, v in truth.items() if k != "delay"}
-    bounds["delay"] = [0.0, 0.02]
+    bounds: dict[str, list[float]] = {
+        k: [0.1 * v, 10.0 * v] for k, v in truth.items() if k != "command_delay"
+    }
+    bounds["command_delay"] = [0.0, 0.02]
     start = Case("", "", (), truth, logs[0], logs[0], bounds).starts(1, seed=12345)[0]
     return Case("c" if corrupted else "b", ARM7, params, truth, logs[0], logs[1], bounds, start)
 
