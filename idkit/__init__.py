@@ -1,4 +1,11 @@
-"""idkit: identify robot dynamic parameters from measured joint states and torques.
+"""Identify a robot's dynamic parameters (masses, inertias, friction) from its logs.
+
+    m = idkit.identify({"_name_": "urdf", "urdf": "arm.urdf"}, "train.csv", validate=["test.csv"])
+    m.params["link2.m"], m.params.std["link2.m"]   # a value and its σ; m.predict(q, qd, qdd) torques
+    m.save("identified.urdf")      # shell: idkit robot=urdf robot.urdf=arm.urdf data=train.csv
+
+To try it without a robot, ``python -m idkit.data.demo`` writes a simulated arm's ``arm.urdf``,
+``train.csv`` and ``test.csv``; the documentation (``docs/library.md``) reads q, qd, qdd from a log.
 
 The public names below are imported lazily, so that ``import idkit`` (and ``idkit --help``) does not
 pay for torch until something needs one. The entries: :func:`identify` (a robot's recordings → an

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from idkit.estimate import Estimate
+from idkit.std_source import describe
 
 if TYPE_CHECKING:
     from torch import Tensor
@@ -267,9 +268,12 @@ class IdentifiedModel:
         return {str(k): float(v) for k, v in std.items() if v is not None}
 
     def _std_source(self) -> str:
+        """The estimator's own record of its σ method, in :mod:`idkit.std_source`'s words (the same
+        sentence ``result.json`` carries as ``std_source``)."""
+        uncertainty = self.estimate.details.get("uncertainty")
+        method = uncertainty.get("method") if isinstance(uncertainty, Mapping) else None
         return (
-            f"σ from estimator {self.estimate.estimator!r}'s uncertainty report (the least-squares "
-            "formula σ²(WᵀW)⁻¹ at the estimate: optimistic where residuals are correlated)"
+            f"{describe(method if isinstance(method, str) else None)} (estimator {self.estimate.estimator!r})"
         )
 
     def _no_std_note(self) -> str:

@@ -170,6 +170,19 @@ def test_sigma_is_the_estimates_for_base_parameters_and_for_physical_ones_standi
     assert model.params.table()[0] == ("m2", model.estimate.params["m2"], reported["m2"])
 
 
+def test_the_note_and_the_estimates_record_name_the_same_sigma_method():
+    """One record: the note says, word for word, what ``details["uncertainty"]["std_source"]`` (and so
+    ``result.json``) says, and that it is model-conditional (issue 31: the note called the σ plain
+    least squares while result.json said HAC)."""
+    model = idkit.run(estimator="ls", cost=None, scenario="torque_noise", seed=1).model
+    uncertainty = model.estimate.details["uncertainty"]
+    assert uncertainty["method"] == "hac"
+    assert model.base_params.note.startswith(uncertainty["std_source"])
+    assert model.params.note.startswith(uncertainty["std_source"])
+    assert "HAC" in model.params.note and "model-conditional" in model.params.note
+    assert "σ²(WᵀW)⁻¹" not in model.params.note
+
+
 def test_an_estimator_without_an_uncertainty_report_gives_no_sigma_and_says_so():
     model = idkit.run(estimator={"_name_": "pso", "runs": 2, "particles": 6, "iterations": 10}, seed=0).model
     assert all(s is None for s in model.params.std.values())

@@ -46,6 +46,7 @@ from idkit.estimators.linear.uncertainty import base_uncertainty
 from idkit.interfaces import Estimator
 from idkit.notes import Note
 from idkit.problem import IdentificationError, Problem
+from idkit.progress import report
 from idkit.robots.inertia import linked
 
 if TYPE_CHECKING:
@@ -157,6 +158,7 @@ def cross_validated_weight(
     per_fold: dict[float, list[float]] = {}
     squared: dict[float, np.ndarray] = {}
     failures: list[IdentificationError] = []
+    fits, of = 0, len(candidates) * folds  # said to a study that listens (idkit.progress)
     for weight in candidates:
         errors = []
         try:
@@ -166,6 +168,8 @@ def cross_validated_weight(
                 Rk, bk, rest_k = blocks[k]
                 residual = Rk @ (K @ params) - bk
                 errors.append(float(residual @ residual) + rest_k)
+                fits += 1
+                report("prior_weight=auto: cross-validation", fits, of)
         except IdentificationError as exc:  # a weight the solver cannot handle drops out
             failures.append(exc)
             scores[weight], per_fold[weight] = float("inf"), []

@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from idkit.reports import files, html
+from idkit.reports import files, paper_page
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.reports.tables import markdown_table
@@ -141,5 +141,5 @@ def write(result: PaperTables, out_dir: str | Path, plots: bool = True) -> dict[
         result.provenance,
         result.payload(),
         written,
-        lambda document: html.text_page(document, text(result), out),
+        lambda document: paper_page.render(result, document, out, text(result)),
     )

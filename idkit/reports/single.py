@@ -21,6 +21,7 @@ from idkit.reports import files, single_page
 from idkit.reports import payload as payload_report
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
+from idkit.reports.units import effort_units
 from idkit.studies.single import HeldOut, RunResult
 
 HISTORY_FILE = "history.csv"
@@ -138,6 +139,8 @@ def _uncertainty_lines(uncertainty: Mapping[str, Any] | None, base: Mapping[str,
         spread_shown = "" if spread is None else f"{spread:12.3g}"
         lines.append(f"{name:<24}{shown:>12}{spread_shown:>12}{_percent(pct):>12}")
     cond = uncertainty.get("cond", float("nan"))
+    if uncertainty.get("std_source"):  # the estimate's record of its std (idkit.std_source)
+        lines.append(f"std: {uncertainty['std_source']}")
     lines.append(f"regressor rank {uncertainty.get('rank')} · condition number {cond:.3g}")
     unidentifiable = uncertainty.get("unidentifiable") or []
     lines.append("unidentifiable: " + ("; ".join(unidentifiable) if unidentifiable else "none"))
@@ -171,6 +174,7 @@ def _validation_lines(result: RunResult) -> list[str]:
         else f"torques compared below {band:g} Hz"
     )
     names = joint_labels(result, n)
+    units = effort_units(result.joint_kinds, n)  # N·m for a revolute joint, N for a sliding one
     width = max(12, *(len(name) + 2 for name in names))
     lines = [
         "",
@@ -179,9 +183,11 @@ def _validation_lines(result: RunResult) -> list[str]:
     ]
     for held in result.validation:
         lines.append(f"{_short(held.file, 60)}: ‖E‖/‖T‖ {100 * held.scores.rel_all:.2f} %")
-        lines.append(f"  {'joint':<{width}}{'RMS error':>12}{'relative':>11}")
-        for name, rms, relative in zip(names, held.scores.rms, held.scores.relative, strict=True):
-            lines.append(f"  {name:<{width}}{rms:12.4g}{100 * relative:9.2f} %")
+        lines.append(f"  {'joint':<{width}}{'RMS error':>17}{'relative':>11}")
+        for name, unit, rms, relative in zip(
+            names, units, held.scores.rms, held.scores.relative, strict=True
+        ):
+            lines.append(f"  {name:<{width}}{rms:12.4g} {unit:<4}{100 * relative:9.2f} %")
     return lines
 
 
@@ -225,14 +231,15 @@ def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[st
     if plots:
         for k, held in enumerate(result.validation):
             path = out / f"validation_{k + 1}.png"
-            names = joint_labels(result, held.scores.measured.shape[1])
-            written[f"validation_plot_{k + 1}"] = str(_validation_plot(label, held, path, names))
+            n = held.scores.measured.shape[1]
+            names, units = joint_labels(result, n), effort_units(result.joint_kinds, n)
+            written[f"validation_plot_{k + 1}"] = str(_validation_plot(label, held, path, names, units))
     return write_result(
         out, result.provenance, result.payload(), written, lambda document: single_page.render(document, out)
     )
 
 
-def _validation_plot(label: str, held: HeldOut, path: Path, joint_names: list[str]) -> Path:
+def _validation_plot(label: str, held: HeldOut, path: Path, joint_names: list[str], units: list[str]) -> Path:
     """Measured vs predicted torques on the start of a held-out file, with the residual under each
     joint (x: time, else sample index)."""
     scores = held.scores
@@ -244,5 +251,5 @@ def _validation_plot(label: str, held: HeldOut, path: Path, joint_names: list[st
         keep = times < PLOT_SAMPLES
     title = f"{label}: held-out {held.file} (‖E‖/‖T‖ {100 * scores.rel_all:.2f} %)"
     return figures.traces(
-        times[keep], scores.measured[keep], {label: scores.predicted[keep]}, title, path, joint_names
+        times[keep], scores.measured[keep], {label: scores.predicted[keep]}, title, path, joint_names, units
     )

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from idkit.reports import html as h
+from idkit.reports.units import effort_units
 
 #: Per-joint relative RMS error on held-out data: at most the first share is ``good`` (a rigid-body
 #: model with friction on a real arm: the KUKA's best fits reach 2.4–4.9 %), above the second
@@ -46,13 +47,10 @@ def joint_names(payload: Mapping[str, Any], n: int) -> list[str]:
     return names if len(names) == n else [f"j{j + 1}" for j in range(n)]
 
 
-def torque_unit(document: Mapping[str, Any]) -> str:
-    """The unit the torques were fitted in: what the run recorded, else N·m."""
-    for place in (document.get("payload") or {}, document.get("data") or {}):
-        for key in ("torque_unit", "fitted_unit", "unit"):
-            if isinstance(place.get(key), str):
-                return str(place[key])
-    return "N·m"
+def joint_units(document: Mapping[str, Any], n: int) -> list[str]:
+    """Per joint, the unit its efforts were fitted in: N·m on a revolute joint, N on a prismatic one
+    (``payload.joint_kinds``; both where the run did not record the kinds)."""
+    return effort_units((document.get("payload") or {}).get("joint_kinds"), n)
 
 
 def _held_out(document: Mapping[str, Any]) -> str:
@@ -60,7 +58,6 @@ def _held_out(document: Mapping[str, Any]) -> str:
     validation = payload.get("validation") or {}
     if not validation:
         return h.paragraph("No held-out file (validate=): the model was not scored on data it did not see.")
-    unit = torque_unit(document)
     good, poor = HELD_OUT_BANDS
     parts = [
         h.paragraph(
@@ -73,12 +70,13 @@ def _held_out(document: Mapping[str, Any]) -> str:
         names = joint_names(payload, len(scores["rms"]))
         overall = scores["rel_all"]
         parts.append(f"<h3>{h.escape(file)} {h.badge(grade(overall), f'‖E‖/‖T‖ {100 * overall:.3g} %')}</h3>")
+        units = joint_units(document, len(names))
         rows = [
-            [name, h.num(rms), h.num(rel, grade(rel), shown=h.percent(rel))]
-            for name, rms, rel in zip(names, scores["rms"], scores["relative"], strict=True)
+            [name, h.num(rms, shown=f"{h.number(rms)} {unit}"), h.num(rel, grade(rel), shown=h.percent(rel))]
+            for name, unit, rms, rel in zip(names, units, scores["rms"], scores["relative"], strict=True)
         ]
         rows.append(["all joints (‖E‖/‖T‖)", "", h.num(overall, grade(overall), shown=h.percent(overall))])
-        parts.append(h.table(["joint", f"RMS error ({unit})", "relative"], rows, "held-out"))
+        parts.append(h.table(["joint", "RMS error", "relative"], rows, "held-out"))
         parts.append(h.paragraph(scores.get("metric", ""), "rule"))
     return "".join(parts)
 

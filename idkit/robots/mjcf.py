@@ -347,7 +347,8 @@ class MJCFRobot(URDFRobot):
         mjcf: an MJCF file path, MJCF text, or the name of an MJCF shipped in ``idkit/robots/assets``
             (default ``arm``: two hinges and a slide). Read with ``mujoco``: ``pip install
             robot-idkit[mjcf]``.
-        friction, offset, stribeck_velocity, effort_scale, sigmoid_steepness, sigmoid_shift: as for
+        friction, offset, stribeck_velocity, effort_scale, sigmoid_steepness, sigmoid_shift,
+        coulomb_velocity: as for
             :class:`~idkit.robots.urdf.URDFRobot` (``fc`` is MuJoCo's ``frictionloss``, ``fv`` its
             ``damping``).
         armature: as for :class:`~idkit.robots.urdf.URDFRobot`; the a-priori value is the joint's
@@ -385,6 +386,7 @@ class MJCFRobot(URDFRobot):
         sigmoid_shift: float | Sequence[float] = 0.0,
         steepness_range: tuple[float, float] = (1.0, 100.0),
         max_shift: float = 0.2,
+        coulomb_velocity: float | Sequence[float] | str | None = None,
     ) -> None:
         self.mjcf = mjcf
         self.mujoco_model = read_mjcf(mjcf)
@@ -415,6 +417,7 @@ class MJCFRobot(URDFRobot):
             sigmoid_shift=sigmoid_shift,
             steepness_range=steepness_range,
             max_shift=max_shift,
+            coulomb_velocity=coulomb_velocity,
         )
 
     def _read_tree(self) -> KinematicTree:

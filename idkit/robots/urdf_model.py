@@ -117,6 +117,11 @@ class KinematicTree:
         return tuple(b.joint for b in self.bodies)
 
     @property
+    def joint_kinds(self) -> tuple[str, ...]:
+        """``"revolute"`` or ``"prismatic"`` per joint: whether its effort is a torque or a force."""
+        return tuple(b.kind for b in self.bodies)
+
+    @property
     def link_names(self) -> tuple[str, ...]:
         return tuple(b.link for b in self.bodies)
 

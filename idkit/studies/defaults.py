@@ -14,6 +14,9 @@ set takes the value a robot owner needs (:data:`REAL_ROBOT`):
   ``total_mass`` or ``mass_ratio`` is enforced);
 * ``robot.friction=true``, ``robot.offset=true``: Coulomb and viscous friction and a torque offset
   per joint — every drive has them, and without them the rigid-body parameters absorb them;
+* ``robot.coulomb_velocity=auto``: the Coulomb term ``sign(q̇)`` or ``tanh(q̇ / v_c)``, whichever
+  cross-validation on the training data prefers (:mod:`idkit.studies.coulomb`; its own note says
+  the choice): a joint at rest is not predicted at ``±fc`` by the sign of its velocity noise;
 * no ``cost``: pcls minimises its own criterion, and the paper's relative cost would only add a
   figure and a warning about floored near-zero torques.
 
@@ -36,6 +39,7 @@ REAL_ROBOT: dict[str, Any] = {
     "cost": None,
     "robot.friction": True,
     "robot.offset": True,
+    "robot.coulomb_velocity": "auto",
 }
 
 
@@ -70,6 +74,8 @@ def chosen(given: Collection[str], searches_cost: bool = False) -> dict[str, Any
             continue
         if option == "cost" and "estimator" in given and searches_cost:
             continue
+        if option == "robot.coulomb_velocity" and "robot.friction" in given:  # part of the friction default
+            continue
         out[option] = value
     return out
 
@@ -93,7 +99,11 @@ def describe(options: Mapping[str, Any]) -> str:
     shown = " ".join(f"{key}={'null' if v is None else str(v).lower()}" for key, v in options.items())
     terms = " and ".join(
         name
-        for key, name in (("robot.friction", "friction"), ("robot.offset", "torque offsets"))
+        for key, name in (
+            ("robot.friction", "friction"),
+            ("robot.offset", "torque offsets"),
+            ("robot.coulomb_velocity", "a Coulomb term smoothed at rest where cross-validation prefers it"),
+        )
         if key in options
     )
     if "estimator" in options:

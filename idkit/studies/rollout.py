@@ -17,6 +17,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -243,7 +244,7 @@ def run(
     from idkit.sim.quantities import select_unknowns
     from idkit.sim.validation import held_out as score_held_out
 
-    torque_run = read_torque_run(model) if is_run_folder(model) else None
+    torque_run = read_torque_run(model, partial(build, "robot")) if is_run_folder(model) else None
     sim = load_model(model) if torque_run is None else torque_run.model()
     reader = None if torque_run is None else torque_run.reader(sim)
     log = read_robot_logs(data, None, state_topic, command_topic, reader)

@@ -90,6 +90,9 @@ def test_the_single_page_has_its_sections_and_the_numbers_of_result_json(validat
     held = page.rows("held-out")
     for j, name in enumerate(["theta1", "d2", "d3"]):
         assert value(held[name][0]) == scores["rms"][j] and value(held[name][1]) == scores["relative"][j]
+    # a revolute joint's error is a torque, a prismatic (sliding) joint's a force
+    assert document["payload"]["joint_kinds"] == ["revolute", "prismatic", "prismatic"]
+    assert [held[name][0][0].split()[-1] for name in ("theta1", "d2", "d3")] == ["N·m", "N", "N"]
     assert value(held["all joints (‖E‖/‖T‖)"][1]) == scores["rel_all"]
     params, nominal = document["payload"]["estimate"]["params"], document["payload"]["nominal"]
     shown = page.rows("parameters")
