@@ -6,6 +6,8 @@ Read from the two runs' ``result.json`` documents only:
 * **parameters** side by side: base parameters with their σ and the difference in σ units,
   ``z = (b − a) / √(σa² + σb²)`` (``|z| > 3``: a change the runs' own uncertainties do not explain),
   then the standard parameters (no σ of their own);
+* **plausibility**: each link's verdict in each run, as the runs recorded it (one rule:
+  :func:`idkit.conic.plausible.plausibility_report`; never judged again here);
 * an excitation's criterion and margins, for two excitation runs;
 * for two rollout runs, each held-out log's verdict per joint and the unknowns in σ units;
 * **config differences**: every setting whose value differs (or that one run lacks).
@@ -144,6 +146,33 @@ def _parameters(a: Mapping[str, Any], b: Mapping[str, Any]) -> str:
     return "".join(parts) or h.paragraph("No parameters in common.")
 
 
+def _plausibility(a: Mapping[str, Any], b: Mapping[str, Any]) -> str:
+    """Each link's recorded verdict in A and B, with its mass over CAD's and the reasons."""
+    ra, rb = (
+        ((d["payload"]["estimate"].get("details") or {}).get("plausibility") or {}).get("links") or {}
+        for d in (a, b)
+    )
+    if not ra and not rb:
+        return h.paragraph("Neither run recorded a plausibility verdict.")
+
+    def cell(row: Mapping[str, Any] | None) -> list[Any]:
+        if row is None:
+            return ["—", "", ""]
+        badge = h.badge("good" if row["plausible"] else "poor", "yes" if row["plausible"] else "no")
+        return [h.raw(badge), h.num(row["ratio"], digits=3), "; ".join(row["reasons"])]
+
+    links = list(ra) + [link for link in rb if link not in ra]
+    rows = [[link, *cell(ra.get(link)), *cell(rb.get(link))] for link in links]
+    header = ["link", "A plausible", "A mass / CAD", "A why not", "B plausible", "B mass / CAD", "B why not"]
+    enforced = [
+        ((d["payload"]["estimate"].get("details") or {}).get("plausibility") or {}).get("enforced", "—")
+        for d in (a, b)
+    ]
+    return h.paragraph(f"Enforced: A {enforced[0]}; B {enforced[1]}.", "rule") + h.table(
+        header, rows, "plausibility"
+    )
+
+
 def _excitation(a: Mapping[str, Any], b: Mapping[str, Any]) -> str:
     pa, pb = a["payload"], b["payload"]
     rows = [
@@ -266,6 +295,7 @@ def render(a: Mapping[str, Any], b: Mapping[str, Any], names: tuple[str, str]) -
     if tasks == {"single"}:
         sections += [
             h.section("held-out", "Held-out prediction", _held_out(a, b)),
+            h.section("plausibility", "Plausibility", _plausibility(a, b)),
             h.section("parameters", "Parameters", _parameters(a, b)),
         ]
     elif tasks == {"excitation"}:

@@ -76,51 +76,48 @@ def _torque_lines(data: Mapping[str, Any] | None) -> list[str]:
 
 
 def _plausibility_lines(result: RunResult) -> list[str]:
-    """Each link's mass and centre of mass beside CAD when a link is implausible or a bound was
-    enforced, and what keeping every link plausible costs on the held-out files (when computed)."""
+    """Each link's verdict as the run recorded it (:func:`idkit.conic.plausible.plausibility_report`: mass
+    and centre of mass beside CAD, the reasons), what bounds each body, how ``plausible=auto`` chose,
+    and the other choice's held-out figures (when computed). Read, never judged again here."""
     found = result.estimate.details.get("plausibility")
-    if not found or not (found.get("implausible") or found.get("enforced", "none") != "none"):
+    if not found or "links" not in found:
         return []
-    lo, hi = found.get("flagged_outside", (0.5, 2.0))
-    moved = set(found.get("com_outside_geometry", ()))
+    choice = result.estimate.details.get("plausible_choice")
+    if not (found["implausible"] or found.get("enforced", "none") != "none" or choice):
+        return []
     lines = [
         "",
-        f"plausibility: '!' a mass outside [{lo:g}, {hi:g}] x CAD or a centre of mass moved out of the "
-        f"link's geometry; enforced: {found['enforced']}",
+        f"{found['rule']}; enforced: {found['enforced']}",
         f"{'link':<24}{'mass (kg)':>11}{'CAD':>9}{'ratio':>8}   {'centre of mass (m)':<26}{'CAD':<24}",
     ]
-    for link, mass in found["mass"].items():
-        cad = found["cad_mass"][link]
-        flag = " !" if link in found.get("implausible", ()) else ""
-        notes = [
-            n
-            for n, on in (
-                ("at its bound", link in found.get("at_bound", ())),
-                ("outside its geometry", link in moved),
-            )
-            if on
-        ]
-        com = "(" + ", ".join(f"{x:.3f}" for x in found["com"][link]) + ")"
-        cad_com = "(" + ", ".join(f"{x:.3f}" for x in found["cad_com"][link]) + ")"
+    for link, verdict in found["links"].items():
+        com = "(" + ", ".join(f"{x:.3f}" for x in verdict["com"]) + ")"
+        cad_com = "(" + ", ".join(f"{x:.3f}" for x in verdict["cad_com"]) + ")"
+        notes = [*verdict["reasons"], *(["at its mass bound"] if verdict["at_bound"] else [])]
         lines.append(
-            f"{link:<24}{mass:11.4g}{cad:9.4g}{mass / cad:7.3g}x   {com:<26}{cad_com:<24}{flag}"
+            f"{link:<24}{verdict['mass']:11.4g}{verdict['cad_mass']:9.4g}{verdict['ratio']:7.3g}x   "
+            f"{com:<26}{cad_com:<24}{'' if verdict['plausible'] else ' !'}"
             + (f" ({'; '.join(notes)})" if notes else "")
         )
-    if found.get("geometry"):
-        lines.append(found["geometry"])
+    lines.append("bounded by: " + "; ".join(f"{link}: {what}" for link, what in found["bounded_by"].items()))
+    if choice:
+        lines.append(f"plausible=auto: {choice['reason']}")
     other = result.plausible
     if other is not None:
         now = " / ".join(f"{100 * h.scores.rel_all:.2f} %" for h in result.validation)
         then = " / ".join(f"{100 * s.rel_all:.2f} %" for s in other.scores)
+        kept = other.estimate.details.get("plausibility", {}).get("implausible")
+        verdict = f"implausible: {', '.join(kept)}" if kept else "every link plausible"
+        enforced = other.estimate.details.get("plausibility", {}).get("enforced", "?")
+        differs = f"; {other.differs}" if other.differs else ""
         lines.append(
-            f"implausible: {', '.join(other.implausible)}; with estimator.plausible=true (masses within "
-            f"[{lo:g}, {hi:g}] x CAD, inside each link's geometry) the held-out ‖E‖/‖T‖ is {then} "
-            f"(this fit: {now})"
+            f"with {other.option} (enforced: {enforced}; {verdict}{differs}) the held-out ‖E‖/‖T‖ is "
+            f"{then} (this fit: {now})"
         )
-    elif found.get("implausible"):
+    elif found["implausible"]:
         lines.append(
             f"implausible: {', '.join(found['implausible'])}; estimator.plausible=true keeps every link mass "
-            f"within [{lo:g}, {hi:g}] x CAD and inside its geometry (give validate= files to see the cost)"
+            "within its band and inside its geometry (give validate= files to see the cost)"
         )
     return lines
 

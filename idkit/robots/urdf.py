@@ -53,6 +53,7 @@ from idkit.robots.drives import (
     per_joint,
     read_armatures,
 )
+from idkit.robots.meshes import checked_package_dirs
 from idkit.robots.rnea import TreeTensors, rnea, rnea_regressor
 from idkit.robots.urdf_model import INERTIAL_NAMES, KinematicTree, parse_urdf
 from idkit.seeds import Seed, torch_generator
@@ -90,7 +91,8 @@ class URDFRobot(Robot):
             sigmoid model (one value or one per joint): the a-priori shape linear estimators use.
         steepness_range, max_shift: search box of ``phi2`` and ``phi3`` (``±max_shift``).
         package_dirs: folders holding the ROS packages the URDF's ``package://`` mesh paths name
-            (the geometry that plausibility bounds read: :mod:`idkit.robots.geometry`).
+            (the geometry that plausibility bounds read: :mod:`idkit.robots.geometry`); each must be an
+            existing folder.
 
     Search boxes (``bounds``), from the URDF's a-priori values ``m0, h0 = m0 c0, I0`` of a body
     (``L = max(|c0|, 0.1 m)``, ``m_hi`` the upper mass bound): mass ``[m0/2, 2 m0]`` (``[0, 1 kg]``
@@ -148,6 +150,7 @@ class URDFRobot(Robot):
         self.sigmoid_shift = sigmoid_shift
         self.steepness_range = steepness_range
         self.max_shift = max_shift
+        checked_package_dirs(package_dirs, self.source_format)  # a typo would drop every mesh silently
         self.package_dirs = package_dirs
         self.coulomb_velocity = coulomb_velocity
         self.tree: KinematicTree = self._read_tree()

@@ -8,7 +8,10 @@ set takes the value a robot owner needs (:data:`REAL_ROBOT`):
 
 * ``estimator=pcls``: every link a body that can exist, pulled towards the model's inertials by a
   weight chosen from the data (the most accurate held-out fit idkit has on real arms, and one a
-  simulator can load);
+  simulator can load), and kept plausible — masses within [0.5, 2] × CAD, inside the link's real
+  geometry — unless the same cross-validation says that costs accuracy beyond the noise (pcls's
+  ``plausible=auto``, which says its decision with the figure both ways in its own note; a given
+  ``total_mass`` or ``mass_ratio`` is enforced);
 * ``robot.friction=true``, ``robot.offset=true``: Coulomb and viscous friction and a torque offset
   per joint — every drive has them, and without them the rigid-body parameters absorb them;
 * ``robot.coulomb_velocity=auto``: the Coulomb term ``sign(q̇)`` or ``tanh(q̇ / v_c)``, whichever
@@ -104,7 +107,11 @@ def describe(options: Mapping[str, Any]) -> str:
         if key in options
     )
     if "estimator" in options:
-        what = "a physically consistent fit" + (f" with {terms}" if terms else "")
+        what = (
+            "a physically consistent fit"
+            + (f" with {terms}" if terms else "")
+            + ", its links kept plausible unless cross-validation says it costs accuracy"
+        )
     elif terms:
         what = f"{terms} in the model"
     else:

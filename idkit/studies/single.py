@@ -52,7 +52,7 @@ from idkit.studies.coulomb import CoulombVelocityNote, choose_coulomb_velocity, 
 from idkit.studies.held import say_held
 from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
-from idkit.studies.plausibility import PlausibleAlternative, plausible_alternative
+from idkit.studies.plausibility import PlausibleAlternative, judged, plausible_alternative
 from idkit.studies.result import Provenance
 from idkit.studies.validation import Validation, validate_files
 
@@ -81,8 +81,8 @@ class RunResult:
             off, or not writable, e.g. a link mass <= 0).
         mjcf: the ``identified.xml`` (MJCF) text of an ``mjcf`` robot's fit, or of a ``urdf`` robot's
             with ``identified_mjcf=True`` (``None``: not asked, or not writable: non-physical inertia).
-        plausible: the same estimator with ``plausible=true``, scored on the same files, when the
-            fit left links implausible (:mod:`idkit.studies.plausibility`).
+        plausible: the fit the other ``plausible`` option gives, scored on the same files
+            (:mod:`idkit.studies.plausibility`).
         robot: the robot object the estimator fitted (``model`` puts the estimate back on it).
         cost_ignored: ``cost`` was given to an estimator with its own criterion (a
             :class:`CostIgnoredNote` said so): a sweep over costs repeats the same fit.
@@ -381,7 +381,7 @@ def run(
     if cost_ignored:
         say_cost_ignored(label)
     refuse_meaningless(fitted, robot_obj.param_names, label)
-    fitted = say_held(robot_obj, fitted, label)
+    fitted = judged(robot_obj, say_held(robot_obj, fitted, label))  # one plausibility verdict, any estimator
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
     provenance = Provenance(
         task="single",

@@ -66,8 +66,8 @@ def test_the_composed_config_is_changed_in_place_with_one_note():
     assert [str(w.message) for w in said] == [
         "measured data on a model robot: estimator=pcls cost=null robot.friction=true "
         "robot.coulomb_velocity=auto (a physically consistent fit with friction and a Coulomb term smoothed "
-        "at rest where cross-validation prefers it); set any of them to change it, e.g. estimator=ls "
-        "robot.friction=false"
+        "at rest where cross-validation prefers it, its links kept plausible unless cross-validation says "
+        "it costs accuracy); set any of them to change it, e.g. estimator=ls robot.friction=false"
     ]
 
 
@@ -79,6 +79,9 @@ def test_the_note_describes_only_what_was_applied():
         "cross-validation prefers it in the model); "
     )
     assert "(a physically consistent fit with friction and torque offsets and a Coulomb" in describe(
+        chosen(set())
+    )
+    assert "its links kept plausible unless cross-validation says it costs accuracy)" in describe(
         chosen(set())
     )
     assert "(no cost: the estimator minimises its own criterion)" in describe(
