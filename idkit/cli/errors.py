@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import re
 import sys
-from pathlib import Path
+from importlib.resources import files
+from importlib.resources.abc import Traversable
 from typing import NoReturn
 
 from hydra.errors import (
@@ -122,10 +123,6 @@ def out_of_memory_message(exc: BaseException) -> str | None:
     return f"out of memory: {single_line(said)}; smaller sizes need less ({SIZES})"
 
 
-#: Where the config files are whose comments describe a required setting.
-CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
-
-
 def required_message(keys: list[str]) -> str | None:
     """``rollout.model is required: the MJCF (.xml) or URDF (.urdf) file; give rollout.model=…`` for
     the first of ``keys`` (dotted settings still ``???``), or ``None`` for none.
@@ -137,9 +134,24 @@ def required_message(keys: list[str]) -> str | None:
     key = keys[0]
     leaf = re.escape(key.rpartition(".")[2])
     pattern = re.compile(rf"^\s*{leaf}:\s*\?\?\?\s*#\s*(.+?)\s*$", re.MULTILINE)
-    described = next(
-        (m[1] for f in sorted(CONF_DIR.rglob("*.yaml")) if (m := pattern.search(f.read_text()))), None
-    )
+    described = next((m[1] for text in _config_texts() if (m := pattern.search(text))), None)
     more = f" (and {', '.join(keys[1:])})" if len(keys) > 1 else ""
     what = f": {described}" if described else " (it has no default)"
     return f"{key} is required{what}; give {key}=…{more}"
+
+
+def _config_texts() -> list[str]:
+    """The text of every config file idkit ships (``idkit.conf``, wherever the install put it: a
+    checkout's editable install maps it to the top-level ``conf/``), in a fixed order."""
+
+    found: list[str] = []
+
+    def walk(folder: Traversable) -> None:
+        for entry in sorted(folder.iterdir(), key=lambda e: e.name):
+            if entry.is_dir():
+                walk(entry)
+            elif entry.name.endswith(".yaml"):
+                found.append(entry.read_text(encoding="utf-8"))
+
+    walk(files("idkit.conf"))
+    return found
