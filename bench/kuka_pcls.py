@@ -81,7 +81,7 @@ def main() -> None:
                 seconds = time.perf_counter() - started
                 print(row(f"{name} projected ({metric}){suffix}", robot, projected.params, seconds, data))
         for weight in PRIORS:
-            estimate = PhysicallyConsistentLS(prior_weight=weight).fit(problem)
+            estimate = PhysicallyConsistentLS(prior_weight=weight, plausible=False).fit(problem)
             label = f"pcls, prior_weight {weight:g}{suffix}"
             print(row(label, robot, vector(robot, estimate.params), estimate.wall_time_s, data), flush=True)
 

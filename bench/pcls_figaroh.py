@@ -252,14 +252,14 @@ def main() -> None:
     tau_rows = samples.tau.reshape(-1).numpy()
 
     auto: dict = {}
-    fits = [timed("idkit pcls, prior_weight=auto", pcls_fit(problem, auto), args.repeats)]
+    fits = [timed("idkit pcls, prior_weight=auto", pcls_fit(problem, auto, plausible=False), args.repeats)]
     weight, scale2 = auto["prior_weight"], auto["data_scale"]["used"] ** 2
     matched = figaroh_weight(weight, scale2)
     plausible_auto: dict = {}
     fits += [
         timed(
             f"idkit pcls, prior_weight={FIXED_WEIGHT:g}",
-            pcls_fit(problem, prior_weight=FIXED_WEIGHT),
+            pcls_fit(problem, prior_weight=FIXED_WEIGHT, plausible=False),
             args.repeats,
         ),
         timed(
@@ -311,7 +311,7 @@ def main() -> None:
             for w in SWEEP:
                 cells = [f"{w:g} / {figaroh_weight(w, scale2):.3g}"]
                 for fit in (
-                    pcls_fit(problem, prior_weight=w),
+                    pcls_fit(problem, prior_weight=w, plausible=False),
                     figaroh_fit(robot, Y_rows, tau_rows, figaroh_weight(w, scale2), None),
                 ):
                     params = fit()[0]

@@ -1,8 +1,16 @@
-"""idkit: identify robot dynamic parameters from measured joint states and torques.
+"""Identify a robot's dynamic parameters (masses, inertias, friction) from its logs.
+
+    m = idkit.identify({"_name_": "urdf", "urdf": "arm.urdf"}, "train.csv", validate=["test.csv"])
+    m.params["link2.m"], m.params.std["link2.m"]   # a value and its σ; m.predict(q, qd, qdd) torques
+    m.save("identified.urdf")      # shell: idkit robot=urdf robot.urdf=arm.urdf data=train.csv
+
+To try it without a robot, ``python -m idkit.data.demo`` writes a simulated arm's ``arm.urdf``,
+``train.csv`` and ``test.csv``; the documentation (``docs/library.md``) reads q, qd, qdd from a log.
 
 The public names below are imported lazily, so that ``import idkit`` (and ``idkit --help``) does not
 pay for torch until something needs one. The entries: :func:`identify` (a robot's recordings → an
-:class:`IdentifiedModel`) and :func:`run` (one fit of any kind → its result); the plugin interfaces
+:class:`IdentifiedModel`), :func:`identify_simulator` (a MuJoCo model and a robot's logs → a
+:class:`SimulatorModel`) and :func:`run` (one fit of any kind → its result); the plugin interfaces
 ``Robot``, ``Cost``, ``Estimator``; ``Problem``, ``Samples`` and ``Estimate``; the plugin ``registry``.
 """
 
@@ -13,17 +21,19 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # what the lazy names are, for type checkers, help() and the API docs
     from idkit import registry
-    from idkit.api import identify, run
+    from idkit.api import identify, identify_simulator, run
     from idkit.estimate import Estimate
     from idkit.interfaces import Cost, Estimator, Robot
     from idkit.model import IdentifiedModel, Parameters
     from idkit.problem import Problem, Samples
+    from idkit.sim.simulator_model import SimulatorModel
 
 #: The distribution that installs the package (``idkit`` on PyPI is an unrelated project).
 DISTRIBUTION = "robot-idkit"
 
 _LAZY = {
     "identify": "idkit.api",
+    "identify_simulator": "idkit.api",
     "run": "idkit.api",
     "IdentifiedModel": "idkit.model",
     "Parameters": "idkit.model",
@@ -33,6 +43,7 @@ _LAZY = {
     "Problem": "idkit.problem",
     "Samples": "idkit.problem",
     "Estimate": "idkit.estimate",
+    "SimulatorModel": "idkit.sim.simulator_model",
     "registry": "idkit.registry",
 }
 
@@ -46,7 +57,9 @@ __all__ = [
     "Problem",
     "Robot",
     "Samples",
+    "SimulatorModel",
     "identify",
+    "identify_simulator",
     "registry",
     "run",
 ]

@@ -1,5 +1,7 @@
-"""The library's one-line entries: ``idkit.identify`` (a robot's logs → a model) and ``idkit.run``
-(one fit of any kind → its result), each writing its report when ``out_dir`` is given.
+"""The library's one-line entries: ``idkit.identify`` (a robot's logs → a model),
+``idkit.identify_simulator`` (a MuJoCo model and logs of commands and states → a simulator that moves
+like the robot) and ``idkit.run`` (one fit of any kind → its result), each writing its report when
+``out_dir`` is given.
 
 The study (:mod:`idkit.studies.single`) computes and never imports a report; this layer, above
 both, gives the result ``idkit.run`` returns the report's two shortcuts (:class:`Run`: ``table()``,
@@ -18,6 +20,7 @@ from idkit.studies.single import RunResult
 
 if TYPE_CHECKING:
     from idkit.model import IdentifiedModel
+    from idkit.sim.simulator_model import SimulatorModel
 
 
 def identify(
@@ -54,9 +57,68 @@ def identify(
         plots: with ``out_dir``, also the PNG plots.
         options: the rest of :func:`idkit.studies.single.run`'s keywords (``estimator``, ``cost``,
             ``seed``, ``preprocess``, ``recording``, ``device``, ``dtype`` ...).
+
+    Raises:
+        ValueError: no robot, or no data (a fit of a simulation is :func:`idkit.run`'s, not this).
+        TypeError: ``data`` or ``validate`` is not recordings (``3.5``).
     """
+    from idkit.data.files import RECORDINGS, as_paths
+
+    if robot is None:
+        raise ValueError(
+            'identify: robot is None; give a registry name ("urdf"), a config mapping '
+            '({"_name_": "urdf", "urdf": "arm.urdf"}) or a robot object'
+        )
+    if data is None:
+        raise ValueError(
+            f"identify: no data (data=None); give the recordings to identify from: {RECORDINGS} "
+            "(idkit.run(robot, scenario=...) fits a simulation instead)"
+        )
+    as_paths(data, "data")  # what is not recordings is refused before the robot is built
+    as_paths(validate, "validate")
     robot, options = _real_robot_defaults(robot, data, options)
     result = run(robot, data=data, validate=validate, out_dir=out_dir, plots=plots, **options)
+    return result.model
+
+
+def identify_simulator(
+    model: str | Path,
+    data: Any,
+    validate: Any = None,
+    out_dir: str | Path | None = None,
+    *,
+    plots: bool = False,
+    **options: Any,
+) -> SimulatorModel:
+    """Fit a MuJoCo model's simulator quantities to a robot's logs; the library's form of
+    ``idkit +experiment=rollout rollout.model=... data=... validate=...`` (docs/rollout.md).
+
+    It runs the same study (:func:`idkit.studies.rollout.run`, ``options`` its keywords: ``params``,
+    ``bounds``, ``start``, ``segment``, ``estimator``, ``seed`` …) and returns the model::
+
+        import idkit
+        sim = idkit.identify_simulator("servo_arm.xml", "train.csv", validate=["held_out.csv"])
+        sim.values["j1.damping"], sim.std["j1.damping"], sim.interval95["j1.damping"]
+        run = sim.simulate("held_out.csv", horizon=0.5)   # MuJoCo, from the logged states
+        sim.save("identified.xml"); sim.to_mujoco()       # the fitted model, for MuJoCo
+
+    Args:
+        model: the MJCF (``.xml``) or URDF file, or its text.
+        data: the fit log(s): CSV, ``.npz``, ROS log (:mod:`idkit.data.commands`).
+        validate: held-out logs (``model.held_out``).
+        out_dir: also write the command's report here (``result.json``, ``report.html``,
+            ``identified.xml`` …).
+        plots: with ``out_dir``, also the PNG plots (and so the trajectories in ``report.html``).
+    """
+    from idkit.reports import files
+    from idkit.reports import rollout as report
+    from idkit.studies import rollout
+
+    if out_dir is not None:  # a folder it cannot write into fails now, not after the fit
+        files.writable_folder(out_dir, "out_dir")
+    result = rollout.run(str(model), data, validate=validate, **options)
+    if out_dir is not None:
+        report.write(result, out_dir, plots=plots)
     return result.model
 
 

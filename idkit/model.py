@@ -20,7 +20,6 @@ from __future__ import annotations
 import functools
 import math
 import os
-import tempfile
 import types
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
@@ -29,6 +28,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from idkit.estimate import Estimate
+from idkit.std_source import describe
 
 if TYPE_CHECKING:
     from torch import Tensor
@@ -160,14 +160,16 @@ class IdentifiedModel:
         """Joint torques the model predicts at the states ``q, qd, qdd``, each ``[..., n]``.
 
         Numpy (or array-like) in → a float64 numpy array out; torch in → a tensor on the input's
-        device and (floating) dtype, differentiable. Any leading dimensions: ``[n]`` → ``[n]``,
+        device and (floating) dtype, differentiable (mixed dtypes meet in the wider one, as in torch's
+        own arithmetic: float32 with float64 → float64). Any leading dimensions: ``[n]`` → ``[n]``,
         ``[N, n]`` → ``[N, n]``, ``[2, N, n]`` → ``[2, N, n]``. Columns are ``joint_names``.
         The torques are joint torques (with the robot's friction, offsets, rotor inertia): a robot
         whose recordings hold another effort converts those with ``robot.joint_torques``.
 
         Raises:
             TypeError: numpy and torch mixed, or a non-numeric input.
-            ValueError: the three shapes differ or the last dimension is not ``n``.
+            ValueError: the three shapes differ, the last dimension is not ``n``, or the tensors are
+                on different devices.
         """
         import torch
 
@@ -267,9 +269,12 @@ class IdentifiedModel:
         return {str(k): float(v) for k, v in std.items() if v is not None}
 
     def _std_source(self) -> str:
+        """The estimator's own record of its σ method, in :mod:`idkit.std_source`'s words (the same
+        sentence ``result.json`` carries as ``std_source``)."""
+        uncertainty = self.estimate.details.get("uncertainty")
+        method = uncertainty.get("method") if isinstance(uncertainty, Mapping) else None
         return (
-            f"σ from estimator {self.estimate.estimator!r}'s uncertainty report (the least-squares "
-            "formula σ²(WᵀW)⁻¹ at the estimate: optimistic where residuals are correlated)"
+            f"{describe(method if isinstance(method, str) else None)} (estimator {self.estimate.estimator!r})"
         )
 
     def _no_std_note(self) -> str:
@@ -307,8 +312,9 @@ class IdentifiedModel:
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write ``identified.urdf`` (suffix ``.urdf``) or MJCF (``.xml``/``.mjcf``) to ``path``.
 
-        The text is made in full before the file is opened, and the file replaced in one step, so a
-        refused model never leaves a half-written (or emptied) file behind.
+        The text is made in full before the file is opened, and the file replaced in one step
+        (:func:`idkit.reports.files.write_text`: a file replaced keeps its mode), so a refused model
+        never leaves a half-written (or emptied) file behind.
 
         Raises:
             ValueError: another suffix, or the writer refuses the model (see ``to_urdf``/``to_mjcf``).
@@ -321,16 +327,9 @@ class IdentifiedModel:
                 f"save: {str(path)!r} has suffix {path.suffix or '(none)'!r}; use .urdf (URDF) or .xml (MJCF)"
             )
         text = writers[suffix]()
-        folder = path.parent if str(path.parent) else Path(".")
-        handle, temporary = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(handle, "w", encoding="utf-8") as stream:
-                stream.write(text)
-            os.replace(temporary, path)
-        except BaseException:
-            Path(temporary).unlink(missing_ok=True)
-            raise
-        return path
+        from idkit.reports.files import write_text
+
+        return write_text(path, text)
 
     def to_pinocchio(self) -> Any:
         """A ``pinocchio.Model`` of the identified URDF, its ``armature`` set from the identified rotor
@@ -411,7 +410,14 @@ def _as_tensors(*arrays: Any) -> tuple[list[Tensor], bool]:
             if a.dtype == torch.bool or a.is_complex():
                 raise TypeError(f"predict: states must be real numbers, got dtype {a.dtype}")
             out.append(a if a.is_floating_point() else a.to(torch.float64))
-        return out, False
+        devices = {str(a.device) for a in out}
+        if len(devices) > 1:
+            shown = ", ".join(
+                f"{name} on {a.device}" for name, a in zip(("q", "qd", "qdd"), out, strict=True)
+            )
+            raise ValueError(f"predict: q, qd, qdd must be on one device, got {shown}")
+        common = functools.reduce(torch.promote_types, (a.dtype for a in out))  # as torch's own arithmetic
+        return [a.to(common) for a in out], False
     converted = []
     for a in arrays:
         array = np.asarray(a)

@@ -170,6 +170,19 @@ def test_sigma_is_the_estimates_for_base_parameters_and_for_physical_ones_standi
     assert model.params.table()[0] == ("m2", model.estimate.params["m2"], reported["m2"])
 
 
+def test_the_note_and_the_estimates_record_name_the_same_sigma_method():
+    """One record: the note says, word for word, what ``details["uncertainty"]["std_source"]`` (and so
+    ``result.json``) says, and that it is model-conditional (issue 31: the note called the σ plain
+    least squares while result.json said HAC)."""
+    model = idkit.run(estimator="ls", cost=None, scenario="torque_noise", seed=1).model
+    uncertainty = model.estimate.details["uncertainty"]
+    assert uncertainty["method"] == "hac"
+    assert model.base_params.note.startswith(uncertainty["std_source"])
+    assert model.params.note.startswith(uncertainty["std_source"])
+    assert "HAC" in model.params.note and "model-conditional" in model.params.note
+    assert "σ²(WᵀW)⁻¹" not in model.params.note
+
+
 def test_an_estimator_without_an_uncertainty_report_gives_no_sigma_and_says_so():
     model = idkit.run(estimator={"_name_": "pso", "runs": 2, "particles": 6, "iterations": 10}, seed=0).model
     assert all(s is None for s in model.params.std.values())
@@ -320,3 +333,38 @@ def test_kuka_predict_over_batches_and_from_torch(kuka_model, kuka_held_out):
     np.testing.assert_allclose(one, flat[3], rtol=0, atol=1e-12)
     assert isinstance(tensor, torch.Tensor)
     np.testing.assert_allclose(tensor.numpy(), flat, rtol=0, atol=1e-12)
+
+
+def test_predict_with_mixed_torch_dtypes_computes_in_the_wider_one(arm_model):
+    """float32 with float64 ended in torch's "expected scalar type Double"."""
+    q, qd, qdd = (torch.from_numpy(x) for x in states((6,), arm_model.robot.n_joints))
+    mixed = arm_model.predict(q.float(), qd, qdd)
+    assert mixed.dtype == torch.float64
+    torch.testing.assert_close(mixed, arm_model.predict(q.float().double(), qd, qdd), rtol=0, atol=0)
+    counts = arm_model.predict(q, qd, qdd.round().to(torch.int64))  # integers join as float64
+    torch.testing.assert_close(counts, arm_model.predict(q, qd, qdd.round()), rtol=0, atol=0)
+    assert arm_model.predict(q.half(), qd.float(), qdd.float()).dtype == torch.float32
+
+
+@pytest.mark.parametrize(
+    ("robot", "data", "error", "said"),
+    [
+        ("cylindrical", None, ValueError, "identify: no data (data=None); give the recordings"),
+        (None, "train.csv", ValueError, "identify: robot is None; give a registry name"),
+        ("cylindrical", 3.5, TypeError, "data=3.5 (float) is not recordings: give a file path"),
+        ("cylindrical", ["a.csv", 2], TypeError, "data= holds 2 (int), not a recording"),
+        ("cylindrical", {"q": 1}, TypeError, "data={'q': 1} (dict) is not recordings"),
+    ],
+)
+def test_identify_without_usable_robot_or_data_says_so_in_one_line(robot, data, error, said):
+    """``identify(urdf, None)`` fitted a simulation without a word; None and 3.5 ended in
+    AttributeError / "'float' object is not iterable"."""
+    with pytest.raises(error) as refused:
+        idkit.identify(robot, data, estimator="ls", cost=None)
+    assert str(refused.value).startswith(said) and "\n" not in str(refused.value)
+
+
+def test_identify_refuses_a_validate_that_is_not_recordings(arm):
+    train = simulate(arm, "clean", seed=0, n_samples=50)
+    with pytest.raises(TypeError, match=r"^validate=0\.5 \(float\) is not recordings"):
+        idkit.identify(arm, train, validate=0.5, estimator="ls", cost=None)

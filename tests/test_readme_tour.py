@@ -60,7 +60,7 @@ def beyond_three_sigma(result: dict, true: dict[str, float]) -> list[str]:
     truth; a parameter without a truth is one too (the comparison must not skip it)."""
     estimate = result["payload"]["estimate"]
     values = {**estimate["params"], **(estimate["base_params"] or {})}
-    std = estimate["details"]["uncertainty"]["std"]
+    std = {k: float(s) for k, s in estimate["details"]["uncertainty"]["std"].items()}  # "Infinity" too
     return [
         f"{name}: {values[name]:.5g} ± {sigma:.3g} against {true.get(name)}"
         for name, sigma in std.items()

@@ -15,8 +15,11 @@ from __future__ import annotations
 import contextlib
 import inspect
 import os
+import signal
 import sys
+import threading
 import uuid
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, cast
 
@@ -111,26 +114,71 @@ def task(cfg: DictConfig) -> Any:
     hydra_cfg = HydraConfig.get()
     run_dir = Path(hydra_cfg.runtime.output_dir)
     single = hydra_cfg.mode == RunMode.RUN
+    claimed = False  # the folder is this run's: what it holds may be tidied after a failure
+    interrupts: list[int] = []
     try:
         provenance.claim(run_dir, "hydra.run.dir" if single else "hydra.sweep.dir or hydra.sweep.subdir")
+        claimed = True
+        _refuse_missing(cfg)
         with output.one_line_warnings():  # also in a launcher's worker process
             apply_real_robot_defaults(cfg, hydra_cfg.overrides.task)
             full = HydraConfig.instance().cfg  # the whole config, {hydra: ...}, once Hydra has set it
             if not isinstance(full, DictConfig):
                 raise RuntimeError(f"hydra: no config to record (got {type(full).__name__})")
             provenance.record(run_dir, cfg, full)
-            return _run(cfg, run_dir)
+            with _noting_interrupts(interrupts):
+                return _run(cfg, run_dir)
     except Exception as exc:
+        left = provenance.abandon(run_dir) if single and claimed else ""
+        if interrupts:  # Ctrl-C, turned into another error by the code it stopped: still Ctrl-C
+            print(f"idkit: interrupted ({type(exc).__name__} on the way out){left}", file=sys.stderr)
+            sys.exit(INTERRUPTED)  # a sweep runs no further job
         message = errors.one_line(exc)  # a refused input, or more memory than there is
         if message is None:
             raise  # a bug: Hydra reports it with its traceback
         if single and not TRACEBACKS_REQUESTED:
-            errors.fail(message)  # before Hydra adds "Error executing job with overrides: ..."
+            errors.fail(message + left)  # before Hydra adds "Error executing job with overrides: ..."
         # a sweep goes on; the summary callback records the failed job's cause
         raise CompactHydraException(f"{errors.PREFIX}{message}") from exc
     except KeyboardInterrupt:
-        print(f"idkit: interrupted; no results were written to {run_dir}", file=sys.stderr)
+        left = provenance.abandon(run_dir) if single and claimed else ""
+        print(f"idkit: interrupted; no results were written to {run_dir}{left}", file=sys.stderr)
         sys.exit(INTERRUPTED)
+
+
+@contextlib.contextmanager
+def _noting_interrupts(seen: list[int]) -> Iterator[None]:
+    """Record each Ctrl-C in ``seen`` and raise ``KeyboardInterrupt`` as Python does: a library that
+    turns it into another error (an index error in a half-built result) then still ends the command,
+    and a sweep, with exit status 130."""
+    if threading.current_thread() is not threading.main_thread():
+        yield  # signals reach the main thread only
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is not signal.default_int_handler:  # ignored, or someone else's: left alone
+        yield
+        return
+
+    def noted(signum: int, frame: Any) -> None:
+        seen.append(signum)
+        signal.default_int_handler(signum, frame)
+
+    signal.signal(signal.SIGINT, noted)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _refuse_missing(cfg: DictConfig) -> None:
+    """A setting of the task's section still ``???`` (``rollout.model``) ends the run in one line
+    saying what it is, before the run records anything."""
+    section = get_task(cfg.task).section
+    node = cfg.get(section) if section else None
+    if isinstance(node, DictConfig):
+        required = errors.required_message(sorted(OmegaConf.missing_keys(node)))  # full dotted keys
+        if required:
+            raise ValueError(required)
 
 
 def main() -> None:

@@ -88,6 +88,7 @@ def _row_from_result(document: dict[str, Any], params: list[str]) -> dict[str, A
         parameter_error=payload.get("parameter_error"),
         cost_name=cost.get("name"),
         cost=cost.get("value"),
+        cost_ignored=cost.get("used_by_fit") is False,
         wall_time_s=estimate.get("wall_time_s", payload.get("wall_time_s")),
     )
     return row
@@ -107,6 +108,7 @@ def summary_rows(sweep_dir: Path) -> tuple[list[str], list[dict[str, Any]]]:
         else:
             row.update(status="running or killed")
         rows.append(row)
+    mark_repeats(rows)
     header = [
         "job",
         "status",
@@ -119,9 +121,26 @@ def summary_rows(sweep_dir: Path) -> tuple[list[str], list[dict[str, Any]]]:
         "cost_name",
         "cost",
         "wall_time_s",
+        "repeats",
         "error",
     ]
     return header, rows
+
+
+def mark_repeats(rows: list[dict[str, Any]]) -> None:
+    """``repeats``: for a job whose estimator ignores ``cost=`` (LS, TLS, RLS …), the earlier job it
+    differs from only in ``cost=`` — the same fit, run again (its note says so once)."""
+    first: dict[str, str] = {}
+    for row in rows:
+        if not row.pop("cost_ignored", False):
+            continue
+        others = " ".join(
+            o for o in str(row.get("overrides", "")).split() if not o.lstrip("+~").startswith("cost=")
+        )
+        if others in first:
+            row["repeats"] = f"job {first[others]} (the estimator ignores cost=)"
+        else:
+            first[others] = str(row["job"])
 
 
 def write_summary(sweep_dir: Path) -> None:

@@ -9,7 +9,10 @@ a bug and keeps its traceback; ``HYDRA_FULL_ERROR=1`` shows the traceback of eve
 
 from __future__ import annotations
 
+import re
 import sys
+from importlib.resources import files
+from importlib.resources.abc import Traversable
 from typing import NoReturn
 
 from hydra.errors import (
@@ -118,3 +121,37 @@ def out_of_memory_message(exc: BaseException) -> str | None:
     start = text.find("can't allocate memory")  # after torch's C++ source location
     said = text[start:] if start > 0 else text
     return f"out of memory: {single_line(said)}; smaller sizes need less ({SIZES})"
+
+
+def required_message(keys: list[str]) -> str | None:
+    """``rollout.model is required: the MJCF (.xml) or URDF (.urdf) file; give rollout.model=…`` for
+    the first of ``keys`` (dotted settings still ``???``), or ``None`` for none.
+
+    The description is the comment beside the ``???`` in idkit's config files, so it is written once.
+    """
+    if not keys:
+        return None
+    key = keys[0]
+    leaf = re.escape(key.rpartition(".")[2])
+    pattern = re.compile(rf"^\s*{leaf}:\s*\?\?\?\s*#\s*(.+?)\s*$", re.MULTILINE)
+    described = next((m[1] for text in _config_texts() if (m := pattern.search(text))), None)
+    more = f" (and {', '.join(keys[1:])})" if len(keys) > 1 else ""
+    what = f": {described}" if described else " (it has no default)"
+    return f"{key} is required{what}; give {key}=…{more}"
+
+
+def _config_texts() -> list[str]:
+    """The text of every config file idkit ships (``idkit.conf``, wherever the install put it: a
+    checkout's editable install maps it to the top-level ``conf/``), in a fixed order."""
+
+    found: list[str] = []
+
+    def walk(folder: Traversable) -> None:
+        for entry in sorted(folder.iterdir(), key=lambda e: e.name):
+            if entry.is_dir():
+                walk(entry)
+            elif entry.name.endswith(".yaml"):
+                found.append(entry.read_text(encoding="utf-8"))
+
+    walk(files("idkit.conf"))
+    return found

@@ -8,7 +8,7 @@ refinement, the projection :func:`~idkit.conic.program.nearest_consistent` and t
   degenerate (thin rods, flat discs, point masses) or impossible;
 * :mod:`idkit.conic.plausible` — bounds that keep links plausible, not only consistent (mass
   bounds relative to CAD, a known total mass, the centre of mass and the mass inside the link's
-  geometry);
+  geometry) and the one per-link plausibility verdict every report reads;
 * :mod:`idkit.conic.program` — the semidefinite program itself, its scaling, the solver chain and
   the checks that make its guarantees independent of a solver's last digits.
 

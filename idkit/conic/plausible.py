@@ -11,7 +11,10 @@ parameters (so they join the same conic program, :mod:`idkit.conic.program`):
 * ``geometry``: where the model has collision (or else visual) geometry for a link, its mass lies
   inside the ellipsoid bounding that geometry — the density-realisability condition of Wensing, Kim
   & Slotine (RA-L 2017), ``tr(J Q) >= 0``, which also puts the centre of mass inside it
-  (:mod:`idkit.robots.geometry` builds the ellipsoids).
+  (:mod:`idkit.robots.geometry` builds the ellipsoids; placeholder geometry is not among them).
+
+And the one verdict every report reads: :func:`plausibility_report` decides, per link, whether a fit
+is plausible and why not (:func:`plausibility_rule`), once, into ``details["plausibility"]``.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from idkit.robots.inertia import link_count
+from idkit.robots.inertia import link_count, pseudo_inertia_rows
 
 if TYPE_CHECKING:
     from idkit.robots.urdf import URDFRobot
@@ -58,7 +61,11 @@ class Plausibility:
                     f"got {mass_ratio!r}"
                 ) from None
             if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= 1 <= hi):
-                raise ValueError(f"{who}: mass_ratio [lo, hi] needs 0 <= lo <= 1 <= hi, got [{lo:g}, {hi:g}]")
+                raise ValueError(
+                    f"{who}: mass_ratio [lo, hi] needs 0 <= lo <= 1 <= hi, got [{lo:g}, {hi:g}]: the band is "
+                    "around each link's CAD mass (1 x CAD, also the prior the fit is drawn to); if the CAD "
+                    "masses are off, correct them in the model file, or bound the sum with total_mass"
+                )
             ratio = (lo, hi)
         total = None
         if total_mass is not None:
@@ -139,52 +146,163 @@ def _inside_geometry(robot: URDFRobot, z: Any, unit: np.ndarray) -> list[Any]:
 #: and is the default bound of ``plausible=true``: a link weighs what its CAD says to within a factor
 #: of two, or the CAD (or the fit) is wrong.
 PLAUSIBLE_MASS_RATIO = (0.5, 2.0)
+#: A link is *degenerate* — a rod or a plate — when its thinnest radius of gyration about its centre of
+#: mass is under this fraction of its largest (a body 1:20 thin; a forearm tube is about 1:5, and the
+#: prior's reference bodies are at least 1:10, :data:`idkit.conic.prior.MIN_THICKNESS`) ...
+ROD_FRACTION = 0.05
+#: ... or a point mass, when its largest radius of gyration is under this fraction of the size its
+#: geometry gives (a solid filling the bounding ellipsoid: the largest semi-axis over √5), or without
+#: trusted geometry, of the CAD body's (the prior's reference, :mod:`idkit.conic.prior`).
+POINT_FRACTION = 0.1
+#: A pseudo-inertia eigenvalue below ``-BODY_TOLERANCE × max(1, |m|)`` is no body's (round-off above).
+BODY_TOLERANCE = 1e-9
 
 
-def plausibility_report(robot: URDFRobot, bounds: Plausibility, params: Any) -> dict[str, Any]:
-    """For ``details["plausibility"]``: what was enforced, each link's mass and centre of mass beside
-    CAD, the links that are implausible — a mass outside :data:`PLAUSIBLE_MASS_RATIO` times CAD, or a
-    centre of mass the fit moved out of the box bounding the link's geometry (where the CAD's is
-    inside it) — and those that ended at an enforced mass bound (within 1e-6 relative: where the
-    data pulled against plausibility)."""
+def plausibility_rule() -> str:
+    """The rule every report states beside the verdicts (:func:`plausibility_report` applies it)."""
+    lo, hi = PLAUSIBLE_MASS_RATIO
+    return (
+        f"plausible: a body that can exist (pseudo-inertia positive semidefinite), a mass within "
+        f"[{lo:g}, {hi:g}] x CAD, not degenerate (no rod or plate thinner than 1:{1 / ROD_FRACTION:g}, no "
+        f"point mass under {POINT_FRACTION:g} of the link's size), and a centre of mass inside the link's "
+        "geometry where the model has real geometry for it"
+    )
+
+
+def degenerate(robot: URDFRobot, params: np.ndarray) -> dict[str, str]:
+    """The links ``params`` make a rod, a plate or a point mass (:data:`ROD_FRACTION`,
+    :data:`POINT_FRACTION`), each with why; bodies that cannot exist are not judged here."""
+    from idkit.conic.prior import parameter_units, reference_body
     from idkit.robots.geometry import body_geometry
 
     nb = link_count(robot)
-    values = np.asarray(params[: 10 * nb].tolist(), dtype=np.float64).reshape(nb, 10)
+    unit = parameter_units(robot)[: 10 * nb].reshape(nb, 10)
+    rows = np.asarray(params[: 10 * nb], dtype=np.float64).reshape(nb, 10)
+    cad = robot.nominal_params().double().numpy()[: 10 * nb].reshape(nb, 10)
+    shapes = body_geometry(robot).bodies
+    out = {}
+    for name, row, cad_row, scale in zip(robot.link_names, rows, cad, unit, strict=True):
+        if not row[0] > 0 or np.linalg.eigvalsh(_pseudo(row))[0] < -BODY_TOLERANCE * max(1.0, row[0]):
+            continue
+        smallest, largest = _radii(_pseudo(row))
+        shape = shapes.get(name)
+        if shape is not None:
+            size, whose = float(np.linalg.eigvalsh(shape.ellipsoid_shape)[0] ** -0.5 / np.sqrt(5)), "geometry"
+        elif cad_row[0] > 0:  # the reference in scaled units, back in metres
+            length = np.sqrt(scale[4] / scale[0])
+            size, whose = _radii(reference_body(_pseudo(cad_row / scale)))[1] * length, "CAD body"
+        else:
+            continue
+        if largest < POINT_FRACTION * size:
+            out[name] = (
+                f"a point mass: radius of gyration {1e3 * largest:.3g} mm against {1e3 * size:.3g} mm for "
+                f"its {whose}"
+            )
+        elif smallest < ROD_FRACTION * largest:
+            out[name] = f"a rod or plate: thinnest radius of gyration {smallest / largest:.2g} of its largest"
+    return out
+
+
+def _radii(j: np.ndarray) -> tuple[float, float]:
+    """The smallest and largest principal radius of gyration about the centre of mass."""
+    mass, first = j[3, 3], j[:3, 3]
+    central = j[:3, :3] - np.outer(first, first) / mass
+    values = np.linalg.eigvalsh((central + central.T) / 2) / mass
+    return float(np.sqrt(max(values[0], 0.0))), float(np.sqrt(max(values[-1], 0.0)))
+
+
+def _pseudo(row: np.ndarray) -> np.ndarray:
+    return np.array(pseudo_inertia_rows(list(row)), dtype=np.float64)
+
+
+def plausibility_report(robot: URDFRobot, bounds: Plausibility | None, params: Any) -> dict[str, Any]:
+    """The one plausibility verdict of a fit (``details["plausibility"]``), which every report reads.
+
+    Per link (``links``): its mass and centre of mass beside CAD, the smallest pseudo-inertia
+    eigenvalue, what bounds it, whether an enforced mass bound is active, and its
+    verdict with the reasons (:func:`plausibility_rule`): no body can have it; its mass outside
+    :data:`PLAUSIBLE_MASS_RATIO` times CAD; degenerate (:data:`DEGENERATE_FRACTION`); its centre of mass
+    moved out of the box bounding its trusted geometry (where CAD's is inside it). Also the lists the
+    reports print (``implausible``, ``mass_outside``, ``com_outside_geometry``, ``degenerate``,
+    ``not_a_body``, ``at_bound``: an enforced mass bound within 1e-6 relative, where the data pulled
+    against plausibility), what was enforced, and which bodies the geometry bounds, by name."""
+    from idkit.robots.geometry import body_geometry
+
+    bounds = bounds or Plausibility()
+    nb = link_count(robot)
+    values = np.asarray(torch_free(params)[: 10 * nb], dtype=np.float64).reshape(nb, 10)
     cad_values = robot.nominal_params().double().numpy()[: 10 * nb].reshape(nb, 10)
     fitted, cad = values[:, 0], cad_values[:, 0]
-    centres = values[:, 1:4] / np.where(fitted > 0, fitted, np.nan)[:, None]
-    cad_centres = cad_values[:, 1:4] / cad[:, None]
-    ratio = fitted / cad
-    lo, hi = PLAUSIBLE_MASS_RATIO
-    names = robot.link_names
-    heavy = {name for name, r in zip(names, ratio, strict=True) if not lo <= r <= hi}
+    with np.errstate(divide="ignore", invalid="ignore"):
+        centres = values[:, 1:4] / np.where(fitted > 0, fitted, np.nan)[:, None]
+        cad_centres = cad_values[:, 1:4] / np.where(cad > 0, cad, np.nan)[:, None]
+        ratio = fitted / np.where(cad > 0, cad, np.nan)
+    lowest = np.array([np.linalg.eigvalsh(_pseudo(row))[0] for row in values])
+    thin = degenerate(robot, values.reshape(-1))
     geometry = body_geometry(robot)
-    moved = {
-        name
-        for name, centre, cad_centre in zip(names, centres, cad_centres, strict=True)
-        if (shape := geometry.bodies.get(name)) is not None
-        and shape.in_box(cad_centre)
-        and not (np.isfinite(centre).all() and shape.in_box(centre))
-    }
-    at_bound: list[str] = []
-    if bounds.mass_ratio is not None:
-        lo, hi = bounds.mass_ratio
-        at_bound = [
-            name
-            for name, r in zip(names, ratio, strict=True)
-            if abs(r - lo) <= 1e-6 * max(lo, 1e-12) or abs(r - hi) <= 1e-6 * hi
-        ]
+    bounded = geometry.bounded_by()
+    lo, hi = PLAUSIBLE_MASS_RATIO
+    links: dict[str, dict[str, Any]] = {}
+    for i, name in enumerate(robot.link_names):
+        reasons = []
+        if lowest[i] < -BODY_TOLERANCE * max(1.0, abs(fitted[i])) or not fitted[i] > 0:
+            reasons.append(f"no body has this inertia (pseudo-inertia eigenvalue {lowest[i]:.3g})")
+        body = not reasons
+        if np.isfinite(ratio[i]) and not lo <= ratio[i] <= hi:
+            reasons.append(f"mass {ratio[i]:.3g} x CAD, outside [{lo:g}, {hi:g}]")
+        if body and name in thin:
+            reasons.append(f"degenerate: {thin[name]}")
+        shape = geometry.bodies.get(name)
+        if (
+            shape is not None
+            and np.isfinite(cad_centres[i]).all()
+            and shape.in_box(cad_centres[i])
+            and not (np.isfinite(centres[i]).all() and shape.in_box(centres[i]))
+        ):
+            reasons.append("centre of mass outside its geometry")
+        at_bound = bounds.mass_ratio is not None and bool(
+            abs(ratio[i] - bounds.mass_ratio[0]) <= 1e-6 * max(bounds.mass_ratio[0], 1e-12)
+            or abs(ratio[i] - bounds.mass_ratio[1]) <= 1e-6 * bounds.mass_ratio[1]
+        )
+        links[name] = {
+            "plausible": not reasons,
+            "reasons": reasons,
+            "mass": float(fitted[i]),
+            "cad_mass": float(cad[i]),
+            "ratio": float(ratio[i]),
+            "com": centres[i].tolist(),
+            "cad_com": cad_centres[i].tolist(),
+            "min_eigenvalue": float(lowest[i]),
+            "bounded_by": bounded.get(name, "nothing: no usable geometry"),
+            "at_bound": at_bound,
+        }
+
+    def having(word: str) -> list[str]:
+        return [name for name, link in links.items() if any(r.startswith(word) for r in link["reasons"])]
+
     return {
+        "rule": plausibility_rule(),
         "enforced": bounds.describe(),
-        "mass": dict(zip(names, fitted.tolist(), strict=True)),
-        "cad_mass": dict(zip(names, cad.tolist(), strict=True)),
-        "com": dict(zip(names, centres.tolist(), strict=True)),
-        "cad_com": dict(zip(names, cad_centres.tolist(), strict=True)),
-        "implausible": [name for name in names if name in heavy or name in moved],
-        "mass_outside": [name for name in names if name in heavy],
-        "com_outside_geometry": [name for name in names if name in moved],
+        "links": links,
+        "implausible": [name for name, link in links.items() if not link["plausible"]],
+        "mass_outside": having("mass "),
+        "com_outside_geometry": having("centre of mass"),
+        "degenerate": having("degenerate"),
+        "not_a_body": having("no body"),
+        "at_bound": [name for name, link in links.items() if link["at_bound"]],
+        "mass": {name: link["mass"] for name, link in links.items()},
+        "cad_mass": {name: link["cad_mass"] for name, link in links.items()},
+        "com": {name: link["com"] for name, link in links.items()},
+        "cad_com": {name: link["cad_com"] for name, link in links.items()},
         "flagged_outside": list(PLAUSIBLE_MASS_RATIO),
         "geometry": geometry.summary(),
-        "at_bound": at_bound,
+        "bounded_by": bounded,
+        "placeholders": dict(geometry.placeholders),
     }
+
+
+def torch_free(params: Any) -> np.ndarray:
+    """``params`` (a tensor, array or list) as a float64 array."""
+    if hasattr(params, "detach"):
+        params = params.detach().cpu().double().numpy()
+    return np.asarray(params, dtype=np.float64)

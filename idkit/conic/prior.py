@@ -133,6 +133,12 @@ def cad_reference(robot: URDFRobot) -> CadReference:
     return CadReference(unit, np.stack(pseudo), tuple(thickened), tuple(replaced))
 
 
+def reference_body(j: np.ndarray) -> np.ndarray:
+    """The reference a CAD pseudo-inertia ``j`` (scaled units) stands for in the prior: thickened where
+    degenerate (module doc). What a fitted body's thinness is measured against."""
+    return _thick_body(j)[0]
+
+
 def _thick_body(j: np.ndarray) -> tuple[np.ndarray, str | None]:
     """A scaled pseudo-inertia (mass 1) with its central second moments floored (module doc), and what
     was done: ``None``, ``"thickened"`` or ``"replaced"`` (a negative central second moment)."""

@@ -95,6 +95,9 @@ PSD_TOLERANCE = 1e-6
 
 #: The conic solver choice: ``"auto"`` tries ``AUTO_SOLVERS`` in order.
 Solver = Literal["auto", "clarabel", "scs"]
+#: The prior's shape: the entropic divergence of the module doc, or the squared Euclidean distance
+#: ``‖(p − p0) / u‖²`` of the scaled standard parameters to CAD (the tie-break's, at weight ``w``).
+PriorShape = Literal["entropic", "euclidean"]
 
 
 @dataclass(frozen=True)
@@ -108,6 +111,7 @@ class ConsistentSettings:
         solver: the choice as given.
         conic_solvers: the solver configurations (:data:`SOLVER_CONFIGS`) ``solver`` stands for.
         plausibility: bounds beyond consistency (:class:`~idkit.conic.plausible.Plausibility`).
+        prior_shape: the prior's shape (:data:`PriorShape`).
     """
 
     prior_weight: float | Literal["auto"]
@@ -115,6 +119,7 @@ class ConsistentSettings:
     solver: Solver
     conic_solvers: tuple[str, ...]
     plausibility: Plausibility = field(default_factory=Plausibility)
+    prior_shape: PriorShape = "entropic"
 
     @classmethod
     def checked(
@@ -125,6 +130,7 @@ class ConsistentSettings:
         solver: Solver = "auto",
         auto: bool = False,
         plausibility: Plausibility | None = None,
+        prior_shape: PriorShape = "entropic",
     ) -> ConsistentSettings:
         """The settings, or ``ValueError`` naming ``who`` and the option; ``auto``: whether
         ``prior_weight="auto"`` is accepted (a fit has the data to choose it, a projection has not)."""
@@ -142,8 +148,13 @@ class ConsistentSettings:
         if solver not in choices:
             listed = ", ".join(map(repr, choices))
             raise ValueError(f"{who}: solver must be one of {listed}, got {solver!r}")
+        shapes = get_args(PriorShape)
+        if prior_shape not in shapes:
+            raise ValueError(
+                f"{who}: prior_shape must be one of {', '.join(map(repr, shapes))}, got {prior_shape!r}"
+            )
         conic = {"auto": AUTO_SOLVERS, "clarabel": AUTO_SOLVERS[:2], "scs": ("SCS",)}[solver]
-        return cls(weight, min_mass, solver, conic, plausibility or Plausibility())
+        return cls(weight, min_mass, solver, conic, plausibility or Plausibility(), prior_shape)
 
 
 @dataclass(frozen=True)
@@ -239,12 +250,15 @@ class ConsistentProgram:
             if f"{joint}.fs" in index:
                 constraints.append(z[index[f"{joint}.fc"]] + z[index[f"{joint}.fs"]] >= 0)
         constraints += plausibility_constraints(robot, settings.plausibility, z, unit, who)
-        if prior:  # the entropic divergence in scaled units, without its constants
+        euclidean = cp.sum_squares(z[: 10 * nb] - nominal[: 10 * nb] / unit[: 10 * nb])
+        if prior and settings.prior_shape == "euclidean":
+            objective = data + self.weight * euclidean
+        elif prior:  # the entropic divergence in scaled units, without its constants
             inverses = np.linalg.inv(reference.pseudo)
             entropic = sum(-cp.log_det(j) + cp.trace(inverses[i] @ j) for i, j in enumerate(pseudo))
             objective = data + self.weight * entropic
         else:  # a barrier-free tie-break: the log-det barrier is ill-conditioned where the LMIs are active
-            objective = data + TIE_BREAK * cp.sum_squares(z[: 10 * nb] - nominal[: 10 * nb] / unit[: 10 * nb])
+            objective = data + TIE_BREAK * euclidean
         self.program = cp.Problem(cp.Minimize(objective), constraints)
 
     def solve(

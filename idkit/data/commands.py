@@ -37,6 +37,7 @@ from idkit.data.files import as_paths, refuse_repeated_files
 from idkit.data.logs import choose_topic, is_log, joint_values, read_stream, seconds_after
 from idkit.data.raw import check_increasing
 from idkit.data.table import NpzTable, read_quantities, read_table
+from idkit.untrusted import csv_header
 
 #: Column suffixes of commands, and what each drives (see the module docstring).
 COMMAND_KINDS = ("ctrl", "q_ref", "qd_ref")
@@ -226,7 +227,7 @@ def save_robot_log(log: RobotLog, path: str | Path) -> Path:
     header += list(log.command_names)
     table = np.hstack([log.t[:, None], log.q, log.qd, log.commands])
     path = Path(path)
-    np.savetxt(path, table, fmt="%.17g", delimiter=",", header=",".join(header), comments="")
+    np.savetxt(path, table, fmt="%.17g", delimiter=",", header=csv_header(header), comments="")
     return path
 
 

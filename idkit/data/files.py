@@ -10,20 +10,35 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 from idkit.data.load import DataFile
 from idkit.problem import SAMPLE_ARRAYS, Samples
 
+#: What ``data=`` and ``validate=`` take, for messages.
+RECORDINGS = "a file path (CSV, .npz, ROS log), Samples, or a list of them"
 
-def as_paths(files: Any) -> list[Any]:
-    """``data=`` / ``validate=`` as a list: one path, a list of paths, or ``Samples`` objects."""
+
+def as_paths(files: Any, role: str = "data") -> list[Any]:
+    """``data=`` / ``validate=`` (the ``role``) as a list: one path, a list of paths, or ``Samples``.
+
+    Raises:
+        TypeError: something else (``data=3.5``, a list holding a number), named with its role.
+    """
     if files is None:
         return []
-    if isinstance(files, (str, os.PathLike, Samples)):
-        return [files]
-    return list(files)
+    items = [files] if isinstance(files, (str, os.PathLike, Samples)) else files
+    if isinstance(items, Mapping) or not isinstance(items, Iterable):
+        raise TypeError(f"{role}={files!r} ({type(files).__name__}) is not recordings: give {RECORDINGS}")
+    items = list(items)
+    for item in items:
+        if not isinstance(item, (str, os.PathLike, Samples)):
+            raise TypeError(
+                f"{role}= holds {item!r} ({type(item).__name__}), not a recording: give {RECORDINGS}"
+            )
+    return items
 
 
 def refuse_training_files(data: Any, validate: Any) -> None:
@@ -38,7 +53,7 @@ def refuse_training_files(data: Any, validate: Any) -> None:
         ValueError: naming both files and how they are the same.
     """
     training = as_paths(data)
-    for held in as_paths(validate):
+    for held in as_paths(validate, "validate"):
         for train in training:
             same = _sameness(train, held)
             if same:
@@ -57,7 +72,7 @@ def refuse_repeated_files(files: Any, role: str) -> None:
     Raises:
         ValueError: naming the file, the earlier one it repeats and how they are the same.
     """
-    items = as_paths(files)
+    items = as_paths(files, role)
     effect = (
         "would be stacked twice and count double in the fit" if role == "data" else "would be scored twice"
     )

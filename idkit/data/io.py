@@ -25,6 +25,7 @@ import torch
 
 from idkit.data.table import Table, read_quantities, read_table
 from idkit.problem import SAMPLE_ARRAYS, Samples
+from idkit.untrusted import csv_header
 
 #: Default file names of the four arrays (and CSV column prefixes).
 DEFAULT_KEYS: Mapping[str, str] = {name: name for name in SAMPLE_ARRAYS}
@@ -103,7 +104,7 @@ def save_samples(samples: Samples, path: str | Path, keys: Mapping[str, str] | N
         n = samples.n_joints
         header = [f"{names[k]}{j}" for k in SAMPLE_ARRAYS for j in range(1, n + 1)]
         table = np.concatenate([arrays[k] for k in SAMPLE_ARRAYS], axis=1)
-        np.savetxt(path, table, fmt="%.17g", delimiter=",", header=",".join(header), comments="")
+        np.savetxt(path, table, fmt="%.17g", delimiter=",", header=csv_header(header), comments="")
     else:
         raise ValueError(f"{path}: unsupported file type {path.suffix!r}; use .npz or .csv")
     return path

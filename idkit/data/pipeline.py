@@ -207,7 +207,7 @@ def _split(file: DataFile) -> bool:
 
 def _read_all(robot: Robot, files: Any, options: DataOptions, role: str) -> list[Source]:
     """Steps 1–3 of the module doc for every file of a list."""
-    paths = as_paths(files)
+    paths = as_paths(files, role)
     if not paths:
         raise ValueError(f"{role}= is an empty list; give a file or a list of files")
     refuse_repeated_files(paths, role)

@@ -29,6 +29,7 @@ from idkit.data.options import RecordingOptions
 from idkit.data.raw import Recording
 from idkit.data.table import Table, names_hint, read_quantities, read_table
 from idkit.problem import SAMPLE_ARRAYS, Samples
+from idkit.untrusted import csv_header
 
 RECORDING_ARRAYS = ("t", "q", "tau", "qd")
 #: File names of the arrays in the FloBaRoID recordings (``shared/data/kuka-lwr4``).
@@ -120,7 +121,7 @@ def save_recording(recording: Recording, path: str | Path, velocities: bool = Fa
         columns.append(recording.qd)
         header += labels("qd")
     path = Path(path)
-    np.savetxt(path, np.hstack(columns), fmt="%.17g", delimiter=",", header=",".join(header), comments="")
+    np.savetxt(path, np.hstack(columns), fmt="%.17g", delimiter=",", header=csv_header(header), comments="")
     return path
 
 

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from idkit.untrusted import csv_text
+
 #: What idkit reads from a CSV file, for messages about files that are not that.
 EXPECTED_CSV = (
     "idkit reads comma-separated CSV whose first line names the columns t, q1.., qd1.., qdd1.., tau1.. "
@@ -219,7 +221,7 @@ class CsvTable(Table):
             if not any(cell.strip() for cell in row):
                 continue
             if header is None:
-                header = [cell.strip() for cell in row]
+                header = [csv_text(cell.strip()) for cell in row]  # idkit's own escapes undone
                 _check_header(path, header)
                 continue
             if len(row) != len(header):

@@ -33,6 +33,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from idkit import progress
 from idkit.estimate import Estimate
 from idkit.interfaces import Estimator
 from idkit.optim.blocks import SearchResult, cooperative_search
@@ -156,6 +157,11 @@ class RolloutEstimator(Estimator[RolloutProblem]):
         search_sim = full_sim = None
         try:
             full_sim, search_sim, initial = _simulators(problem, self.search_share, self.threads)
+            progress.count_rollouts(
+                lambda: sum(
+                    s.counter.rollouts for s in {id(search_sim): search_sim, id(full_sim): full_sim}.values()
+                )
+            )
             unknowns = problem.robot.unknowns
             start = unknowns.to_coordinates(unknowns.vector("start"))
             found = _search(problem, search_sim, self, start) if self.iterations != 0 else None
@@ -271,14 +277,20 @@ def _search(
     blocks, rows = _blocks(problem, options.cooperative)
     measured = problem.measured(simulator)
 
-    def objective(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return _parts(problem, problem.error(unknowns.from_coordinates(z), simulator), rows, measured)
-
     width = max(len(b) for b in blocks)
     particles = options.particles or min(32, 4 + 2 * width)
     iterations = options.iterations if options.iterations is not None else min(40, 10 + 2 * width)
     if options.iterations is None and problem.start_fitted:
         iterations = (iterations + 1) // 2  # a fitted start: its best found early (docs/rollout.md)
+    calls, best = [0], [np.inf]  # for the progress lines
+
+    def objective(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        parts, total = _parts(problem, problem.error(unknowns.from_coordinates(z), simulator), rows, measured)
+        calls[0] += 1
+        best[0] = min(best[0], float(np.min(np.where(np.isfinite(total), total, np.inf))))
+        progress.report("search", calls[0], iterations + 1, best[0])
+        return parts, total
+
     return cooperative_search(
         objective, lower, upper, start, blocks, particles, iterations, problem.generator()
     )
@@ -355,9 +367,19 @@ def _solve(
     root = np.sqrt(shooting.measured.size)
     shooting.divisor = scales * root
     lower, upper = shooting.unknowns.coordinate_bounds()
+    best = [np.inf]  # for the progress lines
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        r = shooting.residual(x)
+        if progress.listening():  # once per step tried: where the polish is (its best error in noise levels)
+            error = r[:, 0] * shooting.divisor[shooting.channel_of_entry()]
+            best[0] = min(best[0], float(mad_scale(error)))
+            progress.report("polish", best=best[0], what="error / noise")
+        return r
+
     x, trace = least_squares(
         x,
-        shooting.residual,
+        residual,
         shooting.jacobian,
         lower,
         upper,

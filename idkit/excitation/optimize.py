@@ -60,6 +60,7 @@ from idkit.interfaces import Excitation, Robot
 from idkit.limits import MotionLimits
 from idkit.optim import swarm
 from idkit.options import positive_number
+from idkit.progress import report
 from idkit.runtime import resolve_threads, torch_threads
 from idkit.seeds import torch_generator
 
@@ -426,8 +427,15 @@ def _search(
     if method == "adam":
         best = torch.rand(budget["swarms"], dims, generator=generator, dtype=torch.float64).to(**like)
     else:
+        # one evaluation of every swarm per iteration, the start's included
         best = _swarm_search(
-            objective, dims, budget["swarms"], budget["particles"], budget["iterations"], generator, like
+            counted(objective, "search (particle swarm)", budget["iterations"]),
+            dims,
+            budget["swarms"],
+            budget["particles"],
+            budget["iterations"],
+            generator,
+            like,
         )
         details.update(
             pso_best_loss=float(objective(best).min()),
@@ -436,7 +444,8 @@ def _search(
         )
     if method != "pso":
         started, cpu = time.perf_counter(), time.process_time()
-        best = _adam_search(objective, best, budget["adam_steps"], budget["learning_rate"])
+        polish = counted(objective, "polish (Adam)", budget["adam_steps"] + 1)
+        best = _adam_search(polish, best, budget["adam_steps"], budget["learning_rate"])
         details.update(
             adam_best_loss=float(objective(best).min()),
             adam_seconds=time.perf_counter() - started,
@@ -444,6 +453,23 @@ def _search(
         )
     with torch.no_grad():
         return best[objective(best).argmin()], details
+
+
+def counted(objective: Callable[[Tensor], Tensor], stage: str, of: int) -> Callable[[Tensor], Tensor]:
+    """``objective``, saying on every call (one per iteration) how far ``stage`` is and the lowest
+    value so far, to a study that listens (:func:`idkit.progress.report`; nothing otherwise)."""
+    calls, best = 0, math.inf
+
+    def call(unit: Tensor) -> Tensor:
+        nonlocal calls, best
+        value = objective(unit)
+        calls += 1
+        finite = value.detach()[torch.isfinite(value.detach())]
+        best = min(best, float(finite.min())) if finite.numel() else best
+        report(stage, calls, of, best if math.isfinite(best) else None, "best loss")
+        return value
+
+    return call
 
 
 def _swarm_search(

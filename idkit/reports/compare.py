@@ -6,7 +6,10 @@ Read from the two runs' ``result.json`` documents only:
 * **parameters** side by side: base parameters with their σ and the difference in σ units,
   ``z = (b − a) / √(σa² + σb²)`` (``|z| > 3``: a change the runs' own uncertainties do not explain),
   then the standard parameters (no σ of their own);
+* **plausibility**: each link's verdict in each run, as the runs recorded it (one rule:
+  :func:`idkit.conic.plausible.plausibility_report`; never judged again here);
 * an excitation's criterion and margins, for two excitation runs;
+* for two rollout runs, each held-out log's verdict per joint and the unknowns in σ units;
 * **config differences**: every setting whose value differs (or that one run lacks).
 """
 
@@ -143,6 +146,33 @@ def _parameters(a: Mapping[str, Any], b: Mapping[str, Any]) -> str:
     return "".join(parts) or h.paragraph("No parameters in common.")
 
 
+def _plausibility(a: Mapping[str, Any], b: Mapping[str, Any]) -> str:
+    """Each link's recorded verdict in A and B, with its mass over CAD's and the reasons."""
+    ra, rb = (
+        ((d["payload"]["estimate"].get("details") or {}).get("plausibility") or {}).get("links") or {}
+        for d in (a, b)
+    )
+    if not ra and not rb:
+        return h.paragraph("Neither run recorded a plausibility verdict.")
+
+    def cell(row: Mapping[str, Any] | None) -> list[Any]:
+        if row is None:
+            return ["—", "", ""]
+        badge = h.badge("good" if row["plausible"] else "poor", "yes" if row["plausible"] else "no")
+        return [h.raw(badge), h.num(row["ratio"], digits=3), "; ".join(row["reasons"])]
+
+    links = list(ra) + [link for link in rb if link not in ra]
+    rows = [[link, *cell(ra.get(link)), *cell(rb.get(link))] for link in links]
+    header = ["link", "A plausible", "A mass / CAD", "A why not", "B plausible", "B mass / CAD", "B why not"]
+    enforced = [
+        ((d["payload"]["estimate"].get("details") or {}).get("plausibility") or {}).get("enforced", "—")
+        for d in (a, b)
+    ]
+    return h.paragraph(f"Enforced: A {enforced[0]}; B {enforced[1]}.", "rule") + h.table(
+        header, rows, "plausibility"
+    )
+
+
 def _excitation(a: Mapping[str, Any], b: Mapping[str, Any]) -> str:
     pa, pb = a["payload"], b["payload"]
     rows = [
@@ -153,6 +183,98 @@ def _excitation(a: Mapping[str, Any], b: Mapping[str, Any]) -> str:
         ["violations", str(len(pa["check"]["violations"])), str(len(pb["check"]["violations"]))],
     ]
     return h.table(["", "A", "B"], rows, "excitation")
+
+
+def _rollout(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[str]:
+    """Two rollout runs: each held-out log's verdict per joint, then the unknowns in σ units (each record
+    read by :func:`idkit.reports.rollout_page.record`, its verdicts as recorded)."""
+    from idkit.reports import rollout_page as page
+
+    ra, rb = page.record(a), page.record(b)
+    held_a, held_b = {s.file: s for s in ra.verdicts()}, {s.file: s for s in rb.verdicts()}
+    common = [file for file in held_a if file in held_b]
+    parts = [
+        h.paragraph(
+            "Per joint: the position error (1.4826 × the median absolute error) and its ratio to what the "
+            "run held it to (a perfect model's error, or the log's noise level), in each run's default mode.",
+            "rule",
+        )
+    ]
+    for file in common:
+        sa, sb = held_a[file], held_b[file]
+        rows = []
+        for joint in (j for j in sa.robust if j in sb.robust):
+            rows.append(
+                [joint]
+                + [
+                    cell
+                    for s in (sa, sb)
+                    for cell in (
+                        h.num(s.robust[joint][0], digits=3),
+                        h.num(s.ratio[joint], page.grade(s.verdicts[joint]), 3, f"{s.ratio[joint]:.3g}×"),
+                    )
+                ]
+            )
+        parts.append(
+            f"<h3>{h.escape(file)}</h3>"
+            + h.paragraph(
+                f"A simulated {sa.described}: {sa.verdict}; B simulated {sb.described}: {sb.verdict}.", "rule"
+            )
+            + h.table(["joint", "A error", "A ratio", "B error", "B ratio"], rows, "held-out")
+        )
+    if not common:
+        only = sorted(set(held_a) ^ set(held_b))
+        parts.append(
+            h.paragraph(
+                "No held-out log scored by both runs"
+                + (f" (scored by one: {', '.join(only)})." if only else ".")
+            )
+        )
+    ua, ub = {u.name: u for u in ra.unknowns}, {u.name: u for u in rb.unknowns}
+    rows = []
+    for name in (n for n in ua if n in ub):
+        x, y = ua[name], ub[name]
+        z = z_score(x.value, x.std, y.value, y.std)
+        flag = "poor" if z is not None and abs(z) > SIGNIFICANT_Z else ""
+        bounds = ", ".join(
+            f"{run} at its {u.at_bound} bound" for run, u in (("A", x), ("B", y)) if u.at_bound
+        )
+        rows.append(
+            [
+                name,
+                h.num(x.value),
+                h.num(x.std, digits=3),
+                h.num(y.value),
+                h.num(y.std, digits=3),
+                h.num(z, flag, digits=3),
+                bounds,
+            ]
+        )
+    table = h.table(["unknown", "A", "σA", "B", "σB", "z", "on a bound"], rows, "parameters")
+    only = sorted(set(ua) ^ set(ub))
+    limited = [
+        [
+            "model-limited",
+            *("not assessed" if r.model_limited is None else str(r.model_limited) for r in (ra, rb)),
+        ],
+        ["flat directions", str(len(ra.flat)), str(len(rb.flat))],
+        ["rollouts", _shown(ra.rollouts), _shown(rb.rollouts)],
+    ]
+    return [
+        h.section("held-out", "Held-out prediction", "".join(parts)),
+        h.section(
+            "parameters",
+            "Unknowns",
+            h.paragraph(
+                f"z = (B − A) / √(σA² + σB²); |z| > {SIGNIFICANT_Z:g} is flagged: a change the runs' own "
+                "uncertainties do not explain.",
+                "rule",
+            )
+            + table
+            + (h.paragraph(f"In one run only: {', '.join(only)}.", "rule") if only else "")
+            + h.table(["", "A", "B"], limited, "fit"),
+        ),
+    ]
 
 
 def render(a: Mapping[str, Any], b: Mapping[str, Any], names: tuple[str, str]) -> str:
@@ -173,10 +295,13 @@ def render(a: Mapping[str, Any], b: Mapping[str, Any], names: tuple[str, str]) -
     if tasks == {"single"}:
         sections += [
             h.section("held-out", "Held-out prediction", _held_out(a, b)),
+            h.section("plausibility", "Plausibility", _plausibility(a, b)),
             h.section("parameters", "Parameters", _parameters(a, b)),
         ]
     elif tasks == {"excitation"}:
         sections.append(h.section("excitation", "Excitation", _excitation(a, b)))
+    elif tasks == {"rollout"}:
+        sections += _rollout(a, b)
     else:
         sections.append(
             h.section(

@@ -2,21 +2,26 @@
 
 Each writer renders the whole content first, writes it to a temporary file in the same directory
 and renames it over the target (``os.replace`` is atomic on POSIX and Windows), so a reader — or a
-sweep summary gathered while other jobs still run — sees either the old file or the new one.
+sweep summary gathered while other jobs still run — sees either the old file or the new one. A file
+replaced keeps its mode; a new one gets what ``open()`` would give. :func:`stage_text` splits the two
+steps, so that a model file appears only once its ``result.json`` is written
+(:func:`idkit.reports.result_file.write_result`). Every CSV cell passes :func:`idkit.untrusted.csv_cell`.
 """
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 import os
+import stat
 import tempfile
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from idkit.estimate import json_safe
+from idkit.untrusted import csv_lines
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -71,9 +76,45 @@ def writable_folder(folder: str | Path, setting: str) -> Path:
     return folder
 
 
-def _replace(tmp: str, path: Path) -> None:
-    os.chmod(tmp, _MODE)
-    os.replace(tmp, path)
+def _mode(path: Path) -> int:
+    """The mode a write to ``path`` leaves: the existing file's, else ``open()``'s default."""
+    try:
+        return stat.S_IMODE(path.stat().st_mode)
+    except OSError:
+        return _MODE
+
+
+@dataclass(frozen=True)
+class Staged:
+    """A file's whole content written to a temporary file beside ``path``, not yet in its place."""
+
+    path: Path
+    temporary: Path
+
+    def commit(self) -> Path:
+        """Put the file in place (one rename, with the mode :func:`_mode` gives); returns its path."""
+        try:
+            os.chmod(self.temporary, _mode(self.path))
+            os.replace(self.temporary, self.path)
+        except BaseException as error:
+            self.discard()
+            if isinstance(error, OSError):
+                raise WriteError(self.path, error) from None
+            raise
+        return self.path
+
+    def discard(self) -> None:
+        """Remove the temporary file (the target is left as it was)."""
+        self.temporary.unlink(missing_ok=True)
+
+
+def stage_text(path: str | Path, text: str) -> Staged:
+    """Write ``text`` (UTF-8) next to ``path`` for a later :meth:`Staged.commit`.
+
+    Raises:
+        WriteError: the temporary file cannot be written (none is left behind).
+    """
+    return _stage(Path(path), text.encode("utf-8"))
 
 
 def write_text(path: str | Path, text: str) -> Path:
@@ -88,12 +129,9 @@ def write_json(path: str | Path, data: Any) -> Path:
 
 
 def write_csv(path: str | Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
-    """A CSV with one header line, written atomically."""
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(header)
-    writer.writerows(rows)
-    return write_text(path, buffer.getvalue())
+    """A CSV with one header line, written atomically; a text cell that a spreadsheet would take for a
+    formula is escaped (:func:`idkit.untrusted.csv_lines`)."""
+    return write_text(path, csv_lines([header, *rows]))
 
 
 def write_npz(path: str | Path, arrays: dict[str, Any]) -> Path:
@@ -106,7 +144,10 @@ def write_npz(path: str | Path, arrays: dict[str, Any]) -> Path:
 
 
 def _write_bytes(path: str | Path, data: bytes) -> Path:
-    path = Path(path)
+    return _stage(Path(path), data).commit()
+
+
+def _stage(path: Path, data: bytes) -> Staged:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -115,13 +156,12 @@ def _write_bytes(path: str | Path, data: bytes) -> Path:
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
-        _replace(tmp, path)
     except BaseException as error:
         Path(tmp).unlink(missing_ok=True)
         if isinstance(error, OSError):
             raise WriteError(path, error) from None
         raise
-    return path
+    return Staged(path, Path(tmp))
 
 
 def save_figure(fig: Any, path: str | Path) -> Path:

@@ -10,12 +10,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from idkit.reports import files, html
+from idkit.reports import files, paper_page
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.reports.tables import markdown_table
 from idkit.reports.units import format_time
 from idkit.studies.paper import PaperTables, ScenarioTable
+from idkit.untrusted import safe_basename
 
 #: The paper's table number of each scenario.
 TABLES = {"state_noise": "II", "torque_noise": "III", "all_noise": "IV", "outliers": "V"}
@@ -133,7 +134,7 @@ def write(result: PaperTables, out_dir: str | Path, plots: bool = True) -> dict[
                     {e.estimator: e.params for e in t.estimates},
                     t.truth,
                     title=f"Table {TABLES.get(t.scenario, '')} ({t.scenario}): estimate / true value",
-                    path=out / f"paper_{t.scenario}.png",
+                    path=out / f"paper_{safe_basename(t.scenario)}.png",
                 )
             )
     return write_result(
@@ -141,5 +142,5 @@ def write(result: PaperTables, out_dir: str | Path, plots: bool = True) -> dict[
         result.provenance,
         result.payload(),
         written,
-        lambda document: html.text_page(document, text(result), out),
+        lambda document: paper_page.render(result, document, out, text(result)),
     )

@@ -57,6 +57,8 @@ def lines(details: Mapping[str, Any]) -> list[str]:
         return out
     out.append(f"verdict — {judged['rule']}:")
     out += _verdict_lines(block, judged)
+    if block.get("std_source"):  # where every ± above comes from (idkit.std_source), model-conditional
+        out.append(block["std_source"])
     if judged["unusable"] is None:
         out += not_identified(judged, block.get("free") or ())
     out += sdk_lines(link, block["sdk"])

@@ -45,21 +45,72 @@ def convergence(header: Sequence[str], rows: Sequence[Sequence[float]], title: s
     return save_figure(fig, path)
 
 
+#: Axis limits hold the values between these quantiles widened by ``ROBUST_REACH`` times their
+#: spread (Tukey's fences on the 10th-90th percentile range); a value beyond is drawn at the edge.
+ROBUST_QUANTILES = (0.1, 0.9)
+ROBUST_REACH = 1.5
+
+
+def robust_limits(values: Sequence[float], reference: float) -> tuple[float, float]:
+    """Axis limits that show the bulk of ``values`` and ``reference``: one wild value (a TLS
+    estimate 70 times the truth) must not squeeze every other method onto one line."""
+    import numpy as np
+
+    finite = np.asarray([v for v in values if np.isfinite(v)] + [reference], dtype=float)
+    low, high = np.quantile(finite, ROBUST_QUANTILES)
+    spread = max(high - low, 0.05 * max(abs(reference), 1e-12))
+    low = max(low - ROBUST_REACH * spread, finite.min())
+    high = min(high + ROBUST_REACH * spread, finite.max())
+    low, high = min(low, reference), max(high, reference)
+    if high - low < spread:  # values all alike: a window of the minimum spread around them
+        middle = (low + high) / 2
+        low, high = middle - spread / 2, middle + spread / 2
+    pad = 0.05 * (high - low)
+    return float(low - pad), float(high + pad)
+
+
+def mark_beyond(ax: Any, xs: Sequence[float], ys: Sequence[float], limits: tuple[float, float]) -> int:
+    """Draw each point outside ``limits`` at the nearer edge, as a red triangle pointing out of the
+    plot and labelled with its value; returns how many there were."""
+    low, high = limits
+    beyond = 0
+    for x, y in zip(xs, ys, strict=True):
+        if low <= y <= high or y != y:
+            continue
+        edge, marker, align = (high, "^", "top") if y > high else (low, "v", "bottom")
+        ax.scatter([x], [edge], s=40, marker=marker, color="red", zorder=3, clip_on=False)
+        ax.annotate(f"{y:.3g}", (x, edge), fontsize=6, color="red", ha="center", va=align,
+                    xytext=(0, -6 if align == "top" else 6), textcoords="offset points")  # fmt: skip
+        beyond += 1
+    return beyond
+
+
 def estimates_vs_truth(
     estimates: Mapping[str, Mapping[str, float]], truth: Mapping[str, float], title: str, path: Path
 ) -> Path:
-    """Per parameter, each method's estimate divided by the truth (1 = exact)."""
+    """Per parameter, each method's estimate divided by the truth (1 = exact), on axes that hold
+    the bulk of the estimates (:func:`robust_limits`; the few beyond are marked at the edge)."""
     names = [n for n in truth if truth[n] != 0]
     fig, ax = _subplots(figsize=(max(5, 0.35 * len(estimates) + 3), 3.8))
     markers = "os^Dv<>pP*"
+    points = []
     for j, name in enumerate(names):
         xs, ys = [], []
         for i, params in enumerate(estimates.values()):
             xs.append(i + (j - (len(names) - 1) / 2) * 0.12)
             ys.append(params[name] / truth[name])
-        ax.scatter(xs, ys, s=18, marker=markers[j % len(markers)], label=name)
+        points.append((xs, ys))
+    limits = robust_limits([y for _, ys in points for y in ys], 1.0)
+    for j, (name, (xs, ys)) in enumerate(zip(names, points, strict=True)):
+        inside = [(x, y) for x, y in zip(xs, ys, strict=True) if limits[0] <= y <= limits[1]]
+        ax.scatter([x for x, _ in inside], [y for _, y in inside], s=18, marker=markers[j % len(markers)],
+                   label=name)  # fmt: skip
+    beyond = sum(mark_beyond(ax, xs, ys, limits) for xs, ys in points)
+    ax.set_ylim(*limits)
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_xticks(range(len(estimates)), list(estimates), rotation=60, ha="right", fontsize="small")
+    if beyond:
+        title += f"\n{beyond} beyond the axis: red triangles at the edge, with their values"
     ax.set(ylabel="estimate / true value", title=title)
     ax.legend(fontsize="small")
     return save_figure(fig, path)
@@ -96,7 +147,7 @@ def traces(
     title: str,
     path: Path,
     joint_names: Sequence[str] | None = None,
-    unit: str = "N·m",
+    unit: str | Sequence[str] = "N·m",
     residuals: bool = True,
 ) -> Path:
     """Per joint, a measured signal ``[N, n]`` against predictions ``[N, n]`` over ``times[N]`` and,
@@ -105,10 +156,12 @@ def traces(
 
     Args:
         joint_names: the ``n`` joints' names for the axes (``None``: ``joint 1``, ``joint 2``, …).
-        unit: of the signal, for the axes.
+        unit: of the signal, for the axes: one for all joints, or one per joint (N·m on a revolute
+            joint, N on a prismatic one).
     """
     n = measured.shape[1]
     names = list(joint_names) if joint_names is not None else [f"joint {j + 1}" for j in range(n)]
+    units = [unit] * n if isinstance(unit, str) else list(unit)
     rows = 2 * n if residuals else n
     heights = [3, 1.4] * n if residuals else [1] * n
     fig, axes = _subplots(
@@ -121,7 +174,7 @@ def traces(
         ax.plot(times, measured[:, j], "k", lw=2.0, label="measured")
         for label, values in predicted.items():
             ax.plot(times, values[:, j], lw=1.0, label=label)
-        ax.set_ylabel(f"{names[j]} ({unit})", fontsize="small")
+        ax.set_ylabel(f"{names[j]} ({units[j]})", fontsize="small")
         ax.legend(fontsize=7, loc="upper right")
         if residuals:
             below = axes[step * j + 1, 0]

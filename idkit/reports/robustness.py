@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from idkit.reports import files, html
+from idkit.reports import files, robustness_page
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.reports.tables import markdown_table
@@ -120,5 +120,5 @@ def write(study: RobustnessStudy, out_dir: str | Path, plots: bool = True) -> di
         study.provenance,
         study.payload(),
         written,
-        lambda document: html.text_page(document, text(study), out),
+        lambda document: robustness_page.render(study, document, out, text(study)),
     )

@@ -1,4 +1,5 @@
-"""The ``rollout`` task's report: a text table, ``result.json``, ``identified.xml`` and trajectory plots.
+"""The ``rollout`` task's report: a text table, ``result.json``, ``report.html``
+(:mod:`idkit.reports.rollout_page`), ``identified.xml`` and trajectory plots.
 
 The table lists each unknown's start, estimate, standard deviation and 95 % interval, then the flat
 directions (what the log cannot separate) and whether the noise or the model limits the fit, then the
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from idkit.estimate import history_table
-from idkit.reports import files
+from idkit.reports import files, rollout_page
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
 from idkit.sim.uncertainty import LINKS
@@ -136,8 +137,6 @@ def write(result: RolloutResult, out_dir: str | Path, plots: bool = True) -> dic
     """
     out = claim(out_dir, result.provenance)
     written: dict[str, str] = {}
-    if result.mjcf is not None:
-        written["identified_mjcf"] = str(files.write_text(out / MJCF_FILE, result.mjcf))
     found = history_table(result.estimate.details.get("history"))
     if found is not None:
         written["history"] = str(files.write_csv(out / "history.csv", *found))
@@ -154,7 +153,15 @@ def write(result: RolloutResult, out_dir: str | Path, plots: bool = True) -> dic
             written["convergence_plot"] = str(
                 figures.convergence(*found, title=f"{label}: search", path=out / "convergence.png")
             )
-    return write_result(out, result.provenance, result.payload(), written)
+    models = {"identified_mjcf": (MJCF_FILE, result.mjcf)} if result.mjcf is not None else None
+    return write_result(
+        out,
+        result.provenance,
+        result.payload(),
+        written,
+        lambda document: rollout_page.render(document, out),
+        models=models,
+    )
 
 
 def trajectories(replayed: Replay | HeldOut, title: str, path: Path) -> Path:

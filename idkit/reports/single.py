@@ -21,6 +21,7 @@ from idkit.reports import files, single_page
 from idkit.reports import payload as payload_report
 from idkit.reports import plots as figures
 from idkit.reports.result_file import claim, write_result
+from idkit.reports.units import effort_units
 from idkit.studies.single import HeldOut, RunResult
 
 HISTORY_FILE = "history.csv"
@@ -75,51 +76,48 @@ def _torque_lines(data: Mapping[str, Any] | None) -> list[str]:
 
 
 def _plausibility_lines(result: RunResult) -> list[str]:
-    """Each link's mass and centre of mass beside CAD when a link is implausible or a bound was
-    enforced, and what keeping every link plausible costs on the held-out files (when computed)."""
+    """Each link's verdict as the run recorded it (:func:`idkit.conic.plausible.plausibility_report`: mass
+    and centre of mass beside CAD, the reasons), what bounds each body, how ``plausible=auto`` chose,
+    and the other choice's held-out figures (when computed). Read, never judged again here."""
     found = result.estimate.details.get("plausibility")
-    if not found or not (found.get("implausible") or found.get("enforced", "none") != "none"):
+    if not found or "links" not in found:
         return []
-    lo, hi = found.get("flagged_outside", (0.5, 2.0))
-    moved = set(found.get("com_outside_geometry", ()))
+    choice = result.estimate.details.get("plausible_choice")
+    if not (found["implausible"] or found.get("enforced", "none") != "none" or choice):
+        return []
     lines = [
         "",
-        f"plausibility: '!' a mass outside [{lo:g}, {hi:g}] x CAD or a centre of mass moved out of the "
-        f"link's geometry; enforced: {found['enforced']}",
+        f"{found['rule']}; enforced: {found['enforced']}",
         f"{'link':<24}{'mass (kg)':>11}{'CAD':>9}{'ratio':>8}   {'centre of mass (m)':<26}{'CAD':<24}",
     ]
-    for link, mass in found["mass"].items():
-        cad = found["cad_mass"][link]
-        flag = " !" if link in found.get("implausible", ()) else ""
-        notes = [
-            n
-            for n, on in (
-                ("at its bound", link in found.get("at_bound", ())),
-                ("outside its geometry", link in moved),
-            )
-            if on
-        ]
-        com = "(" + ", ".join(f"{x:.3f}" for x in found["com"][link]) + ")"
-        cad_com = "(" + ", ".join(f"{x:.3f}" for x in found["cad_com"][link]) + ")"
+    for link, verdict in found["links"].items():
+        com = "(" + ", ".join(f"{x:.3f}" for x in verdict["com"]) + ")"
+        cad_com = "(" + ", ".join(f"{x:.3f}" for x in verdict["cad_com"]) + ")"
+        notes = [*verdict["reasons"], *(["at its mass bound"] if verdict["at_bound"] else [])]
         lines.append(
-            f"{link:<24}{mass:11.4g}{cad:9.4g}{mass / cad:7.3g}x   {com:<26}{cad_com:<24}{flag}"
+            f"{link:<24}{verdict['mass']:11.4g}{verdict['cad_mass']:9.4g}{verdict['ratio']:7.3g}x   "
+            f"{com:<26}{cad_com:<24}{'' if verdict['plausible'] else ' !'}"
             + (f" ({'; '.join(notes)})" if notes else "")
         )
-    if found.get("geometry"):
-        lines.append(found["geometry"])
+    lines.append("bounded by: " + "; ".join(f"{link}: {what}" for link, what in found["bounded_by"].items()))
+    if choice:
+        lines.append(f"plausible=auto: {choice['reason']}")
     other = result.plausible
     if other is not None:
         now = " / ".join(f"{100 * h.scores.rel_all:.2f} %" for h in result.validation)
         then = " / ".join(f"{100 * s.rel_all:.2f} %" for s in other.scores)
+        kept = other.estimate.details.get("plausibility", {}).get("implausible")
+        verdict = f"implausible: {', '.join(kept)}" if kept else "every link plausible"
+        enforced = other.estimate.details.get("plausibility", {}).get("enforced", "?")
+        differs = f"; {other.differs}" if other.differs else ""
         lines.append(
-            f"implausible: {', '.join(other.implausible)}; with estimator.plausible=true (masses within "
-            f"[{lo:g}, {hi:g}] x CAD, inside each link's geometry) the held-out ‖E‖/‖T‖ is {then} "
-            f"(this fit: {now})"
+            f"with {other.option} (enforced: {enforced}; {verdict}{differs}) the held-out ‖E‖/‖T‖ is "
+            f"{then} (this fit: {now})"
         )
-    elif found.get("implausible"):
+    elif found["implausible"]:
         lines.append(
             f"implausible: {', '.join(found['implausible'])}; estimator.plausible=true keeps every link mass "
-            f"within [{lo:g}, {hi:g}] x CAD and inside its geometry (give validate= files to see the cost)"
+            "within its band and inside its geometry (give validate= files to see the cost)"
         )
     return lines
 
@@ -141,6 +139,8 @@ def _uncertainty_lines(uncertainty: Mapping[str, Any] | None, base: Mapping[str,
         spread_shown = "" if spread is None else f"{spread:12.3g}"
         lines.append(f"{name:<24}{shown:>12}{spread_shown:>12}{_percent(pct):>12}")
     cond = uncertainty.get("cond", float("nan"))
+    if uncertainty.get("std_source"):  # the estimate's record of its std (idkit.std_source)
+        lines.append(f"std: {uncertainty['std_source']}")
     lines.append(f"regressor rank {uncertainty.get('rank')} · condition number {cond:.3g}")
     unidentifiable = uncertainty.get("unidentifiable") or []
     lines.append("unidentifiable: " + ("; ".join(unidentifiable) if unidentifiable else "none"))
@@ -174,6 +174,7 @@ def _validation_lines(result: RunResult) -> list[str]:
         else f"torques compared below {band:g} Hz"
     )
     names = joint_labels(result, n)
+    units = effort_units(result.joint_kinds, n)  # N·m for a revolute joint, N for a sliding one
     width = max(12, *(len(name) + 2 for name in names))
     lines = [
         "",
@@ -182,9 +183,11 @@ def _validation_lines(result: RunResult) -> list[str]:
     ]
     for held in result.validation:
         lines.append(f"{_short(held.file, 60)}: ‖E‖/‖T‖ {100 * held.scores.rel_all:.2f} %")
-        lines.append(f"  {'joint':<{width}}{'RMS error':>12}{'relative':>11}")
-        for name, rms, relative in zip(names, held.scores.rms, held.scores.relative, strict=True):
-            lines.append(f"  {name:<{width}}{rms:12.4g}{100 * relative:9.2f} %")
+        lines.append(f"  {'joint':<{width}}{'RMS error':>17}{'relative':>11}")
+        for name, unit, rms, relative in zip(
+            names, units, held.scores.rms, held.scores.relative, strict=True
+        ):
+            lines.append(f"  {name:<{width}}{rms:12.4g} {unit:<4}{100 * relative:9.2f} %")
     return lines
 
 
@@ -221,21 +224,31 @@ def write(result: RunResult, out_dir: str | Path, plots: bool = True) -> dict[st
                 path=out / "estimate.png",
             )
         )
-    if result.urdf is not None:
-        written["identified_urdf"] = str(files.write_text(out / URDF_FILE, result.urdf))
-    if result.mjcf is not None:
-        written["identified_mjcf"] = str(files.write_text(out / MJCF_FILE, result.mjcf))
     if plots:
         for k, held in enumerate(result.validation):
             path = out / f"validation_{k + 1}.png"
-            names = joint_labels(result, held.scores.measured.shape[1])
-            written[f"validation_plot_{k + 1}"] = str(_validation_plot(label, held, path, names))
+            n = held.scores.measured.shape[1]
+            names, units = joint_labels(result, n), effort_units(result.joint_kinds, n)
+            written[f"validation_plot_{k + 1}"] = str(_validation_plot(label, held, path, names, units))
+    models = {
+        key: (name, text)
+        for key, name, text in (
+            ("identified_urdf", URDF_FILE, result.urdf),
+            ("identified_mjcf", MJCF_FILE, result.mjcf),
+        )
+        if text is not None
+    }
     return write_result(
-        out, result.provenance, result.payload(), written, lambda document: single_page.render(document, out)
+        out,
+        result.provenance,
+        result.payload(),
+        written,
+        lambda document: single_page.render(document, out),
+        models=models,
     )
 
 
-def _validation_plot(label: str, held: HeldOut, path: Path, joint_names: list[str]) -> Path:
+def _validation_plot(label: str, held: HeldOut, path: Path, joint_names: list[str], units: list[str]) -> Path:
     """Measured vs predicted torques on the start of a held-out file, with the residual under each
     joint (x: time, else sample index)."""
     scores = held.scores
@@ -247,5 +260,5 @@ def _validation_plot(label: str, held: HeldOut, path: Path, joint_names: list[st
         keep = times < PLOT_SAMPLES
     title = f"{label}: held-out {held.file} (‖E‖/‖T‖ {100 * scores.rel_all:.2f} %)"
     return figures.traces(
-        times[keep], scores.measured[keep], {label: scores.predicted[keep]}, title, path, joint_names
+        times[keep], scores.measured[keep], {label: scores.predicted[keep]}, title, path, joint_names, units
     )

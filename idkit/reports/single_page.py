@@ -3,9 +3,10 @@
 Built from the run's ``result.json`` document and the figures beside it (the validation plots the
 report wrote), so the page of a finished run can be made again from its folder. In order:
 
-1. **Verdicts**: the held-out scores per joint (graded by :data:`HELD_OUT_BANDS`), the plausibility of
-   each link's mass and centre of mass against the CAD model, identifiability (rank, conditioning,
-   free combinations, poorly determined base parameters, parameters that ended at a search bound),
+1. **Verdicts**: the held-out scores per joint (graded by :data:`HELD_OUT_BANDS`), each link's
+   plausibility verdict as the run recorded it (:func:`idkit.conic.plausible.plausibility_report`),
+   identifiability (rank, conditioning, free combinations, poorly determined base parameters,
+   parameters that ended at a search bound),
    what was chosen automatically and why (every ``reason`` the run recorded: cut-off, prior weight,
    torque delay …), and a payload's verdict with its SDK lines;
 2. **parameters** beside CAD (and the truth of a simulation), base parameters with their σ;
@@ -15,21 +16,17 @@ report wrote), so the page of a finished run can be made again from its folder. 
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from idkit.conic.plausible import PLAUSIBLE_MASS_RATIO
 from idkit.reports import html as h
+from idkit.reports.units import effort_units
 
 #: Per-joint relative RMS error on held-out data: at most the first share is ``good`` (a rigid-body
 #: model with friction on a real arm: the KUKA's best fits reach 2.4–4.9 %), above the second
 #: ``poor`` (worse than a CAD model usually predicts: the KUKA's CAD model 11.6 %); ``fair`` between.
 HELD_OUT_BANDS = (0.05, 0.15)
-#: A link's identified centre of mass is plausible within this distance (m) of its CAD position.
-COM_SHIFT = 0.1
 #: A base parameter is poorly determined above this relative standard deviation (%).
 POOR_STD_PCT = 10.0
 #: Where a run records its automatic choices, as the page names them.
@@ -50,13 +47,10 @@ def joint_names(payload: Mapping[str, Any], n: int) -> list[str]:
     return names if len(names) == n else [f"j{j + 1}" for j in range(n)]
 
 
-def torque_unit(document: Mapping[str, Any]) -> str:
-    """The unit the torques were fitted in: what the run recorded, else N·m."""
-    for place in (document.get("payload") or {}, document.get("data") or {}):
-        for key in ("torque_unit", "fitted_unit", "unit"):
-            if isinstance(place.get(key), str):
-                return str(place[key])
-    return "N·m"
+def joint_units(document: Mapping[str, Any], n: int) -> list[str]:
+    """Per joint, the unit its efforts were fitted in: N·m on a revolute joint, N on a prismatic one
+    (``payload.joint_kinds``; both where the run did not record the kinds)."""
+    return effort_units((document.get("payload") or {}).get("joint_kinds"), n)
 
 
 def _held_out(document: Mapping[str, Any]) -> str:
@@ -64,7 +58,6 @@ def _held_out(document: Mapping[str, Any]) -> str:
     validation = payload.get("validation") or {}
     if not validation:
         return h.paragraph("No held-out file (validate=): the model was not scored on data it did not see.")
-    unit = torque_unit(document)
     good, poor = HELD_OUT_BANDS
     parts = [
         h.paragraph(
@@ -77,130 +70,77 @@ def _held_out(document: Mapping[str, Any]) -> str:
         names = joint_names(payload, len(scores["rms"]))
         overall = scores["rel_all"]
         parts.append(f"<h3>{h.escape(file)} {h.badge(grade(overall), f'‖E‖/‖T‖ {100 * overall:.3g} %')}</h3>")
+        units = joint_units(document, len(names))
         rows = [
-            [name, h.num(rms), h.num(rel, grade(rel), shown=h.percent(rel))]
-            for name, rms, rel in zip(names, scores["rms"], scores["relative"], strict=True)
+            [name, h.num(rms, shown=f"{h.number(rms)} {unit}"), h.num(rel, grade(rel), shown=h.percent(rel))]
+            for name, unit, rms, rel in zip(names, units, scores["rms"], scores["relative"], strict=True)
         ]
         rows.append(["all joints (‖E‖/‖T‖)", "", h.num(overall, grade(overall), shown=h.percent(overall))])
-        parts.append(h.table(["joint", f"RMS error ({unit})", "relative"], rows, "held-out"))
+        parts.append(h.table(["joint", "RMS error", "relative"], rows, "held-out"))
         parts.append(h.paragraph(scores.get("metric", ""), "rule"))
     return "".join(parts)
 
 
-def _links(params: Mapping[str, float]) -> list[str]:
-    """Links with the 10 standard inertial parameters (``<link>.m`` … ``<link>.Izz``)."""
-    names = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
-    links = [name[: -len(".m")] for name in params if name.endswith(".m")]
-    return [link for link in links if all(f"{link}.{k}" in params for k in names)]
-
-
-def _inertial(params: Mapping[str, float], link: str) -> np.ndarray:
-    keys = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
-    return np.array([params[f"{link}.{k}"] for k in keys], dtype=np.float64)
-
-
-def _lowest_eigenvalue(inertial: np.ndarray) -> float:
-    from idkit.robots.inertia import pseudo_inertia_rows
-
-    return float(np.linalg.eigvalsh(np.array(pseudo_inertia_rows(list(inertial)), dtype=np.float64)).min())
-
-
-def link_plausibility(
-    params: Mapping[str, float],
-    nominal: Mapping[str, float],
-    mass_ratio: Sequence[float] = PLAUSIBLE_MASS_RATIO,
-) -> list[dict[str, Any]]:
-    """Per link: CAD and identified mass, their ratio, how far the centre of mass moved, the smallest
-    pseudo-inertia eigenvalue, and ``plausible``: the mass within ``mass_ratio`` times CAD's (the
-    range every fit flags, :data:`idkit.conic.plausible.PLAUSIBLE_MASS_RATIO`), the centre of mass
-    within :data:`COM_SHIFT` of CAD's, and a body that can exist."""
-    low, high = mass_ratio
-    found = []
-    for link in _links(params):
-        mine, cad = _inertial(params, link), _inertial(nominal, link)
-        ratio = mine[0] / cad[0] if cad[0] > 0 else float("nan")
-        shift = (
-            float(np.linalg.norm(mine[1:4] / mine[0] - cad[1:4] / cad[0]))
-            if mine[0] > 0 and cad[0] > 0
-            else float("nan")
-        )
-        lowest = _lowest_eigenvalue(mine)
-        plausible = bool(
-            mine[0] > 0
-            and lowest >= -1e-9 * max(1.0, abs(mine[0]))
-            and low <= ratio <= high
-            and shift <= COM_SHIFT
-        )
-        found.append(
-            {
-                "link": link,
-                "cad_mass": float(cad[0]),
-                "mass": float(mine[0]),
-                "ratio": float(ratio),
-                "com_shift": shift,
-                "min_eigenvalue": lowest,
-                "plausible": plausible,
-            }
-        )
-    return found
-
-
 def _plausibility(payload: Mapping[str, Any]) -> str:
-    params, nominal = payload["estimate"]["params"], payload.get("nominal")
+    """Each link's verdict as the run recorded it (``details["plausibility"]``, the one rule of
+    :func:`idkit.conic.plausible.plausibility_report`): read, never judged again here."""
     details = payload["estimate"].get("details") or {}
     if "payload" in details:
         return h.paragraph(
             "A payload fit keeps the arm as given (its model is the one compared with CAD when it was "
             "identified); the payload's own verdict is above."
         )
-    if not nominal or not _links(params):
-        return h.paragraph("No per-link CAD model to compare with (this robot has no link inertials).")
     recorded = details.get("plausibility") or {}
-    low, high = recorded.get("flagged_outside") or PLAUSIBLE_MASS_RATIO
-    links = link_plausibility(params, nominal, (low, high))
-    wrong = [row["link"] for row in links if not row["plausible"]]
+    if "links" not in recorded:
+        return h.paragraph(
+            "No plausibility verdict recorded (this robot has no per-link CAD model, or the run predates "
+            "the record)."
+        )
+    wrong = recorded["implausible"]
     head = (
         h.badge("good", "every link plausible")
         if not wrong
         else h.badge("poor", f"implausible: {', '.join(wrong)}")
     )
     rule = h.paragraph(
-        f"Plausible: a mass within [{low:g}, {high:g}] × CAD's, a centre of mass within "
-        f"{100 * COM_SHIFT:g} cm of CAD's, a positive semidefinite pseudo-inertia (a body that can exist). "
-        "Only combinations of a link's parameters are identified: where the data leave the rest free, "
-        "the estimator's prior (pcls) or its minimum-norm choice (ls) decides them."
-        + (f" Enforced by the fit: {recorded['enforced']}." if recorded.get("enforced") else ""),
+        f"{recorded['rule'][0].upper()}{recorded['rule'][1:]}. Only combinations of a link's parameters are "
+        "identified: where the data leave the rest free, the estimator's prior (pcls) or its minimum-norm "
+        f"choice (ls) decides them. Enforced by the fit: {recorded['enforced']}.",
         "rule",
     )
-    bound = set(recorded.get("at_bound") or ())
+    low, high = recorded.get("flagged_outside") or (0.5, 2.0)
     rows = [
         [
-            row["link"],
+            link,
             h.num(row["cad_mass"]),
             h.num(row["mass"]),
             h.num(row["ratio"], "" if low <= row["ratio"] <= high else "poor", 4),
-            h.num(row["com_shift"], "" if row["com_shift"] <= COM_SHIFT else "poor", 4),
             h.num(row["min_eigenvalue"], "" if row["min_eigenvalue"] >= 0 else "poor", 3),
-            "yes" if row["link"] in bound else "",
+            row["bounded_by"],
+            "yes" if row["at_bound"] else "",
             h.raw(h.badge("good" if row["plausible"] else "poor", "yes" if row["plausible"] else "no")),
+            "; ".join(row["reasons"]),
         ]
-        for row in links
+        for link, row in recorded["links"].items()
     ]
     header = [
         "link",
         "CAD mass (kg)",
         "mass (kg)",
         "ratio",
-        "CoM moved (m)",
         "min eig J",
+        "bounded by",
         "at a bound",
         "plausible",
+        "why not",
     ]
-    return f"<p>{head}</p>" + rule + h.table(header, rows, "plausibility") + _alternative(payload)
+    choice = details.get("plausible_choice")
+    said = h.paragraph(f"plausible=auto: {choice['reason']}.", "rule") if choice else ""
+    return f"<p>{head}</p>" + rule + h.table(header, rows, "plausibility") + said + _alternative(payload)
 
 
 def _alternative(payload: Mapping[str, Any]) -> str:
-    """What keeping every link plausible costs on the held-out files, when the study computed it."""
+    """The other plausibility choice's held-out figures, when the study computed them."""
     other = payload.get("plausible_alternative")
     if not other:
         return ""
@@ -210,10 +150,13 @@ def _alternative(payload: Mapping[str, Any]) -> str:
          h.num(scores["rel_all"], shown=h.percent(scores["rel_all"]))]
         for file, scores in (other.get("validation") or {}).items()
     ]  # fmt: skip
+    kept = other.get("implausible")
+    verdict = f"implausible: {', '.join(kept)}" if kept else "every link plausible"
+    differs = f"; {other['differs']}" if other.get("differs") else ""
     return h.paragraph(
-        f"With {other.get('option')} every link mass stays within the range; its held-out ‖E‖/‖T‖ "
-        "beside this fit's:"
-    ) + h.table(["file", "this fit", "plausible fit"], rows, "plausible-alternative")
+        f"With {other.get('option')} (enforced: {other.get('enforced')}; {verdict}{differs}), its held-out "
+        "‖E‖/‖T‖ beside this fit's:"
+    ) + h.table(["file", "this fit", "other choice"], rows, "plausible-alternative")
 
 
 def _identifiability(details: Mapping[str, Any]) -> str:
@@ -385,7 +328,8 @@ def _traces(document: Mapping[str, Any], folder: Path) -> str:
     return "".join(parts)
 
 
-def _run(document: Mapping[str, Any]) -> str:
+def run_details(document: Mapping[str, Any]) -> str:
+    """The run's plugins, data, files and (collapsed) config: every page's last section."""
     import json
 
     plugins = document.get("plugins") or {}
@@ -437,6 +381,6 @@ def render(document: Mapping[str, Any], folder: str | Path) -> str:
             h.section("verdicts", "Verdicts", *verdicts),
             h.section("parameters", "Parameters", _parameters(payload)),
             h.section("prediction", "Measured vs predicted", _traces(document, Path(folder))),
-            h.section("run", "The run", _run(document)),
+            h.section("run", "The run", run_details(document)),
         ],
     )

@@ -55,6 +55,8 @@ class CylindricalRobot(Robot):
     """
 
     joint_names = ("theta1", "d2", "d3")
+    #: whether each joint's effort is a torque (N·m) or a force (N), for the reports
+    joint_kinds = ("revolute", "prismatic", "prismatic")
     param_names = ("m2", "m3", "s3z", "I")
     base_param_names = ("I+m3*s3z^2", "m2", "m3", "m3*s3z")
 

@@ -14,7 +14,15 @@ body's child link frame; the MuJoCo body frame moved to the joint's ``pos``
 
 Never an error for geometry the dynamics do not need: a mesh that is not found or not read (a
 ``.dae``, a ``package://`` path without its folder in ``package_dirs``), an unknown or malformed
-shape, is left out and named in ``missing``; a body left with nothing has no bound (``None``).
+shape, is left out and named in ``missing``; a body left with nothing has no bound (``None``). A
+folder in ``package_dirs`` that does not exist is refused (a typo would silently drop every mesh).
+
+Geometry is trusted only where it can hold the link: a body whose CAD mass would make its geometry's
+bounding ellipsoid denser than :data:`MAX_DENSITY` (a 1 cm box standing in for a wrist, a marker
+sphere) is a *placeholder*, not the link's shape: it bounds nothing, and is named in
+``placeholders``. Density, not the CAD inertia: shipped inertias are often placeholders themselves
+(the KUKA's 0.3 kg flange has a 0.41 m radius of gyration inside an 8 cm cylinder), and there the
+geometry is the better witness of the body.
 """
 
 from __future__ import annotations
@@ -23,7 +31,7 @@ import os
 import weakref
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +39,7 @@ import numpy as np
 
 from idkit.interfaces import Robot
 from idkit.robots.bounding import Solid, ellipsoid_bound, minimum_volume_ellipsoid, thickened
-from idkit.robots.meshes import MeshError, mesh_file, mesh_vertices
+from idkit.robots.meshes import MeshError, checked_package_dirs, mesh_file, mesh_vertices
 from idkit.robots.mjcf import MJCFRobot, compile_mjcf, import_mujoco
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_frames import link_placement
@@ -72,6 +80,14 @@ class BodyGeometry:
         point = np.asarray(point, dtype=np.float64)
         return bool(np.all(point >= self.box_lo) and np.all(point <= self.box_hi))
 
+    def size(self) -> float:
+        """The bounding box's largest edge (m), to name a placeholder by."""
+        return float((self.box_hi - self.box_lo).max())
+
+    def volume(self) -> float:
+        """The bounding ellipsoid's volume (m³)."""
+        return float(4 / 3 * np.pi / np.sqrt(np.linalg.det(self.ellipsoid_shape)))
+
 
 @dataclass(frozen=True)
 class RobotGeometry:
@@ -79,22 +95,56 @@ class RobotGeometry:
 
     Attributes:
         bodies: body link name → its :class:`BodyGeometry`, or ``None`` when none of its links has
-            usable geometry; in the robot's body order.
+            usable geometry or what it has is a placeholder; in the robot's body order.
         missing: all geometry left out, ``"<link>: <what> (<why>)"``.
+        placeholders: body link name → why its geometry bounds nothing (far smaller than its CAD
+            inertia: module doc).
     """
 
     bodies: dict[str, BodyGeometry | None]
     missing: tuple[str, ...]
+    placeholders: dict[str, str] = field(default_factory=dict)
+
+    def bounded_by(self) -> dict[str, str]:
+        """Per body, by name: what bounds it (``"collision sphere, collision cylinder"``), or why nothing
+        does (``"nothing: no usable geometry"``, ``"nothing: a placeholder …"``)."""
+        out = {}
+        for name, geometry in self.bodies.items():
+            if geometry is not None:
+                out[name] = ", ".join(_without_link(name, source) for source in geometry.sources)
+            elif name in self.placeholders:
+                out[name] = f"nothing: {self.placeholders[name]}"
+            else:
+                out[name] = "nothing: no usable geometry"
+        return out
 
     def summary(self) -> str:
-        """One line for a report: how many bodies are bounded, which are not, what was left out."""
-        without = [name for name, geometry in self.bodies.items() if geometry is None]
-        parts = [f"geometry bounds {len(self.bodies) - len(without)} of {len(self.bodies)} bodies"]
+        """One line for a report: which bodies are bounded by what, which are not and why, what was
+        left out."""
+        bounded = self.bounded_by()
+        count = sum(geometry is not None for geometry in self.bodies.values())
+        parts = [f"geometry bounds {count} of {len(self.bodies)} bodies"]
+        if count:
+            parts.append(
+                "bounded: "
+                + ", ".join(f"{name} ({bounded[name]})" for name, g in self.bodies.items() if g is not None)
+            )
+        if self.placeholders:
+            parts.append(
+                "placeholder geometry, not used: "
+                + ", ".join(f"{name} ({why})" for name, why in self.placeholders.items())
+            )
+        without = [n for n, g in self.bodies.items() if g is None and n not in self.placeholders]
         if without:
             parts.append(f"no usable geometry on {', '.join(without)}")
         if self.missing:
             parts.append(f"left out: {'; '.join(self.missing)}")
         return "; ".join(parts)
+
+
+def _without_link(link: str, source: str) -> str:
+    """``"lwr_1_link collision sphere"`` → ``"collision sphere"`` (the body's own link)."""
+    return source.removeprefix(f"{link} ")
 
 
 class _Unusable(ValueError):
@@ -122,7 +172,8 @@ def body_geometry(
             (``None``: the robot's own ``package_dirs`` option).
 
     Raises:
-        ValueError: any other robot (it has no geometry to read).
+        ValueError: any other robot (it has no geometry to read), or a ``package_dirs`` entry that is
+            not an existing folder.
     """
     if not isinstance(robot, URDFRobot):
         raise ValueError(f"geometry: needs a urdf or mjcf robot, got {type(robot).__name__}")
@@ -131,13 +182,23 @@ def body_geometry(
     built = _BUILT.setdefault(robot, {})
     key = tuple(str(d) for d in package_dirs)
     if key not in built:
-        built[key] = _build(robot, [Path(d) for d in package_dirs])
+        built[key] = _build(robot, list(checked_package_dirs(package_dirs, "geometry")))
     return built[key]
+
+
+#: Geometry is a placeholder when the link's CAD mass would make its bounding ellipsoid denser than
+#: this (kg/m³: osmium, the densest element, is 22,590): a real shape holds its own link's mass with
+#: room to spare (the ellipsoid is larger than the solid, a link hollower than a metal block), a 1 cm
+#: box on a 0.5 kg wrist would be 180,000 kg/m³.
+MAX_DENSITY = 22_600.0
 
 
 def _build(robot: URDFRobot, package_dirs: list[Path]) -> RobotGeometry:
     found = _mjcf_solids(robot) if isinstance(robot, MJCFRobot) else _urdf_solids(robot, package_dirs)
+    nominal = robot.nominal_params().double().numpy()
+    cad = {link: nominal[10 * i : 10 * i + 10] for i, link in enumerate(robot.link_names)}
     bodies: dict[str, BodyGeometry | None] = {}
+    placeholders: dict[str, str] = {}
     missing: list[str] = []
     for link, (solids, lost) in found.items():
         try:
@@ -146,7 +207,16 @@ def _build(robot: URDFRobot, package_dirs: list[Path]) -> RobotGeometry:
             lost.append(f"{link}: {', '.join(label for label, _ in solids)} ({error})")
             bodies[link] = None
         missing += lost
-    return RobotGeometry(bodies, tuple(missing))
+        geometry = bodies[link]
+        mass = cad[link][0] if link in cad else 0.0
+        if geometry is not None and mass > MAX_DENSITY * geometry.volume():
+            what = ", ".join(_without_link(link, source) for source in geometry.sources)
+            placeholders[link] = (
+                f"{what} of {100 * geometry.size():.3g} cm, far smaller than a body of its CAD mass "
+                f"{mass:.3g} kg can be"
+            )
+            bodies[link] = None
+    return RobotGeometry(bodies, tuple(missing), placeholders)
 
 
 def _bound(found: list[tuple[str, Solid]], missing: tuple[str, ...]) -> BodyGeometry:

@@ -23,6 +23,23 @@ class MeshError(ValueError):
     """A mesh file that exists but gives no vertices (the message says why)."""
 
 
+def checked_package_dirs(package_dirs: object, who: str) -> tuple[Path, ...]:
+    """``package_dirs`` as paths, or ``ValueError`` in one line naming ``who`` and the entry that is not
+    an existing folder: a typo would otherwise leave every ``package://`` mesh out without a word."""
+    if isinstance(package_dirs, (str, Path)) or not isinstance(package_dirs, Sequence):
+        raise ValueError(f"{who}: package_dirs must be a list of folders, got {package_dirs!r}")
+    out = []
+    for entry in package_dirs:
+        if not isinstance(entry, (str, Path)) or not str(entry):
+            raise ValueError(f"{who}: package_dirs entries must be folder paths, got {entry!r}")
+        path = Path(entry)
+        if not path.is_dir():
+            why = "is a file, not a folder" if path.exists() else "does not exist"
+            raise ValueError(f"{who}: package_dirs names {str(entry)!r}, which {why}")
+        out.append(path)
+    return tuple(out)
+
+
 def mesh_file(filename: str, base: Path | None, package_dirs: Sequence[Path]) -> Path | None:
     """The file a URDF ``<mesh filename>`` names, or ``None`` when it is not found.
 

@@ -41,6 +41,7 @@ from idkit.registry import PluginLoadError
 from idkit.robots.drives import Friction
 from idkit.robots.inertia import standard_parameters
 from idkit.robots.model_checks import check_model
+from idkit.robots.model_xml import model_text
 from idkit.robots.urdf import URDFRobot
 from idkit.robots.urdf_model import Body, KinematicTree, LinkInertial, model_file
 from idkit.seeds import Seed
@@ -88,13 +89,14 @@ def read_mjcf_text(mjcf: str | os.PathLike) -> tuple[str, Path | None, str]:
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: a directory, not XML, or not an MJCF file (a URDF is pointed to ``robot=urdf``).
+        ValueError: a directory, not UTF-8 XML, a DTD (:mod:`idkit.robots.model_xml`), or not an MJCF
+            file (a URDF is pointed to ``robot=urdf``).
     """
     if isinstance(mjcf, str) and mjcf.lstrip().startswith("<"):
-        text, path, label = mjcf, None, "<MJCF text>"
+        text, path, label = model_text(mjcf.encode("utf-8"), "<MJCF text>", "mjcf"), None, "<MJCF text>"
     else:
         path = model_file(mjcf, "mjcf", ".xml")
-        text, label = path.read_text(encoding="utf-8"), str(path)
+        text, label = model_text(path.read_bytes(), str(path), "mjcf"), str(path)
     try:
         tag = ET.fromstring(text.encode("utf-8")).tag
     except ET.ParseError as error:
@@ -347,7 +349,8 @@ class MJCFRobot(URDFRobot):
         mjcf: an MJCF file path, MJCF text, or the name of an MJCF shipped in ``idkit/robots/assets``
             (default ``arm``: two hinges and a slide). Read with ``mujoco``: ``pip install
             robot-idkit[mjcf]``.
-        friction, offset, stribeck_velocity, effort_scale, sigmoid_steepness, sigmoid_shift: as for
+        friction, offset, stribeck_velocity, effort_scale, sigmoid_steepness, sigmoid_shift,
+        coulomb_velocity: as for
             :class:`~idkit.robots.urdf.URDFRobot` (``fc`` is MuJoCo's ``frictionloss``, ``fv`` its
             ``damping``).
         armature: as for :class:`~idkit.robots.urdf.URDFRobot`; the a-priori value is the joint's
@@ -385,6 +388,7 @@ class MJCFRobot(URDFRobot):
         sigmoid_shift: float | Sequence[float] = 0.0,
         steepness_range: tuple[float, float] = (1.0, 100.0),
         max_shift: float = 0.2,
+        coulomb_velocity: float | Sequence[float] | str | None = None,
     ) -> None:
         self.mjcf = mjcf
         self.mujoco_model = read_mjcf(mjcf)
@@ -415,6 +419,7 @@ class MJCFRobot(URDFRobot):
             sigmoid_shift=sigmoid_shift,
             steepness_range=steepness_range,
             max_shift=max_shift,
+            coulomb_velocity=coulomb_velocity,
         )
 
     def _read_tree(self) -> KinematicTree:

@@ -280,14 +280,23 @@ def identified_mjcf(robot: URDFRobot, params: Tensor | Mapping[str, float]) -> s
                 joint.set(attribute, _number(values[index[f"{body.joint}.{key}"]]))
             elif key in ("fv", "fc"):  # the fit assumed none: MuJoCo must not add the source's on top
                 joint.set(attribute, "0")
-    extra = {name: values[k] for k, name in enumerate(robot.param_names) if name.endswith((".fs", ".offset"))}
-    if robot.stribeck_scales is not None:
-        scales = zip(robot.joint_names, robot.stribeck_scales, strict=True)
-        extra.update((f"{joint}.stribeck_velocity", float(v)) for joint, v in scales)
-    _set_numerics(root, extra)
+    _set_numerics(root, _recorded_terms(robot, values))
     text = ET.tostring(root, encoding="unicode") + "\n"
     compile_mjcf(text, None, "the identified MJCF")  # MuJoCo loads it, or says why not
     return text
+
+
+def _recorded_terms(robot: URDFRobot, values: np.ndarray) -> dict[str, float]:
+    """The values MJCF has no attribute for: Stribeck terms, offsets, and the velocity scales of the
+    Stribeck and smoothed Coulomb terms (``frictionloss`` is MuJoCo's own law; the fit's is recorded)."""
+    extra = {name: values[k] for k, name in enumerate(robot.param_names) if name.endswith((".fs", ".offset"))}
+    for key, attribute in (("stribeck_velocity", "stribeck_scales"), ("coulomb_velocity", "coulomb_scales")):
+        scales = getattr(robot, attribute, None)
+        if scales is not None:
+            extra.update(
+                (f"{joint}.{key}", float(v)) for joint, v in zip(robot.joint_names, scales, strict=True)
+            )
+    return extra
 
 
 def write_identified_mjcf(

@@ -53,6 +53,7 @@ from idkit.robots.drives import (
     per_joint,
     read_armatures,
 )
+from idkit.robots.meshes import checked_package_dirs
 from idkit.robots.rnea import TreeTensors, rnea, rnea_regressor
 from idkit.robots.urdf_model import INERTIAL_NAMES, KinematicTree, parse_urdf
 from idkit.seeds import Seed, torch_generator
@@ -69,6 +70,11 @@ class URDFRobot(Robot):
             (Gaz et al.: ``phi1``, ``fv`` and the nonlinear shape ``phi2``, ``phi3``).
         stribeck_velocity: with ``friction=True``, also a per-joint Stribeck parameter ``fs`` with
             this velocity scale (rad/s or m/s; one value, or one per joint); ``None`` = no Stribeck term.
+        coulomb_velocity: ``v_c`` (rad/s or m/s; one value or one per joint): the Coulomb terms use
+            ``tanh(q̇ / v_c)`` instead of ``sign(q̇)``, so a joint at rest is not predicted at ``±fc``
+            by the sign of its velocity noise (:mod:`idkit.robots.drives`); ``None`` or 0: the sign;
+            ``"auto"``: the sign until a study chooses ``v_c`` from measured training data
+            (:mod:`idkit.studies.coulomb`).
         offset: add a per-joint constant torque offset.
         armature: add a per-joint reflected rotor inertia ``armature`` (``tau += Ia qdd``); its
             a-priori value comes from the URDF's transmissions (:func:`~idkit.robots.drives.read_armatures`).
@@ -85,7 +91,8 @@ class URDFRobot(Robot):
             sigmoid model (one value or one per joint): the a-priori shape linear estimators use.
         steepness_range, max_shift: search box of ``phi2`` and ``phi3`` (``±max_shift``).
         package_dirs: folders holding the ROS packages the URDF's ``package://`` mesh paths name
-            (the geometry that plausibility bounds read: :mod:`idkit.robots.geometry`).
+            (the geometry that plausibility bounds read: :mod:`idkit.robots.geometry`); each must be an
+            existing folder.
 
     Search boxes (``bounds``), from the URDF's a-priori values ``m0, h0 = m0 c0, I0`` of a body
     (``L = max(|c0|, 0.1 m)``, ``m_hi`` the upper mass bound): mass ``[m0/2, 2 m0]`` (``[0, 1 kg]``
@@ -123,6 +130,7 @@ class URDFRobot(Robot):
         steepness_range: tuple[float, float] = (1.0, 100.0),
         max_shift: float = 0.2,
         package_dirs: Sequence[str] = (),
+        coulomb_velocity: float | Sequence[float] | str | None = None,
     ) -> None:
         self.urdf = urdf
         self.friction = friction
@@ -142,10 +150,15 @@ class URDFRobot(Robot):
         self.sigmoid_shift = sigmoid_shift
         self.steepness_range = steepness_range
         self.max_shift = max_shift
+        checked_package_dirs(package_dirs, self.source_format)  # a typo would drop every mesh silently
         self.package_dirs = package_dirs
+        self.coulomb_velocity = coulomb_velocity
         self.tree: KinematicTree = self._read_tree()
         self.joint_names = self.tree.joint_names
+        #: per joint, ``"revolute"`` or ``"prismatic"`` (reports give efforts in N·m or N)
+        self.joint_kinds = self.tree.joint_kinds
         self.stribeck_scales = self._check_stribeck(stribeck_velocity)
+        self.coulomb_scales = self._check_coulomb(coulomb_velocity)
         self.effort_scales = check_effort_scale(effort_scale, self.joint_names, self.source_format)
         self.link_names = self.tree.link_names
         self.drives = self._drive_model()
@@ -201,6 +214,7 @@ class URDFRobot(Robot):
             shape,
             boxes,
             self.source_format,
+            self.coulomb_scales,
         )
 
     def with_options(self, **changes: object) -> URDFRobot:
@@ -416,6 +430,36 @@ class URDFRobot(Robot):
         if not any(x.requires_grad for x in states):
             self._regressor_cache = (states, versions, y)
         return y
+
+    def _check_coulomb(self, value: float | Sequence[float] | str | None) -> np.ndarray | None:
+        """``coulomb_velocity`` as ``[n]`` scales ``> 0``, or ``None`` (the sign: ``None``, 0, ``"auto"``)."""
+        if value is None or (isinstance(value, str) and value == "auto"):
+            return None
+        try:
+            scales = None if isinstance(value, str) else float_array(value)
+        except (TypeError, ValueError):
+            scales = None
+        if scales is not None and scales.size == 1:
+            scales = np.full(self.n_joints, scales[0])
+        if (
+            scales is None
+            or scales.shape != (self.n_joints,)
+            or not np.isfinite(scales).all()
+            or (scales < 0).any()
+        ):
+            raise ValueError(
+                f"{self.source_format}: coulomb_velocity={value!r} needs 'auto', 0 (the sign) or one "
+                f"velocity scale >= 0 (rad/s) or {self.n_joints} of them "
+                f"(joints: {', '.join(self.joint_names)})"
+            )
+        if (scales == 0).all():
+            return None
+        if (scales == 0).any():
+            raise ValueError(
+                f"{self.source_format}: coulomb_velocity={value!r} mixes 0 (the sign) with scales > 0; give "
+                "every joint a scale > 0, or 0 for all"
+            )
+        return scales
 
     def _check_stribeck(self, value: float | Sequence[float] | None) -> np.ndarray | None:
         """``stribeck_velocity`` as ``[n]`` positive scales, or ``None``."""

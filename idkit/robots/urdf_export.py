@@ -242,6 +242,8 @@ def _write_joint_terms(robot: URDFRobot, values: np.ndarray, joints: dict[str, E
         extra = {key: _number(values[index[f"{name}.{key}"]]) for key in keys}
         if robot.stribeck_scales is not None:
             extra["stribeck_velocity"] = _number(robot.stribeck_scales[j])
+        if robot.coulomb_scales is not None:  # tanh(q̇ / v_c), not sign(q̇): no URDF field
+            extra["coulomb_velocity"] = _number(robot.coulomb_scales[j])
         if extra:
             extra = {**_take_own_comments(joint), **extra}  # the source's record, updated
             comment = ET.Comment(f" idkit: {' '.join(f'{k}={v}' for k, v in extra.items())} (no URDF field) ")

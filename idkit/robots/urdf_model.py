@@ -30,6 +30,7 @@ import numpy as np
 
 from idkit.robots.inertia import standard_parameters
 from idkit.robots.model_checks import check_model
+from idkit.robots.model_xml import refuse_dtd
 
 ASSETS = Path(__file__).resolve().parent / "assets"
 MOVING = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
@@ -117,6 +118,11 @@ class KinematicTree:
         return tuple(b.joint for b in self.bodies)
 
     @property
+    def joint_kinds(self) -> tuple[str, ...]:
+        """``"revolute"`` or ``"prismatic"`` per joint: whether its effort is a torque or a force."""
+        return tuple(b.kind for b in self.bodies)
+
+    @property
     def link_names(self) -> tuple[str, ...]:
         return tuple(b.link for b in self.bodies)
 
@@ -131,24 +137,31 @@ def read_urdf_text(urdf: str | os.PathLike) -> tuple[bytes, str]:
     ``urdf`` is URDF text (starts with ``<``), a file path, or the name of a URDF shipped in
     ``idkit/robots/assets`` (e.g. ``"cylindrical"``). Text is encoded to UTF-8 bytes and its XML
     declaration's ``encoding`` is rewritten to match, so a declared encoding never disagrees.
+
+    Raises:
+        ValueError: the XML declares a DTD (:mod:`idkit.robots.model_xml`, every model loader's policy).
     """
     if isinstance(urdf, str) and urdf.lstrip().startswith("<"):
         text = urdf.lstrip()
         if text.startswith("<?xml"):
             end = text.find("?>")
             text = '<?xml version="1.0" encoding="utf-8"' + text[end:] if end > 0 else text
-        return text.encode("utf-8"), "<URDF text>"
-    path = model_file(urdf, "urdf", ".urdf")
-    return path.read_bytes(), str(path)
+        data, label = text.encode("utf-8"), "<URDF text>"
+    else:
+        path = model_file(urdf, "urdf", ".urdf")
+        data, label = path.read_bytes(), str(path)
+    refuse_dtd(data, label, "urdf")
+    return data, label
 
 
-def model_file(spec: str | os.PathLike, kind: str, suffix: str) -> Path:
+def model_file(spec: str | os.PathLike, kind: str, suffix: str, formats: str | None = None) -> Path:
     """The model file ``spec`` names: a path, or a model shipped in ``idkit/robots/assets``.
 
     Args:
         spec: a path, or an asset's name (``"cylindrical"``).
         kind: ``"urdf"`` or ``"mjcf"`` (the option, for messages).
         suffix: the format's file suffix (``".urdf"``, ``".xml"``).
+        formats: the formats the option takes, for messages (default ``kind`` in capitals).
 
     Raises:
         ValueError: ``spec`` is a directory (the message lists the model files in it).
@@ -164,8 +177,8 @@ def model_file(spec: str | os.PathLike, kind: str, suffix: str) -> Path:
     if not path.is_file():
         shipped = sorted(p.stem for p in ASSETS.glob(f"*{suffix}"))
         raise FileNotFoundError(
-            f"{kind}: {str(spec)!r} is neither {kind.upper()} text, an existing file, nor a shipped asset "
-            f"(shipped: {', '.join(shipped) or 'none'})"
+            f"{kind}: {str(spec)!r} is neither {formats or kind.upper()} text, an existing file, nor a "
+            f"shipped asset (shipped: {', '.join(shipped) or 'none'})"
         )
     return path
 

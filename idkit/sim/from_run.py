@@ -24,6 +24,7 @@ import numpy as np
 from idkit.data.commands import RobotLog
 from idkit.data.options import RecordingOptions
 from idkit.notes import Note
+from idkit.robots.model_xml import model_text
 from idkit.sim.model import SimModel
 from idkit.sim.quantities import servo_kind
 
@@ -106,8 +107,9 @@ def is_run_folder(model: Any) -> bool:
     return Path(model).is_dir()
 
 
-def read_torque_run(folder: str | Path) -> TorqueRun:
-    """The :class:`TorqueRun` of a torque fit's run folder (module docstring).
+def read_torque_run(folder: str | Path, build_robot: Callable[[Any], Any]) -> TorqueRun:
+    """The :class:`TorqueRun` of a torque fit's run folder (module docstring); ``build_robot`` makes a
+    robot from the run's robot config (the study's builder: this module sits below the studies).
 
     Raises:
         ValueError: no ``result.json``, not a torque fit's, or no joint names, naming the folder.
@@ -142,22 +144,22 @@ def read_torque_run(folder: str | Path) -> TorqueRun:
     recording = RecordingOptions(topic=topics.get("topic"), effort_topic=topics.get("effort_topic"))
     mjcf_path = folder / MJCF_FILE
     if mjcf_path.is_file():
-        mjcf = mjcf_path.read_text(encoding="utf-8")
+        mjcf = model_text(mjcf_path.read_bytes(), str(mjcf_path), "rollout.model")  # the one XML policy
     else:
-        mjcf = _rebuild(result_path, robot, params)
+        mjcf = _rebuild(result_path, lambda: build_robot(robot), params)
     return TorqueRun(folder, mjcf, joints, effort_scale, offsets, recording)
 
 
-def _rebuild(result_path: Path, robot: dict[str, Any], params: dict[str, float]) -> str:
-    """``identified.xml``'s text from the run's robot config and fitted values."""
+def _rebuild(result_path: Path, build: Callable[[], Any], params: dict[str, float]) -> str:
+    """``identified.xml``'s text from the run's robot (``build`` makes it from the run's config) and
+    fitted values."""
     from idkit.registry import PluginLoadError
     from idkit.robots.mjcf_export import identified_mjcf
-    from idkit.studies.build import build
 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the torque fit said these already
-            text = identified_mjcf(build("robot", robot), params)
+            text = identified_mjcf(build(), params)
     except (ValueError, PluginLoadError, TypeError) as error:
         raise ValueError(
             f"{result_path.parent}: no {MJCF_FILE}, and it cannot be rebuilt from {RESULT_FILE} ({error}); "

@@ -17,8 +17,11 @@ from typing import Any
 import numpy as np
 
 from idkit.robots.mjcf import import_mujoco
+from idkit.robots.model_xml import model_text
 from idkit.robots.urdf_model import model_file
 
+#: The setting that names the model, for messages.
+OPTION = "rollout.model"
 #: MuJoCo's ``mjtJoint`` values of the joints a log can hold (one position and one velocity each).
 HINGE, SLIDE = 3, 2
 
@@ -90,8 +93,8 @@ def load_model(source: str | os.PathLike) -> SimModel:
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: not XML, neither MJCF nor URDF, or MuJoCo refuses it (its message, on one line);
-            a model with no hinge or slide joint.
+        ValueError: not UTF-8 XML, a DTD (:mod:`idkit.robots.model_xml`), neither MJCF nor URDF,
+            MuJoCo refuses it (its message, on one line), or it has no hinge or slide joint.
     """
     mujoco = import_mujoco()
     text, path, label = _read(source)
@@ -113,12 +116,14 @@ def load_model(source: str | os.PathLike) -> SimModel:
 
 
 def _read(source: str | os.PathLike) -> tuple[str, Path | None, str]:
+    """``(text, path or None, label)``, under every model loader's XML policy
+    (:mod:`idkit.robots.model_xml`)."""
     if isinstance(source, str) and source.lstrip().startswith("<"):
-        return source, None, "<model text>"
+        return model_text(source.encode("utf-8"), "<model text>", OPTION), None, "<model text>"
     path = Path(source)
     suffix = path.suffix.lower() if path.suffix.lower() in (".xml", ".urdf") else ".xml"
-    path = model_file(source, "model", suffix)
-    return path.read_text(encoding="utf-8"), path, str(path)
+    path = model_file(source, OPTION, suffix, formats="MJCF or URDF")
+    return model_text(path.read_bytes(), str(path), OPTION), path, str(path)
 
 
 def _add_motors(spec: Any, mujoco: Any) -> None:

@@ -48,10 +48,11 @@ stretch's excitation — the spread of pseudo-values itself is not calibrated th
 excitation differs between stretches). The fit is *model-limited* when ``misfit > MISFIT``,
 ``autocorrelation > AUTOCORRELATION`` or ``disagreement`` above what noise alone gives in all but 1 %
 of fits (:func:`disagreement_limit`: χ² quantile); then the wide intervals are used and ``reason`` says why.
-Otherwise the textbook intervals stand. A log whose driver stalled (rows repeated for 40 ms) biases
-the estimate as a wrong model does (the textbook intervals held 0.62 of the truths on the coverage
-test's corrupted case) and is called model-limited the same way: the fit is limited by something
-other than the noise, and the intervals say so.
+Otherwise the textbook intervals stand. A log whose driver stalled (rows repeated for 40 ms) biased
+the estimate as a wrong model does before the problem left stalls out (the textbook intervals held
+0.62 of the truths on the coverage test's corrupted case) and was called model-limited the same way
+(0.80 of the fits; 0.955 held the truth): the fit is limited by something other than the noise, and
+the intervals say so. With stalls left out: 0.96 either way, 0.02 of the fits widened.
 
 A *flat direction* is an eigenvector of the unknowns' information along which the data cannot tell a
 change from noise: a standard deviation over ``FLAT`` in coordinates (a factor ``e^0.5 ≈ 1.65`` of a

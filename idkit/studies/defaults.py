@@ -8,9 +8,15 @@ set takes the value a robot owner needs (:data:`REAL_ROBOT`):
 
 * ``estimator=pcls``: every link a body that can exist, pulled towards the model's inertials by a
   weight chosen from the data (the most accurate held-out fit idkit has on real arms, and one a
-  simulator can load);
+  simulator can load), and kept plausible — masses within [0.5, 2] × CAD, inside the link's real
+  geometry — unless the same cross-validation says that costs accuracy beyond the noise (pcls's
+  ``plausible=auto``, which says its decision with the figure both ways in its own note; a given
+  ``total_mass`` or ``mass_ratio`` is enforced);
 * ``robot.friction=true``, ``robot.offset=true``: Coulomb and viscous friction and a torque offset
   per joint — every drive has them, and without them the rigid-body parameters absorb them;
+* ``robot.coulomb_velocity=auto``: the Coulomb term ``sign(q̇)`` or ``tanh(q̇ / v_c)``, whichever
+  cross-validation on the training data prefers (:mod:`idkit.studies.coulomb`; its own note says
+  the choice): a joint at rest is not predicted at ``±fc`` by the sign of its velocity noise;
 * no ``cost``: pcls minimises its own criterion, and the paper's relative cost would only add a
   figure and a warning about floored near-zero torques.
 
@@ -33,6 +39,7 @@ REAL_ROBOT: dict[str, Any] = {
     "cost": None,
     "robot.friction": True,
     "robot.offset": True,
+    "robot.coulomb_velocity": "auto",
 }
 
 
@@ -67,6 +74,8 @@ def chosen(given: Collection[str], searches_cost: bool = False) -> dict[str, Any
             continue
         if option == "cost" and "estimator" in given and searches_cost:
             continue
+        if option == "robot.coulomb_velocity" and "robot.friction" in given:  # part of the friction default
+            continue
         out[option] = value
     return out
 
@@ -90,11 +99,19 @@ def describe(options: Mapping[str, Any]) -> str:
     shown = " ".join(f"{key}={'null' if v is None else str(v).lower()}" for key, v in options.items())
     terms = " and ".join(
         name
-        for key, name in (("robot.friction", "friction"), ("robot.offset", "torque offsets"))
+        for key, name in (
+            ("robot.friction", "friction"),
+            ("robot.offset", "torque offsets"),
+            ("robot.coulomb_velocity", "a Coulomb term smoothed at rest where cross-validation prefers it"),
+        )
         if key in options
     )
     if "estimator" in options:
-        what = "a physically consistent fit" + (f" with {terms}" if terms else "")
+        what = (
+            "a physically consistent fit"
+            + (f" with {terms}" if terms else "")
+            + ", its links kept plausible unless cross-validation says it costs accuracy"
+        )
     elif terms:
         what = f"{terms} in the model"
     else:

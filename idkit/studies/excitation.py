@@ -20,6 +20,7 @@ from typing import Any
 
 from idkit.data.presets import Scenario
 from idkit.excitation.margins import DEFAULT_MARGIN
+from idkit.progress import reporting
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
@@ -152,6 +153,7 @@ def run(
     seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
+    progress: bool = False,
 ) -> ExcitationStudy:
     """Optimise an excitation for ``robot`` (see ``optimize_excitation`` for the search options).
 
@@ -179,6 +181,8 @@ def run(
             5 %). The optimiser keeps it and the check enforces it (:mod:`idkit.excitation.margins`).
         check_points: the result's check grid (``None``: the controller samples, or 10001 points).
         dtype: only ``float64`` (limits are checked and coefficients written in double precision).
+        progress: a line every few seconds while the search runs (stage, iteration, best loss:
+            :mod:`idkit.progress`); the command sets it on a terminal.
 
     Raises:
         ValueError: bad options, or a joint without an acceleration limit on a robot without
@@ -204,28 +208,29 @@ def run(
         check_points = 10001 if times is None else times.numel()
     test = self_collision(robot_obj) if collision else NotChecked("switched off (excitation.collision=false)")
     n = Scenario().n_samples if n_samples is None else n_samples
-    result = optimize_excitation(
-        robot_obj,
-        family,
-        options,
-        criterion=criterion,
-        n_samples=n,
-        t_end=t_end,
-        limits=limits,
-        method=method,
-        swarms=swarms,
-        particles=particles,
-        iterations=iterations,
-        adam_steps=adam_steps,
-        learning_rate=learning_rate,
-        grid_points=grid_points,
-        check_points=check_points,
-        seed=seed,
-        device=device,
-        noise=NoiseModel(**dict(noise or {}), seed=seed),
-        collision=test if isinstance(test, SelfCollision) else None,
-        margin=margin,
-    )
+    with reporting("excitation", progress):
+        result = optimize_excitation(
+            robot_obj,
+            family,
+            options,
+            criterion=criterion,
+            n_samples=n,
+            t_end=t_end,
+            limits=limits,
+            method=method,
+            swarms=swarms,
+            particles=particles,
+            iterations=iterations,
+            adam_steps=adam_steps,
+            learning_rate=learning_rate,
+            grid_points=grid_points,
+            check_points=check_points,
+            seed=seed,
+            device=device,
+            noise=NoiseModel(**dict(noise or {}), seed=seed),
+            collision=test if isinstance(test, SelfCollision) else None,
+            margin=margin,
+        )
     samples = result.excitation(result.grid if times is None else times)
     trajectory = Trajectory.of(robot_obj.joint_names, result.grid if times is None else times, *samples)
     torques = None if result.effort is None else nominal_torques(robot_obj, *samples).numpy()

@@ -9,13 +9,16 @@ fits every chosen estimator to each, and computes per estimator and scenario:
 * the median and 90th percentile of the **parameter error**, the mean absolute relative error
   over the parameters, ``mean_k |p̂_k − p_k| / |p_k|`` (``idkit.studies.metrics``);
 * the **win rate** against the baseline (RLS-rel): the share of trials in which the estimator's
-  parameter error is smaller, ties left out, with a 95 % Wilson interval and the two-sided
-  sign-test p-value (``scipy.stats.binomtest``, H0: win rate = 1/2).
+  parameter error is smaller, ties left out, with its exact (Clopper-Pearson) 95 % interval and the
+  two-sided sign-test p-value (``scipy.stats.binomtest``, H0: win rate = 1/2).
 
-Verdicts (:attr:`Comparison.verdict`): ``better`` when the sign test rejects H0 at 5 % *and* the
-whole interval lies above 1/2, ``worse`` likewise below, ``undecided`` otherwise — an interval that
-straddles 1/2 never counts as a loss. The conclusion (:meth:`RobustnessStudy.conclusion`) "holds"
-when every scenario is ``better``, "does not hold" when one is ``worse``, else "undecided".
+Verdicts (:attr:`Comparison.verdict`), one rule read off the printed interval: ``better`` when the
+whole interval lies above 1/2, ``worse`` when below, ``undecided`` when it holds 1/2. The exact
+interval is the one the sign test inverts, so the p-value printed beside it is below 5 % exactly when
+the interval excludes 1/2 (a Wilson interval, used before, could exclude 1/2 at p ≥ 0.05, and the
+line then read "undecided" under an interval of 36.3–49.9 %). The conclusion
+(:meth:`RobustnessStudy.conclusion`) "holds" when every scenario is ``better``, "does not hold"
+when one is ``worse``, else "undecided".
 
 Trials are fitted in chunks through ``idkit.estimators.trials.fit_trials``: the search estimator
 stacks trials × costs × runs into one batched swarm, the LS family and IRLS stack the chunk's
@@ -92,18 +95,17 @@ class Comparison:
         if n == 0:
             return cls(wins, losses, ties, math.nan, math.nan, math.nan, math.nan)
         test = binomtest(wins, n, 0.5)
-        ci = test.proportion_ci(confidence_level=CONFIDENCE, method="wilson")
+        ci = test.proportion_ci(confidence_level=CONFIDENCE, method="exact")
         return cls(wins, losses, ties, wins / n, float(ci.low), float(ci.high), float(test.pvalue))
 
     @property
     def verdict(self) -> str:
-        """``better``/``worse`` only when the interval and the sign test agree; else ``undecided``."""
+        """``better``/``worse`` when the interval lies wholly above/below 1/2; else ``undecided``."""
         if math.isnan(self.win_rate):
             return "undecided"
-        significant = self.p_value < ALPHA
-        if significant and self.ci_low > 0.5:
+        if self.ci_low > 0.5:
             return "better"
-        if significant and self.ci_high < 0.5:
+        if self.ci_high < 0.5:
             return "worse"
         return "undecided"
 
@@ -520,7 +522,10 @@ def run(
             param_names=list(robot_obj.param_names),
             truth=truth,
             params={
-                s: {k: np.asarray(v[:done], dtype=float) for k, v in by.items()} for s, by in found.items()
+                # [done, P] also when no trial is done (Ctrl-C in the first chunk): a flat empty array
+                # would not index like the others
+                s: {k: np.asarray(v[:done], dtype=float).reshape(-1, len(truth)) for k, v in by.items()}
+                for s, by in found.items()
             },
             baseline=baseline,
             focus=focus,

@@ -17,6 +17,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from idkit.untrusted import csv_text
+
 if TYPE_CHECKING:
     from idkit.studies.robustness import RobustnessStudy
 
@@ -58,7 +60,7 @@ def read(path: str | Path, param_names: list[str], trials: range) -> dict[str, d
     path = Path(path)
     with open(path, newline="") as handle:
         reader = csv.reader(handle)
-        columns = next(reader, [])
+        columns = [csv_text(cell) for cell in next(reader, [])]  # names as written, escapes undone
         missing = [name for name in header(param_names) if name not in columns]
         if missing:
             raise ValueError(f"{path}: no column {', '.join(map(repr, missing))} in its header")
@@ -74,8 +76,9 @@ def read(path: str | Path, param_names: list[str], trials: range) -> dict[str, d
                 index = int(row[trial])
             except ValueError as error:
                 raise ValueError(f"{path}, line {line}: {error}") from None
-            found.setdefault(row[scenario], {}).setdefault(row[estimator], []).append(values)
-            numbers.setdefault((row[scenario], row[estimator]), []).append(index)
+            name, label = csv_text(row[scenario]), csv_text(row[estimator])
+            found.setdefault(name, {}).setdefault(label, []).append(values)
+            numbers.setdefault((name, label), []).append(index)
     for (name, label), indices in numbers.items():
         if indices != list(trials):
             raise ValueError(

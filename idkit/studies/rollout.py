@@ -17,18 +17,21 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from idkit.estimate import Estimate
 from idkit.optim.robust import mad_scale
+from idkit.progress import reporting
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe
 from idkit.studies.result import Provenance
 
 if TYPE_CHECKING:
     from idkit.sim.details import RolloutDetails
+    from idkit.sim.simulator_model import SimulatorModel
     from idkit.sim.validation import HeldOut
 
 #: What ``rollout.params`` fits when not told: the joints' passive terms.
@@ -96,6 +99,7 @@ class RolloutResult:
         fit: the fit log replayed in its segments.
         validation: each ``validate=`` log's scores (:class:`idkit.sim.validation.HeldOut`): every
             mode that applies, at the fitted and at the start values.
+        robot: the model and the unknowns fitted (``model`` puts the estimate back on it).
     """
 
     estimate: Estimate
@@ -105,6 +109,7 @@ class RolloutResult:
     fit: Replay
     validation: list[HeldOut] = field(default_factory=list)
     mjcf_problem: str | None = None
+    robot: Any = field(default=None, repr=False)
 
     @property
     def seed(self) -> int:
@@ -117,6 +122,13 @@ class RolloutResult:
 
         details = self.estimate.details
         return details if isinstance(details, RolloutDetails) else None
+
+    @property
+    def model(self) -> SimulatorModel:
+        """The identified simulator (``simulate``, values with σ, ``save``, ``to_mujoco``)."""
+        from idkit.sim.simulator_model import SimulatorModel
+
+        return SimulatorModel.from_result(self)
 
     def payload(self) -> dict[str, Any]:
         """The task's part of ``result.json``."""
@@ -207,6 +219,7 @@ def run(
     seed: Seed = 0,
     device: str = "cpu",
     dtype: str = "float64",
+    progress: bool = True,
 ) -> RolloutResult:
     """Identify a MuJoCo model's quantities from logged commands and joint states.
 
@@ -232,6 +245,8 @@ def run(
         threads: rollout threads (``None``: every CPU the process may use).
         seed: seeds the search.
         device, dtype: where a registered cost is evaluated.
+        progress: print a line every few seconds during the search and the polish (stage, iteration,
+            best cost, rollouts, elapsed: :mod:`idkit.progress`); the command sets it on a terminal.
     """
     from idkit.data.commands import read_robot_logs
     from idkit.data.files import as_paths, refuse_repeated_files, refuse_training_files
@@ -243,7 +258,7 @@ def run(
     from idkit.sim.quantities import select_unknowns
     from idkit.sim.validation import held_out as score_held_out
 
-    torque_run = read_torque_run(model) if is_run_folder(model) else None
+    torque_run = read_torque_run(model, partial(build, "robot")) if is_run_folder(model) else None
     sim = load_model(model) if torque_run is None else torque_run.model()
     reader = None if torque_run is None else torque_run.reader(sim)
     log = read_robot_logs(data, None, state_topic, command_topic, reader)
@@ -275,7 +290,8 @@ def run(
     )
     _note_artefacts(problem)
     fitter = build("estimator", estimator)
-    estimate = fitter.fit(problem)
+    with reporting("rollout", progress):
+        estimate = fitter.fit(problem)
     values = np.array([estimate.params[name] for name in unknowns.names])
     from idkit.sim.details import RolloutDetails
 
@@ -309,4 +325,4 @@ def run(
     described = {
         u.name: {"kind": u.kind, "start": u.start, "bounds": [u.lower, u.upper]} for u in unknowns.items
     }
-    return RolloutResult(estimate, described, provenance, text, fit, held_out, problem_text)
+    return RolloutResult(estimate, described, provenance, text, fit, held_out, problem_text, robot)

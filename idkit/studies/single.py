@@ -45,12 +45,14 @@ from idkit.estimate import Estimate
 from idkit.interfaces import CostSearcher
 from idkit.model import IdentifiedModel
 from idkit.notes import Note
+from idkit.progress import reporting
 from idkit.seeds import Seed
 from idkit.studies.build import Spec, build, describe, plain
+from idkit.studies.coulomb import CoulombVelocityNote, choose_coulomb_velocity, wants_choice
 from idkit.studies.held import say_held
 from idkit.studies.labels import cost_label, estimator_label
 from idkit.studies.metrics import mean_abs_relative_error, relative_errors
-from idkit.studies.plausibility import PlausibleAlternative, plausible_alternative
+from idkit.studies.plausibility import PlausibleAlternative, judged, plausible_alternative
 from idkit.studies.result import Provenance
 from idkit.studies.validation import Validation, validate_files
 
@@ -79,9 +81,11 @@ class RunResult:
             off, or not writable, e.g. a link mass <= 0).
         mjcf: the ``identified.xml`` (MJCF) text of an ``mjcf`` robot's fit, or of a ``urdf`` robot's
             with ``identified_mjcf=True`` (``None``: not asked, or not writable: non-physical inertia).
-        plausible: the same estimator with ``plausible=true``, scored on the same files, when the
-            fit left links implausible (:mod:`idkit.studies.plausibility`).
+        plausible: the fit the other ``plausible`` option gives, scored on the same files
+            (:mod:`idkit.studies.plausibility`).
         robot: the robot object the estimator fitted (``model`` puts the estimate back on it).
+        cost_ignored: ``cost`` was given to an estimator with its own criterion (a
+            :class:`CostIgnoredNote` said so): a sweep over costs repeats the same fit.
     """
 
     estimate: Estimate
@@ -93,6 +97,9 @@ class RunResult:
     mjcf: str | None = None
     plausible: PlausibleAlternative | None = None
     robot: Any = field(default=None, repr=False, compare=False)
+    #: the cost was given but the estimator minimises its own criterion (LS, TLS, RLS, pcls …): the
+    #: estimate is the same for any cost, which is only evaluated at it
+    cost_ignored: bool = False
 
     @functools.cached_property
     def model(self) -> IdentifiedModel:
@@ -105,6 +112,12 @@ class RunResult:
         if self.robot is None:
             raise ValueError("this RunResult holds no robot object, so it has no model")
         return IdentifiedModel(self.robot, self.estimate, validation=self.validation, result=self)
+
+    @property
+    def joint_kinds(self) -> list[str] | None:
+        """The robot's ``joint_kinds`` where it has them (a plugin need not)."""
+        kinds = getattr(self.robot, "joint_kinds", None)
+        return None if kinds is None else [str(kind) for kind in kinds]
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -148,8 +161,14 @@ class RunResult:
             "truth": self.truth,
             "relative_error": self.relative_error,
             "parameter_error": self.parameter_error,
-            "cost": {"name": self.cost_name, "value": self.estimate.cost},
+            "cost": {
+                "name": self.cost_name,
+                "value": self.estimate.cost,
+                "used_by_fit": not self.cost_ignored,
+            },
             "joint_names": list(self.joint_names),
+            # per joint "revolute" (torque, N·m) or "prismatic" (force, N); null where the robot says not
+            "joint_kinds": self.joint_kinds,
             "nominal": self.nominal,
             "validation": {held.file: held.scores.to_dict() for held in self.validation},
             **(
@@ -298,6 +317,7 @@ def run(
     identified_mjcf: bool | None = None,
     device: str = "cpu",
     dtype: str = "float64",
+    progress: bool = False,
 ) -> RunResult:
     """Identify a robot's parameters once.
 
@@ -324,6 +344,8 @@ def run(
         identified_mjcf: produce ``identified.xml`` (MJCF, :mod:`idkit.robots.mjcf_export`): ``None``
             for an ``mjcf`` robot only, ``True`` for a ``urdf`` robot too, ``False`` never.
         device, dtype: where and in which precision the estimator computes.
+        progress: lines every few seconds from the fit's long steps (pcls' prior-weight choice, a
+            search's iterations: :mod:`idkit.progress`); the command sets it on a terminal.
     """
     from idkit.problem import Problem
 
@@ -334,6 +356,10 @@ def run(
         refuse_training_files(data, validate)
     options = DataOptions.of(preprocess, recording)
     samples, truth, source, training = _load(robot_obj, scenario, seed, data, n_samples, params, options)
+    if data is not None and wants_choice(robot_obj):  # robot.coulomb_velocity=auto on measured data
+        robot_obj, choice = choose_coulomb_velocity(robot_obj, samples)
+        warnings.warn(f"robot.coulomb_velocity=auto: {choice.reason}", CoulombVelocityNote, stacklevel=2)
+        source = {**source, "coulomb_velocity": choice.to_dict()}
     held_out = [] if validate is None else read_held_out(robot_obj, validate, training)
     if data is not None:
         refuse_seen_samples(samples, held_out)
@@ -347,10 +373,15 @@ def run(
         robot_obj, samples, cost_obj, seed=seed, device=device, dtype=dtype, recordings=recordings
     )
     problem.check_identifiable()  # for every estimator, a third party's included, before its fit
-    fitted = estimator_obj.fit(problem)
-    label = estimator_label(estimator, cost, with_cost=isinstance(estimator_obj, CostSearcher))
+    with reporting("fit", progress):
+        fitted = estimator_obj.fit(problem)
+    searches = isinstance(estimator_obj, CostSearcher)
+    label = estimator_label(estimator, cost, with_cost=searches)
+    cost_ignored = cost_obj is not None and not searches
+    if cost_ignored:
+        say_cost_ignored(label)
     refuse_meaningless(fitted, robot_obj.param_names, label)
-    fitted = say_held(robot_obj, fitted, label)
+    fitted = judged(robot_obj, say_held(robot_obj, fitted, label))  # one plausibility verdict, any estimator
     cost_name = cost_label(cost) if cost is not None else f"{label} criterion"
     provenance = Provenance(
         task="single",
@@ -378,4 +409,20 @@ def run(
         _identified_mjcf(model, identified_mjcf),
         alternative,
         robot_obj,
+        cost_ignored,
+    )
+
+
+class CostIgnoredNote(Note):
+    """An estimator with its own criterion was given a cost, which cannot change its estimate."""
+
+
+def say_cost_ignored(label: str) -> None:
+    """One note per estimator (the message names no cost, so a sweep over costs prints it once)."""
+    warnings.warn(
+        CostIgnoredNote(
+            f"{label} minimises its own criterion and ignores cost=: every cost gives the same estimate "
+            "(the cost is only evaluated at it, for the report), so a sweep over costs repeats this fit"
+        ),
+        stacklevel=3,
     )

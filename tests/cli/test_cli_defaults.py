@@ -44,12 +44,14 @@ def test_what_the_user_typed_is_kept():
         "cost": None,
         "robot.friction": True,
         "robot.offset": True,
+        "robot.coulomb_velocity": "auto",
     }
     # a given swarm keeps the config's cost (it searches one); a friction given is kept
     assert chosen({"robot", "estimator", "robot.friction"}, searches_cost=True) == {"robot.offset": True}
     # an estimator with its own criterion gets no cost unless one is given
-    assert chosen({"estimator"}) == {"cost": None, "robot.friction": True, "robot.offset": True}
-    assert chosen({"estimator", "cost"}) == {"robot.friction": True, "robot.offset": True}
+    smooth = {"robot.coulomb_velocity": "auto"}
+    assert chosen({"estimator"}) == {"cost": None, "robot.friction": True, "robot.offset": True, **smooth}
+    assert chosen({"estimator", "cost"}) == {"robot.friction": True, "robot.offset": True, **smooth}
     assert searches_cost("pso") and searches_cost({"_name_": "adam"}) and not searches_cost("pcls")
 
 
@@ -62,20 +64,28 @@ def test_the_composed_config_is_changed_in_place_with_one_note():
     assert cfg.estimator._name_ == "pcls" and cfg.estimator.prior_weight == "auto"
     assert cfg.cost is None and cfg.robot.friction is True and cfg.robot.offset is False
     assert [str(w.message) for w in said] == [
-        "measured data on a model robot: estimator=pcls cost=null robot.friction=true (a physically "
-        "consistent fit with friction); set any of them to change it, e.g. estimator=ls robot.friction=false"
+        "measured data on a model robot: estimator=pcls cost=null robot.friction=true "
+        "robot.coulomb_velocity=auto (a physically consistent fit with friction and a Coulomb term smoothed "
+        "at rest where cross-validation prefers it, its links kept plausible unless cross-validation says "
+        "it costs accuracy); set any of them to change it, e.g. estimator=ls robot.friction=false"
     ]
 
 
 def test_the_note_describes_only_what_was_applied():
     """``estimator=ls`` typed: the note said "(a physically consistent fit …)" of a least-squares fit."""
     assert describe(chosen({"estimator"})).startswith(
-        "measured data on a model robot: cost=null robot.friction=true robot.offset=true (friction and "
-        "torque offsets in the model); "
+        "measured data on a model robot: cost=null robot.friction=true robot.offset=true "
+        "robot.coulomb_velocity=auto (friction and torque offsets and a Coulomb term smoothed at rest where "
+        "cross-validation prefers it in the model); "
     )
-    assert "(a physically consistent fit with friction and torque offsets)" in describe(chosen(set()))
+    assert "(a physically consistent fit with friction and torque offsets and a Coulomb" in describe(
+        chosen(set())
+    )
+    assert "its links kept plausible unless cross-validation says it costs accuracy)" in describe(
+        chosen(set())
+    )
     assert "(no cost: the estimator minimises its own criterion)" in describe(
-        chosen({"estimator", "robot.friction", "robot.offset"})
+        chosen({"estimator", "robot.friction", "robot.offset", "robot.coulomb_velocity"})
     )
 
 
@@ -146,6 +156,7 @@ def test_the_short_command_fits_pcls_with_friction_and_records_it(tmp_path):
     )
     assert out.returncode == 0, out.stderr
     assert "note: measured data on a model robot: estimator=pcls" in out.stderr
+    assert "note: robot.coulomb_velocity=auto: Coulomb friction as " in out.stderr  # the choice, said
     result = json.loads((tmp_path / "run" / "result.json").read_text())
     estimate = result["payload"]["estimate"]
     assert (

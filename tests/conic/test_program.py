@@ -149,3 +149,27 @@ def test_ctrl_c_during_an_scs_cross_validation_stops_within_a_second(tmp_path):
     last = out.stdout.strip().splitlines()[-1] if out.stdout.strip() else ""
     assert last.startswith("stopped"), repr(out.stdout) + out.stderr[-2000:]
     assert float(last.split()[1]) < 1.0
+
+
+def test_the_euclidean_prior_pulls_to_cad_and_an_unknown_shape_is_refused():
+    """``prior_shape="euclidean"`` (studied in bench/pcls_prior_rule.py): at a huge weight the fit is CAD's
+    inertials; any other shape is refused in one line naming the choices."""
+    from idkit.conic.program import ConsistentSettings, compress, solve_consistent
+
+    robot = URDFRobot(CYLINDRICAL, friction=True, offset=True)
+    problem = Problem(robot, smooth_samples(robot, seed=2, n=400))
+    W, tau = problem.base_regressor(), problem.tensors().tau.reshape(-1)
+    R, b, rest = compress(W, tau)
+    scale2 = rest / (W.shape[0] - W.shape[1])
+    nb = len(robot.link_names)
+    cad = robot.nominal_params().double().numpy()[: 10 * nb]
+    distances = []
+    for weight in (1.0, 1e8):
+        settings = ConsistentSettings.checked("test", weight, prior_shape="euclidean")
+        fit = solve_consistent(robot, R, b, scale2, settings).params.numpy()[: 10 * nb]
+        distances.append(np.abs(fit - cad).max())
+    assert distances[1] < 0.1 * distances[0]  # pulled to CAD (its singular rods kept inside the cone)
+    with pytest.raises(
+        ValueError, match=r"^test: prior_shape must be one of 'entropic', 'euclidean', got 'l1'$"
+    ):
+        ConsistentSettings.checked("test", 1.0, prior_shape="l1")  # type: ignore[arg-type]

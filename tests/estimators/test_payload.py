@@ -166,6 +166,26 @@ def test_a_recorded_stribeck_scale_other_than_the_robots_is_refused(tmp_path):
         PayloadIdentification(link="c").fit(Problem(other, samples))
 
 
+def test_a_recorded_coulomb_scale_is_written_and_one_the_robot_lacks_is_refused(tmp_path):
+    """An arm identified with ``tanh(q̇ / 0.05)`` Coulomb friction records the scale; the payload fit
+    on a robot with the sign (or another scale) would subtract another friction: refused."""
+    robot = URDFRobot(TREE_URDF, friction=True, coulomb_velocity=0.05)
+    (tmp_path / "identified.urdf").write_text(identified_urdf(robot, robot.nominal_params()))
+    assert "coulomb_velocity=0.05" in (tmp_path / "identified.urdf").read_text()
+    path = str(tmp_path / "identified.urdf")
+    samples = simulate(robot, TREE_URDF, "j3", 50, seed=7)
+    for other, used in (
+        (URDFRobot(path, friction=True), "0"),
+        (URDFRobot(path, friction=True, coulomb_velocity=0.1), "0.1"),
+    ):
+        with pytest.raises(
+            ValueError, match=rf"records coulomb_velocity=0.05 for j1 but the robot uses {used};"
+        ):
+            PayloadIdentification(link="c").fit(Problem(other, samples))
+    same = URDFRobot(path, friction=True, coulomb_velocity=0.05)
+    assert PayloadIdentification(link="c").fit(Problem(same, samples)).details["payload"]["mass"] > 0
+
+
 @pytest.mark.parametrize("link", ["c", "mount"])
 def test_identified_urdf_carries_the_payload_link_and_reads_back_merged(tmp_path, link):
     robot, model = URDFRobot(FLANGED_URDF), pin_model(FLANGED_URDF)

@@ -24,16 +24,22 @@ def textbook(W: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, fl
 def driscoll_kraay(W: np.ndarray, tau: np.ndarray, joints: int, lags: int) -> tuple[np.ndarray, np.ndarray]:
     """beta and the Bartlett HAC standard deviations with scores summed over each sample's ``joints``
     rows, by the normal equations and a loop over lags (Newey & West 1987; Driscoll & Kraay 1998),
-    times M / (M − B)."""
+    each sample's residuals first multiplied by ``(1 − H_ii)⁻¹`` (the jackknife's leverage
+    adjustment, ``H_ii = W_i (WᵀW)⁻¹ W_iᵀ``, by ``np.linalg.solve``)."""
     M, B = W.shape
-    beta = np.linalg.solve(W.T @ W, W.T @ tau)
-    g = (W * (tau - W @ beta)[:, None]).reshape(M // joints, joints, B).sum(1)
+    bread = np.linalg.inv(W.T @ W)
+    beta = bread @ W.T @ tau
+    residual = (tau - W @ beta).reshape(M // joints, joints)
+    rows = W.reshape(M // joints, joints, B)
+    adjusted = np.stack(
+        [np.linalg.solve(np.eye(joints) - w @ bread @ w.T, e) for w, e in zip(rows, residual, strict=True)]
+    )
+    g = (rows * adjusted[..., None]).sum(1)
     meat = g.T @ g
     for lag in range(1, lags + 1):
         gamma = sum(np.outer(g[i], g[i + lag]) for i in range(len(g) - lag))
         meat += (1 - lag / (lags + 1)) * (gamma + gamma.T)
-    bread = np.linalg.inv(W.T @ W)
-    return beta, np.sqrt(np.diag(bread @ meat @ bread) * M / (M - B))
+    return beta, np.sqrt(np.diag(bread @ meat @ bread))
 
 
 def andrews_bandwidth(g: np.ndarray) -> int:

@@ -90,6 +90,9 @@ def test_the_single_page_has_its_sections_and_the_numbers_of_result_json(validat
     held = page.rows("held-out")
     for j, name in enumerate(["theta1", "d2", "d3"]):
         assert value(held[name][0]) == scores["rms"][j] and value(held[name][1]) == scores["relative"][j]
+    # a revolute joint's error is a torque, a prismatic (sliding) joint's a force
+    assert document["payload"]["joint_kinds"] == ["revolute", "prismatic", "prismatic"]
+    assert [held[name][0][0].split()[-1] for name in ("theta1", "d2", "d3")] == ["N·m", "N", "N"]
     assert value(held["all joints (‖E‖/‖T‖)"][1]) == scores["rel_all"]
     params, nominal = document["payload"]["estimate"]["params"], document["payload"]["nominal"]
     shown = page.rows("parameters")
@@ -100,26 +103,31 @@ def test_the_single_page_has_its_sections_and_the_numbers_of_result_json(validat
     base = page.rows("base-parameters")
     assert {name: value(cells[1]) for name, cells in base.items()} == std
     links = page.rows("plausibility")
-    assert set(links) == {"link1", "link2", "link3"}
-    for row in single_page.link_plausibility(params, nominal):
-        cells = links[row["link"]]
-        assert value(cells[1]) == row["mass"] == params[f"{row['link']}.m"]
-        assert value(cells[4]) == row["min_eigenvalue"] and cells[-1][0] == (
-            "yes" if row["plausible"] else "no"
-        )
+    record = document["payload"]["estimate"]["details"]["plausibility"]["links"]  # the run's one verdict
+    assert set(links) == set(record) == {"link1", "link2", "link3"}
+    for link, verdict in record.items():
+        cells = links[link]
+        assert value(cells[1]) == verdict["mass"] == params[f"{link}.m"]
+        assert value(cells[3]) == verdict["min_eigenvalue"]
+        assert cells[6][0] == ("yes" if verdict["plausible"] else "no")
+        assert cells[7][0] == "; ".join(verdict["reasons"])
 
 
-def test_link_plausibility_flags_a_mass_a_centre_of_mass_and_a_body_that_cannot_exist():
-    cad = {"a.m": 2.0, "a.mcx": 0.2, "a.mcy": 0.0, "a.mcz": 0.0, "a.Ixx": 0.1, "a.Ixy": 0.0, "a.Ixz": 0.0}
-    cad |= {"a.Iyy": 0.1, "a.Iyz": 0.0, "a.Izz": 0.1}
-    (same,) = single_page.link_plausibility(cad, cad)
-    assert same["plausible"] and same["ratio"] == 1 and same["com_shift"] == 0
-    heavy = single_page.link_plausibility(cad | {"a.m": 4.5, "a.mcx": 0.45}, cad)[0]
-    assert not heavy["plausible"] and heavy["ratio"] == 2.25
-    moved = single_page.link_plausibility(cad | {"a.mcx": 0.45}, cad)[0]  # c from 0.1 to 0.225 m
-    assert not moved["plausible"] and moved["com_shift"] == pytest.approx(0.125)
-    impossible = single_page.link_plausibility(cad | {"a.Ixx": 0.5}, cad)[0]  # triangle inequality broken
-    assert not impossible["plausible"] and impossible["min_eigenvalue"] < 0
+def test_the_page_reads_the_recorded_verdict_and_judges_nothing_itself(validated_run):
+    """One rule: a link the record calls implausible is implausible on the page, with the record's
+    reason, whatever its numbers look like (the page used to apply its own "within 10 cm of CAD")."""
+    _, folder = validated_run
+    document = json.loads((folder / "result.json").read_text())
+    record = document["payload"]["estimate"]["details"]["plausibility"]
+    record["links"]["link2"] |= {"plausible": False, "reasons": ["a reason only the record knows"]}
+    record["implausible"] = ["link2"]
+    html = single_page.render(document, folder)
+    links = Page(html).rows("plausibility")
+    assert links["link2"][6][0] == "no" and links["link2"][7][0] == "a reason only the record knows"
+    assert links["link1"][6][0] == ("yes" if record["links"]["link1"]["plausible"] else "no")
+    assert "implausible: link2" in html
+    del document["payload"]["estimate"]["details"]["plausibility"]
+    assert "No plausibility verdict recorded" in single_page.render(document, folder)
 
 
 def test_every_recorded_reason_is_a_choice_on_the_page():
@@ -179,7 +187,7 @@ def test_the_compare_page_sets_parameters_side_by_side_in_sigma_units(validated_
     a = json.loads((validated_run[1] / "result.json").read_text())
     b = json.loads((second_run / "result.json").read_text())
     page = Page(compare.render(a, b, ("A", "B")))
-    assert page.sections == ["runs", "held-out", "parameters", "config"]
+    assert page.sections == ["runs", "held-out", "plausibility", "parameters", "config"]
     offline(page)
     base = page.rows("base-parameters")
     std_a = a["payload"]["estimate"]["details"]["uncertainty"]["std"]
@@ -189,6 +197,13 @@ def test_the_compare_page_sets_parameters_side_by_side_in_sigma_units(validated_
         pa, pb = a["payload"]["estimate"]["base_params"][name], b["payload"]["estimate"]["base_params"][name]
         assert value(cells[0]) == pa and value(cells[2]) == pb
         assert value(cells[5]) == pytest.approx((pb - pa) / math.hypot(std_a[name], std_b[name]), rel=1e-12)
+    verdicts = page.rows("plausibility")  # each run's recorded verdict, link by link
+    for k, document in ((0, a), (3, b)):
+        record = document["payload"]["estimate"]["details"]["plausibility"]["links"]
+        assert set(verdicts) == set(record)
+        for link, cells in verdicts.items():
+            assert cells[k][0] == ("yes" if record[link]["plausible"] else "no")
+            assert cells[k + 2][0] == "; ".join(record[link]["reasons"])
     config = page.rows("config")
     assert config["plugins.estimator.name"] == [("ls", None), ("pcls", None)]
     (file,) = a["payload"]["validation"]

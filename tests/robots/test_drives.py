@@ -319,3 +319,66 @@ def test_pcls_keeps_armature_nonnegative_and_merged_armature_at_its_prior():
     assert estimate["j1.armature"] == pytest.approx(
         float(robot.nominal_params()[robot.param_names.index("j1.armature")]), rel=1e-6
     )
+
+
+@pytest.mark.parametrize("friction", [True, "asymmetric"])
+def test_a_coulomb_velocity_scale_makes_the_coulomb_term_a_tanh(friction):
+    """``coulomb_velocity=v``: the friction by hand with ``tanh(q̇ / v)`` for ``sign(q̇)`` (per joint),
+    exactly; 0 and ``auto`` keep the sign; the regressor stays exact (one linear coefficient)."""
+    scales = [0.01, 0.02, 0.05, 0.1]
+    robot = quiet_robot(TREE_DRIVES, friction=friction, offset=True, coulomb_velocity=scales)
+    plain = quiet_robot(TREE_DRIVES, friction=friction, offset=True)
+    params = drive_values(robot, seed=5)
+    q, qd, qdd = random_states(robot, 40, seed=2)
+    qd = qd * torch.logspace(-3, 0, 40, dtype=torch.float64)[:, None]  # slow samples too
+    smooth = np.tanh(qd.numpy() / np.array(scales))
+    value = {s: params[[robot.param_names.index(f"{j}.{s}") for j in robot.joint_names]].numpy()
+             for s in robot.drives.suffixes}  # fmt: skip
+    if friction is True:
+        coulomb = value["fc"] * smooth
+    else:
+        coulomb = value["fc_pos"] * (1 + smooth) / 2 - value["fc_neg"] * (1 - smooth) / 2
+    sign = friction_by_hand(plain, params.numpy(), qd.numpy()) - value["fv"] * qd.numpy()
+    expected = plain.inverse_dynamics(params, q, qd, qdd).numpy() - sign + coulomb
+    np.testing.assert_allclose(
+        robot.inverse_dynamics(params, q, qd, qdd).numpy(), expected, rtol=0, atol=1e-10
+    )
+    torch.testing.assert_close(
+        robot.standard_regressor(q, qd, qdd) @ params, robot.inverse_dynamics(params, q, qd, qdd)
+    )
+    for keep in (0, "auto", None):
+        same = quiet_robot(TREE_DRIVES, friction=friction, offset=True, coulomb_velocity=keep)
+        torch.testing.assert_close(
+            same.inverse_dynamics(params, q, qd, qdd), plain.inverse_dynamics(params, q, qd, qdd)
+        )
+
+
+def test_tanh_coulomb_equals_the_sigmoid_model_at_zero_shift():
+    """``fc tanh(q̇ / v)`` is Gaz et al.'s sigmoid with ``φ1 = 2 fc``, ``φ2 = 2 / v``, ``φ3 = 0``: two
+    code paths, one law."""
+    v, fc = 0.04, 0.7
+    tanh = URDFRobot("cylindrical", friction=True, coulomb_velocity=v)
+    sigmoid = URDFRobot("cylindrical", friction="sigmoid", sigmoid_steepness=2 / v)
+    qd = torch.linspace(-0.3, 0.3, 61, dtype=torch.float64)[:, None].expand(-1, 3).contiguous()
+    q, qdd = torch.zeros_like(qd), torch.zeros_like(qd)
+    a = with_drive_values(tanh.param_names, tanh.joint_names, tanh.nominal_params(), {"fc": [fc] * 3})
+    b = with_drive_values(
+        sigmoid.param_names, sigmoid.joint_names, sigmoid.nominal_params(), {"phi1": [2 * fc] * 3}
+    )
+    torch.testing.assert_close(tanh.inverse_dynamics(a, q, qd, qdd), sigmoid.inverse_dynamics(b, q, qd, qdd))
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"friction": True, "coulomb_velocity": -0.1}, r"coulomb_velocity=-0.1 needs 'auto', 0 \(the sign\)"),
+        ({"friction": True, "coulomb_velocity": "fast"}, r"coulomb_velocity='fast' needs 'auto'"),
+        ({"friction": True, "coulomb_velocity": [0.1, 0.2]}, r"or 3 of them \(joints: theta1, d2, d3\)"),
+        ({"friction": True, "coulomb_velocity": [0.1, 0.0, 0.2]}, "mixes 0 .the sign. with scales > 0"),
+        ({"friction": "sigmoid", "coulomb_velocity": 0.1}, "needs friction=true or 'asymmetric'"),
+        ({"coulomb_velocity": 0.1}, "needs friction=true or 'asymmetric', got False"),
+    ],
+)
+def test_a_bad_coulomb_velocity_is_refused_in_one_line(options, message):
+    with pytest.raises(ValueError, match=message):
+        URDFRobot("cylindrical", **options)

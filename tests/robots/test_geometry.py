@@ -212,6 +212,7 @@ def test_malformed_geometry_is_left_out_and_said():
     assert geometry.summary().startswith(
         "geometry bounds 0 of 1 bodies; no usable geometry on a; left out: a: collision box"
     )
+    assert geometry.bounded_by() == {"a": "nothing: no usable geometry"}
 
 
 # ----------------------------------------------------------------------- Wensing, Kim & Slotine
@@ -409,10 +410,10 @@ def test_a_missing_or_unread_mesh_is_said_and_visual_geometry_stands_in(tmp_path
     assert "no usable geometry on c" in geometry.summary()
 
 
-def test_built_once_per_robot_and_read_only():
+def test_built_once_per_robot_and_read_only(tmp_path):
     robot = URDFRobot(one_link_urdf('<collision><geometry><sphere radius="0.1"/></geometry></collision>'))
     first = body_geometry(robot)
-    assert body_geometry(robot) is first and body_geometry(robot, ["elsewhere"]) is not first
+    assert body_geometry(robot) is first and body_geometry(robot, [tmp_path]) is not first
     with pytest.raises(ValueError, match="read-only"):
         first.bodies["a"].ellipsoid_centre[0] = 1.0
 
@@ -551,3 +552,39 @@ def test_unnamed_welded_mjcf_bodies_and_height_fields():
     )
     np.testing.assert_allclose([body.box_lo, body.box_hi], [[-0.3, -0.2, -0.1], [0.3, 0.6, 0.6]])
     assert geometry.missing == ()
+
+
+def test_a_placeholder_is_named_and_bounds_nothing():
+    """A 1 cm box on a 1 kg link (it would be 370,000 kg/m³) is a placeholder: named, not a bound; a
+    10 cm box on the same link is its shape, listed by name with what bounds it."""
+    tiny = body_geometry(
+        URDFRobot(one_link_urdf('<collision><geometry><box size="0.01 0.01 0.01"/></geometry></collision>'))
+    )
+    assert tiny.bodies["a"] is None
+    assert tiny.placeholders == {
+        "a": "collision box of 1 cm, far smaller than a body of its CAD mass 1 kg can be"
+    }
+    assert tiny.bounded_by() == {"a": f"nothing: {tiny.placeholders['a']}"}
+    assert (
+        tiny.summary()
+        == f"geometry bounds 0 of 1 bodies; placeholder geometry, not used: a ({tiny.placeholders['a']})"
+    )
+    real = body_geometry(
+        URDFRobot(one_link_urdf('<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision>'))
+    )
+    assert real.bodies["a"] is not None and not real.placeholders
+    assert real.summary() == "geometry bounds 1 of 1 bodies; bounded: a (collision box)"
+
+
+def test_a_package_folder_that_does_not_exist_is_refused_in_one_line(tmp_path):
+    urdf = one_link_urdf('<collision><geometry><sphere radius="0.1"/></geometry></collision>')
+    with pytest.raises(
+        ValueError, match=r"^urdf: package_dirs names '/no/such/folder', which does not exist$"
+    ):
+        URDFRobot(urdf, package_dirs=["/no/such/folder"])
+    (tmp_path / "file.txt").write_text("x")
+    with pytest.raises(ValueError, match=r"which is a file, not a folder$"):
+        URDFRobot(urdf, package_dirs=[str(tmp_path / "file.txt")])
+    with pytest.raises(ValueError, match=r"^geometry: package_dirs names 'nowhere', which does not exist$"):
+        body_geometry(URDFRobot(urdf), ["nowhere"])
+    assert URDFRobot(urdf, package_dirs=[str(tmp_path)]).package_dirs == [str(tmp_path)]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from functools import partial
 
 import mujoco
 import numpy as np
@@ -15,6 +16,10 @@ from idkit.notes import Note
 from idkit.sim.from_run import check_motor_driven, is_run_folder, read_torque_run
 from idkit.sim.model import load_model
 from idkit.sim.passive_bounds import caps, derived_bounds, rms_acceleration
+from idkit.studies.build import build
+
+#: The study's robot builder, as the rollout study passes it.
+ROBOT = partial(build, "robot")
 
 #: A pendulum (a 2 kg point-like ball 0.5 m below a hinge) and a second hinge below it, no actuators.
 ARM = """<mujoco><worldbody><body><joint name="a" axis="0 1 0" damping="0.4" frictionloss="0.2"/>
@@ -50,7 +55,7 @@ def _log(n=400, torque=(1.0, 0.5)):
 def test_a_run_folder_gives_its_model_scale_and_offsets(tmp_path):
     folder = _run_folder(tmp_path / "run", scale=[2.0, 3.0])
     assert is_run_folder(folder) and not is_run_folder(ARM)
-    run = read_torque_run(folder)
+    run = read_torque_run(folder, ROBOT)
     assert run.joint_names == ("a", "b")
     np.testing.assert_array_equal(run.effort_scale, [2.0, 3.0])
     np.testing.assert_array_equal(run.offsets, [0.25, 0.0])
@@ -58,13 +63,13 @@ def test_a_run_folder_gives_its_model_scale_and_offsets(tmp_path):
 
 
 def test_logged_torques_are_unit_scale_and_bad_folders_are_refused(tmp_path):
-    assert read_torque_run(_run_folder(tmp_path / "torques")).effort_scale.tolist() == [1.0, 1.0]
+    assert read_torque_run(_run_folder(tmp_path / "torques"), ROBOT).effort_scale.tolist() == [1.0, 1.0]
     with pytest.raises(ValueError, match="not a run folder"):
-        read_torque_run(tmp_path)
+        read_torque_run(tmp_path, ROBOT)
     with pytest.raises(ValueError, match="not a torque fit's result"):
-        read_torque_run(_run_folder(tmp_path / "rollout", task="rollout"))
+        read_torque_run(_run_folder(tmp_path / "rollout", task="rollout"), ROBOT)
     with pytest.raises(ValueError, match="effort_scale"):
-        read_torque_run(_run_folder(tmp_path / "negative", scale=[1.0, -1.0]))
+        read_torque_run(_run_folder(tmp_path / "negative", scale=[1.0, -1.0]), ROBOT)
 
 
 def test_a_servo_driven_joint_is_refused_and_a_motors_gear_divides_the_torque(tmp_path):
@@ -79,7 +84,7 @@ def test_a_servo_driven_joint_is_refused_and_a_motors_gear_divides_the_torque(tm
     t = np.arange(10) * 0.01
     np.savez(folder / "log.npz", t=t, q=np.zeros((10, 2)), qd=np.zeros((10, 2)), tau=np.ones((10, 2)))
     sim = load_model(geared)
-    log = read_torque_run(folder).reader(sim)(folder / "log.npz")
+    log = read_torque_run(folder, ROBOT).reader(sim)(folder / "log.npz")
     np.testing.assert_allclose(log.commands[0], [(1.0 - 0.25) / 4, 1.0])
 
 
@@ -118,7 +123,7 @@ def test_zero_starts_get_derived_bounds_with_a_note_and_positive_starts_keep_the
 
 
 def test_the_run_folders_model_loads_with_one_motor_per_joint(tmp_path):
-    run = read_torque_run(_run_folder(tmp_path / "run"))
+    run = read_torque_run(_run_folder(tmp_path / "run"), ROBOT)
     sim = load_model(run.mjcf)
     assert sim.model.nu == 2
     assert all(sim.model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT for a in range(2))
@@ -128,7 +133,7 @@ def test_the_simulator_and_its_identified_xml_have_no_contacts(tmp_path):
     from idkit.sim.export import identified_xml
     from idkit.sim.quantities import select_unknowns
 
-    run = read_torque_run(_run_folder(tmp_path / "run"))
+    run = read_torque_run(_run_folder(tmp_path / "run"), ROBOT)
     with pytest.warns(Note, match="contacts disabled"):
         sim = run.model()
     assert sim.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT

@@ -45,7 +45,11 @@ def test_run_writes_the_common_envelope_and_the_single_payload(tmp_path):
     for name, value in params.items():
         true = payload["truth"][name]
         assert payload["relative_error"][name] == pytest.approx((value - true) / abs(true), rel=1e-12)
-    assert payload["cost"] == {"name": "f1", "value": pytest.approx(result.estimate.cost)}
+    assert payload["cost"] == {
+        "name": "f1",
+        "value": pytest.approx(result.estimate.cost),
+        "used_by_fit": False,
+    }
     assert data["plugins"]["estimator"]["distribution"] == "robot-idkit"
     assert data["plugins"]["cost"]["name"] == "f1"
     assert (tmp_path / "estimate.png").stat().st_size > 0

@@ -14,8 +14,11 @@ between joints at one instant is kept), the Bartlett-weighted autocovariances of
 summed over time lags as in Driscoll & Kraay (1998), and the bandwidth ``L`` chosen from the data by
 Andrews' (1991) AR(1) plug-in rule: a few lags for white residuals (``L = 0`` is White's
 heteroscedasticity-consistent estimate), hundreds of samples for residuals correlated over a second.
-It is scaled by ``M / (M − B)``, the factor that makes it the textbook formula for white residuals
-of equal variance. Measured coverage on the README's tour: ``docs/uncertainty.md``.
+Each sample's residuals are leverage-adjusted first (:func:`sandwich`: the jackknife's
+``(1 − H_ii)⁻¹``), which on a long recording changes nothing and on the paper's 10 samples is what
+brings the coverage of its 95 % intervals from 70–80 % towards 95 %. Where the σ come from, in
+words, is :mod:`idkit.std_source`'s record (``method`` and ``std_source`` in the details).
+Measured coverage on the README's tour: ``docs/uncertainty.md``.
 
 An estimate pulled away from least squares — ``pcls``'s, by its prior towards the CAD model and by its
 constraints — is biased by the pull, which the sandwich (the scatter of the data) does not see. With
@@ -41,9 +44,13 @@ import torch
 from torch import Tensor
 
 from idkit.estimators.linear.observation import Conditioning, _null_directions
+from idkit.std_source import describe
 
 #: The largest lag-1 correlation of a score column the bandwidth rule takes (``long_run_covariance``).
 MAX_LAG_CORRELATION = 0.99
+#: The largest eigenvalue of a sample's leverage the sandwich takes (``sandwich``): a sample that
+#: alone fixes a direction has a zero residual along it, which no factor would make an error.
+MAX_LEVERAGE = 0.99
 
 
 @dataclass(frozen=True)
@@ -76,6 +83,11 @@ class BaseUncertainty:
     unidentifiable: tuple[str, ...]
     pull: Tensor | None = None
 
+    @property
+    def method(self) -> str:
+        """The key of :data:`idkit.std_source.METHODS` these σ follow."""
+        return "hac" if self.pull is None else "hac+pull"
+
     def to_details(self) -> dict[str, Any]:
         """``{"uncertainty": {...}}`` for an estimate's ``details`` (name-keyed maps)."""
         pull = {} if self.pull is None else {"pull": dict(zip(self.names, self.pull.tolist(), strict=True))}
@@ -85,7 +97,8 @@ class BaseUncertainty:
                 "std_rel_pct": dict(zip(self.names, self.relative_pct.tolist(), strict=True)),
                 "sigma2": self.sigma2,
                 "dof": self.dof,
-                "method": "hac",
+                "method": self.method,
+                "std_source": describe(self.method),
                 "bandwidth": self.bandwidth,
                 "rank": self.rank,
                 "cond": self.cond,
@@ -135,12 +148,11 @@ def base_uncertainties(
     dof = M - B
     residual = tau - (W @ alpha[..., None])[..., 0]
     sigma2 = residual.square().sum(-1) / dof if dof > 0 else torch.full_like(residual[..., 0], math.nan)
-    scores = (W / scale[..., None, :] * residual[..., None]).reshape(*W.shape[:-2], M // joints, joints, B)
-    meat, bandwidth = long_run_covariance(scores.sum(-2))
     inverse = torch.where(kept, 1 / sigma, torch.zeros_like(sigma))  # 1/s_k on kept directions only
     bread = (Vh.mT * inverse[..., None, :].square()) @ Vh  # (W̃ᵀW̃)⁺ of the equilibrated W̃
-    correction = M / dof if dof > 0 else math.nan  # the textbook formula's M − B, for white residuals
-    variance = (bread @ meat @ bread).diagonal(dim1=-2, dim2=-1) * correction / scale.square()
+    covariance, bandwidths = sandwich(W / scale[..., None, :], residual, bread, joints)
+    bandwidth = [b[0] for b in bandwidths]
+    variance = covariance.diagonal(dim1=-2, dim2=-1) / scale.square()
     pull = None
     if pulled:
         least_squares = (Vh.mT @ (inverse * (U.mT @ tau[..., None])[..., 0])[..., None])[..., 0] / scale
@@ -167,6 +179,43 @@ def base_uncertainties(
         )
         for t in range(len(ranks))
     ]
+
+
+def sandwich(
+    X: Tensor, residual: Tensor, bread: Tensor, joints: int, starts: Sequence[int] = (0,)
+) -> tuple[Tensor, list[list[int]]]:
+    """``Cov[T, B, B] = bread · S · bread`` of the module doc for rows ``X[T, M, B]`` and their
+    least-squares residuals ``residual[T, M]`` (``bread[T, B, B] = (XᵀX)⁺``), and each trial's
+    bandwidths.
+
+    Each sample's residuals (its ``joints`` rows) are leverage-adjusted first, ``e*_i = (1 − H_ii)⁻¹ e_i``
+    with ``H_ii = X_i bread X_iᵀ`` (the jackknife's, MacKinnon & White 1985, per sample as for
+    clustered rows): a fitted residual is smaller than the error it stands for, by a share the
+    sample's own leverage sets — nothing on a long recording, a third on the paper's 10 samples, where
+    the plain sandwich covered 70–80 % instead of 95 %. Eigenvalues of ``H_ii`` are taken at most
+    :data:`MAX_LEVERAGE`.
+
+    ``starts``: the first row of each recording (sample-aligned, ascending): recordings are
+    independent of one another, so their long-run covariances add and no lag crosses from one into
+    the next.
+    """
+    T, M, B = X.shape
+    grouped = X.reshape(T, M // joints, joints, B)
+    leverage = grouped @ bread[:, None] @ grouped.mT  # [T, N, n, n]
+    eigenvalues, vectors = torch.linalg.eigh(leverage)
+    factor = 1 / (1 - eigenvalues.clamp(max=MAX_LEVERAGE))
+    errors = residual.reshape(T, M // joints, joints, 1)
+    adjusted = vectors @ (factor[..., None] * (vectors.mT @ errors))
+    scores = (grouped * adjusted).sum(-2)  # [T, N, B]: each sample's g_i
+    edges = [start // joints for start in starts] + [M // joints]
+    meat = torch.zeros_like(bread)
+    bandwidths: list[list[int]] = [[] for _ in range(T)]
+    for first, last in zip(edges[:-1], edges[1:], strict=True):
+        part, lags = long_run_covariance(scores[:, first:last])
+        meat = meat + part
+        for t, lag in enumerate(lags):
+            bandwidths[t].append(lag)
+    return bread @ meat @ bread, bandwidths
 
 
 def long_run_covariance(scores: Tensor) -> tuple[Tensor, list[int]]:
