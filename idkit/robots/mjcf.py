@@ -349,10 +349,9 @@ class MJCFRobot(URDFRobot):
         mjcf: an MJCF file path, MJCF text, or the name of an MJCF shipped in ``idkit/robots/assets``
             (default ``arm``: two hinges and a slide). Read with ``mujoco``: ``pip install
             robot-idkit[mjcf]``.
-        friction, offset, stribeck_velocity, effort_scale, sigmoid_steepness, sigmoid_shift,
-        coulomb_velocity: as for
-            :class:`~idkit.robots.urdf.URDFRobot` (``fc`` is MuJoCo's ``frictionloss``, ``fv`` its
-            ``damping``).
+        friction, offset, stribeck_velocity, effort_scale: as for :class:`~idkit.robots.urdf.URDFRobot`
+            (``fc`` is MuJoCo's ``frictionloss``, ``fv`` its ``damping``).
+        sigmoid_steepness, sigmoid_shift, coulomb_velocity: as for :class:`~idkit.robots.urdf.URDFRobot`.
         armature: as for :class:`~idkit.robots.urdf.URDFRobot`; the a-priori value is the joint's
             MuJoCo ``armature``. A model with a non-zero ``armature`` needs ``armature=True``:
             ``mj_inverse`` adds ``armature · q̈``, which the model would otherwise lack.
