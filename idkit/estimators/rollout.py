@@ -62,6 +62,13 @@ TIGHT, LOOSE = 1e-6, 1e-4
 EXACT = 0.1
 #: The search's trim of the default score (a fraction of each channel's samples).
 TRIM = 0.1
+#: Levenberg–Marquardt iterations at most per solve of the polish, from a guessed start and from a
+#: fitted model's (a torque run, whose rigid body and friction are already fitted: what is left is
+#: model error, which more iterations fit no better; measured on a real arm, docs/rollout.md: 5 per
+#: solve and one solve per stage give the held-out figures of 50 and 3 at a sixth of the rollouts).
+POLISH_ITERATIONS, FITTED_POLISH_ITERATIONS = 50, 5
+#: Solves at most per robust stage from a fitted model's start (the scale estimated once per stage).
+FITTED_ROUNDS = 1
 
 
 class RolloutEstimator(Estimator[RolloutProblem]):
@@ -71,12 +78,14 @@ class RolloutEstimator(Estimator[RolloutProblem]):
         particles: particles per swarm (one swarm per joint, one for the shared unknowns); ``None``:
             ``4 + 2w`` for swarms of at most ``w`` unknowns (at most 32).
         iterations: evaluations per particle (0: no search, the polish starts at the problem's start);
-            ``None``: ``10 + 2w`` (at most 40).
+            ``None``: ``10 + 2w`` (at most 40), half that from a fitted start (``problem.start_fitted``).
         cooperative: one swarm per joint (``True``) or one swarm over every unknown.
         search_share: the share of the log's segments the search simulates (evenly spread).
         loss: the polish's loss: ``huber``, ``cauchy`` (its pull vanishes for large errors) or
             ``linear`` (least squares); its scale is the robust one, never set by hand.
-        polish_iterations: Levenberg–Marquardt iterations at most per scale re-estimate.
+        polish_iterations: Levenberg–Marquardt iterations at most per scale re-estimate; ``None``:
+            :data:`POLISH_ITERATIONS`, or :data:`FITTED_POLISH_ITERATIONS` when the start is a fitted
+            model (``problem.start_fitted``: a torque fit's run folder).
         free_initial: fit every segment's initial state in the polish's robust stages.
         threads: rollout threads (``None``: the problem's).
         jacobian_every: polish iterations at most per finite-difference Jacobian (each costs a
@@ -97,7 +106,7 @@ class RolloutEstimator(Estimator[RolloutProblem]):
         cooperative: bool = True,
         search_share: float = 0.35,
         loss: Loss = "huber",
-        polish_iterations: int = 50,
+        polish_iterations: int | None = None,
         free_initial: bool = True,
         threads: int | None = None,
         jacobian_every: int = 3,
@@ -120,7 +129,7 @@ class RolloutEstimator(Estimator[RolloutProblem]):
             raise ValueError(
                 f"rollout: particles >= 1 and iterations >= 0 (or null), got {particles}, {iterations}"
             )
-        if self.polish_iterations < 0:
+        if self.polish_iterations is not None and self.polish_iterations < 0:
             raise ValueError(f"rollout: polish_iterations must be >= 0, got {self.polish_iterations}")
         if not 0 < self.search_share <= 1:
             raise ValueError(f"rollout: search_share must be in (0, 1], got {self.search_share}")
@@ -157,7 +166,7 @@ class RolloutEstimator(Estimator[RolloutProblem]):
             start = unknowns.to_coordinates(unknowns.vector("start"))
             found = _search(problem, search_sim, self, start) if self.iterations != 0 else None
             z = found.x if found is not None else start
-            polished = _polish(problem, (search_sim, full_sim), z, self)
+            polished = _polish(problem, (search_sim, full_sim), z, self, _polish_iterations(problem, self))
         finally:
             for simulator in {id(s): s for s in (search_sim, full_sim) if s is not None}.values():
                 simulator.close()
@@ -200,6 +209,13 @@ class RolloutEstimator(Estimator[RolloutProblem]):
             f"polish_iterations={self.polish_iterations}, free_initial={self.free_initial}, "
             f"threads={self.threads}, jacobian_every={self.jacobian_every})"
         )
+
+
+def _polish_iterations(problem: RolloutProblem, options: RolloutEstimator) -> int:
+    """Iterations at most per polish solve: the option, else by where the start comes from."""
+    if options.polish_iterations is not None:
+        return options.polish_iterations
+    return FITTED_POLISH_ITERATIONS if problem.start_fitted else POLISH_ITERATIONS
 
 
 def _simulators(problem: RolloutProblem, share: float, threads: int | None) -> tuple[Any, Any, tuple]:
@@ -264,6 +280,8 @@ def _search(
     width = max(len(b) for b in blocks)
     particles = options.particles or min(32, 4 + 2 * width)
     iterations = options.iterations if options.iterations is not None else min(40, 10 + 2 * width)
+    if options.iterations is None and problem.start_fitted:
+        iterations = (iterations + 1) // 2  # a fitted start: its best found early (docs/rollout.md)
     calls, best = [0], [np.inf]  # for the progress lines
 
     def objective(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -279,7 +297,11 @@ def _search(
 
 
 def _polish(
-    problem: RolloutProblem, simulators: tuple[Any, Any], z: np.ndarray, options: RolloutEstimator
+    problem: RolloutProblem,
+    simulators: tuple[Any, Any],
+    z: np.ndarray,
+    options: RolloutEstimator,
+    iterations: int,
 ) -> dict[str, Any]:
     """Levenberg–Marquardt, coarse to fine (``_STAGES``): least squares on the search's segments from
     their start states (fast from far; exact on a noiseless log, which ends the polish), then the robust
@@ -291,12 +313,14 @@ def _polish(
     x, offsets = z, dict[int, np.ndarray]()
     shooting: Shooting | None = None
     stages = _STAGES if search_sim is not full_sim else _STAGES[:1] + _STAGES[2:]
-    for subset, robust in stages:
+    for subset, robust, rounds in stages:
         simulator = search_sim if subset else full_sim
         shooting = Shooting(problem, simulator, options.free_initial and robust)
         x = shooting.start(x[: len(z)], offsets)
         scales = None
-        for round_ in range(ROUNDS if robust else 1):
+        if problem.start_fitted:
+            rounds = min(rounds, FITTED_ROUNDS)
+        for round_ in range(rounds):
             new = _robust_scales(problem, shooting, x)
             if np.all(new < EXACT):
                 return _finish(
@@ -305,9 +329,9 @@ def _polish(
             settled = scales is not None and bool(np.all(np.abs(np.log(new / scales)) < SETTLED))
             if scales is None or not settled:
                 scales = new
-            last = settled or round_ == ROUNDS - 1 or not robust
+            last = settled or round_ == rounds - 1
             tight = last and not subset
-            x = _solve(shooting, x, scales, options, robust, tight, record)
+            x = _solve(shooting, x, scales, options, robust, tight, record, iterations)
             if last or options.loss == "linear":
                 break
         offsets = shooting.offsets(x)
@@ -316,8 +340,9 @@ def _polish(
     return _finish(problem, shooting, x, record, options, exact)
 
 
-#: The polish's stages: (on the search's segments only, robust loss with free initial states).
-_STAGES = ((True, False), (True, True), (False, True))
+#: The polish's stages: (on the search's segments only, robust loss with free initial states, solves at
+#: most; from a fitted start at most ``FITTED_ROUNDS``).
+_STAGES = ((True, False, 1), (True, True, ROUNDS), (False, True, ROUNDS))
 
 
 def _robust_scales(problem: RolloutProblem, shooting: Shooting, x: np.ndarray) -> np.ndarray:
@@ -333,6 +358,7 @@ def _solve(
     robust: bool,
     tight: bool,
     record: list,
+    iterations: int,
 ) -> np.ndarray:
     """One Levenberg–Marquardt solve at fixed channel scales: least squares (``robust=False``: fast from
     far, and exact on a noiseless log) or the robust loss; the last (``tight``) with Huber's own Hessian
@@ -360,7 +386,7 @@ def _solve(
         loss,
         TUNING[loss] / root,
         hessian="newton" if tight else "irls",
-        max_iter=options.polish_iterations,
+        max_iter=iterations,
         ftol=TIGHT if tight else LOOSE,
         xtol=1e-7,
         refresh=options.jacobian_every,

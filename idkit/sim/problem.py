@@ -123,6 +123,8 @@ class RolloutProblem(IdentificationProblem):
         device, dtype: where torch costs are evaluated (rollouts are MuJoCo's, float64 on the CPU).
         leave_out_stalls: leave a driver's stalled rows out of the error (:mod:`idkit.data.artefacts`);
             ``False`` fits them as data (to measure what they do).
+        start_fitted: the start is a fitted model's (a torque fit's run folder), not a guess: the
+            estimator may polish it with a shorter schedule (``RolloutEstimator.polish_iterations``).
     """
 
     robot: SimRobot
@@ -134,6 +136,7 @@ class RolloutProblem(IdentificationProblem):
     device: str = "cpu"
     dtype: Any = "float64"
     leave_out_stalls: bool = True
+    start_fitted: bool = False
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:

@@ -286,6 +286,7 @@ def run(
         threads=threads,
         device=device,
         dtype=dtype,
+        start_fitted=torque_run is not None,
     )
     _note_artefacts(problem)
     fitter = build("estimator", estimator)

@@ -11,7 +11,12 @@ import pytest
 
 from idkit import registry
 from idkit.data.commands import RobotLog
-from idkit.estimators.rollout import RolloutEstimator
+from idkit.estimators.rollout import (
+    FITTED_POLISH_ITERATIONS,
+    POLISH_ITERATIONS,
+    RolloutEstimator,
+    _polish_iterations,
+)
 from idkit.problem import Problem
 from idkit.sim.model import load_model
 from idkit.sim.problem import RolloutProblem, SimRobot
@@ -36,6 +41,20 @@ def test_recovers_case_a_from_far_starts():
         estimate = RolloutEstimator().fit(cases.problem_of(case, start, threads=1))
         assert _errors(estimate, case.truth).max() < 1e-6
         assert estimate.details.exact_fit
+
+
+def test_a_fitted_start_gets_the_short_polish_unless_told():
+    case = cases.case_a()
+    fitted = cases.problem_of(case, case.start, threads=1, start_fitted=True)
+    guessed = cases.problem_of(case, case.start, threads=1)
+    assert _polish_iterations(guessed, RolloutEstimator()) == POLISH_ITERATIONS
+    assert _polish_iterations(fitted, RolloutEstimator()) == FITTED_POLISH_ITERATIONS < POLISH_ITERATIONS
+    assert _polish_iterations(fitted, RolloutEstimator(polish_iterations=7)) == 7
+    estimate = RolloutEstimator().fit(fitted)
+    assert estimate.details.polish
+    assert max(solve.iterations for solve in estimate.details.polish) <= FITTED_POLISH_ITERATIONS
+    searched = RolloutEstimator().fit(guessed).details.search
+    assert estimate.details.search.evaluations < searched.evaluations  # half the swarm's iterations
 
 
 def test_is_robust_to_glitches_without_a_tuned_scale():
