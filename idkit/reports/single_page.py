@@ -193,7 +193,11 @@ def _identifiability(details: Mapping[str, Any]) -> str:
             "<p>Ended at a bound of the search (the data may want a value outside it):</p>"
             + h.listing(f"{h.escape(name)} {h.escape(where)}".strip() for name, where in items)
         )
-    if not parts:
+    if not parts and "payload" in details:
+        parts.append(
+            h.paragraph("The payload's standard deviations and what it leaves free are in its verdict above.")
+        )
+    elif not parts:
         parts.append(h.paragraph("This estimator reports no uncertainty or identifiability figures."))
     return "".join(parts)
 

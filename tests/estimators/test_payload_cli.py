@@ -49,10 +49,10 @@ def test_the_command_prints_and_writes_the_payload(files, run_idkit, capsys):
     )
     assert status == 0, said
     # no reference given: the report says that the arm model's error is not in the stds
-    assert (
-        "no reference: the arm model (its inertials, friction and offsets) is taken as exact"
-        in (run / "report.html").read_text()
-    )
+    page = (run / "report.html").read_text()
+    assert "no reference: the arm model (its inertials, friction and offsets) is taken as exact" in page
+    # its σ are in the payload's verdict: the page does not also say that the fit reports none
+    assert "reports no uncertainty" not in page and "standard deviations and what it leaves free" in page
     result = json.loads((run / "result.json").read_text())
     block = result["payload"]["estimate"]["details"]["payload"]
     assert block["mass"] == pytest.approx(MASS, rel=1e-8)
