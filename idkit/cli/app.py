@@ -80,6 +80,7 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
     # a DictConfig's container is a dict with string keys; OmegaConf's signature allows any container
     resolved = cast("dict[str, Any]", OmegaConf.to_container(cfg, resolve=True))
     kwargs = arguments(cfg.task, resolved, study)
+    plots = check_setting("plots", cfg.plots, bool)  # a bad value is refused before the fit, not after
     takes = inspect.signature(study).parameters
     if "progress" in takes:  # a bar on a terminal; in a log file its redraws would pile up
         kwargs["progress"] = sys.stderr.isatty()
@@ -98,7 +99,7 @@ def _run(cfg: DictConfig, run_dir: Path) -> Any:
             file=sys.stderr,
         )
         sys.exit(INTERRUPTED)
-    written = _write(report, result, resolved, run_dir, plots=check_setting("plots", cfg.plots, bool))
+    written = _write(report, result, resolved, run_dir, plots=plots)
     output.say(report.text(result))
     output.say(f"results: {written['result']}")
     return result
